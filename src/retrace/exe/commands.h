@@ -1,0 +1,13 @@
+#pragma once
+
+// Every subcommand of the `retrace` binary registers itself here: a function that adds a CLI11 subcommand to the
+// app and sets its callback. The callback throws retrace::InputError on bad input; main() turns that into a
+// one-line message and exit code 1.
+
+#include <CLI/CLI.hpp>
+
+namespace retrace {
+
+void RegisterVersionCommand(CLI::App& app);
+
+}  // namespace retrace
