@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
+#include <opencv2/videoio/registry.hpp>
 #include <spdlog/spdlog.h>
 
 #include "retrace/dataset/text_io.h"
@@ -129,7 +130,10 @@ class ImageListSequence : public Sequence {
 class VideoSequence : public Sequence {
  public:
   explicit VideoSequence(fs::path file) : file_(std::move(file)) {
-    if (!capture_.open(file_.string()) || !capture_.isOpened()) {
+    // FFmpeg reads every common container; asking only it avoids the noisy fall-through of other backends (GStreamer,
+    // image-sequence) on files that are not videos.
+    const int backend = cv::videoio_registry::hasBackend(cv::CAP_FFMPEG) ? cv::CAP_FFMPEG : cv::CAP_ANY;
+    if (!capture_.open(file_.string(), backend) || !capture_.isOpened()) {
       throw InputError(file_.string(), "cannot be opened as a video (unknown format or codec)");
     }
     const double count = capture_.get(cv::CAP_PROP_FRAME_COUNT);
