@@ -48,6 +48,18 @@ void CheckWritten(std::ofstream& out, const std::filesystem::path& path) {
 }  // namespace
 
 Matrix3d NearestRotation(const Matrix3d& m) {
+  // Near a rotation, Newton–Schulz iterations R <- R (3 I - R^T R) / 2 converge quadratically to the orthogonal polar
+  // factor (the nearest rotation) and leave an exact rotation exactly unchanged, which SVD does not (it returns
+  // 1 - 8e-16 on the diagonal of an identity). Far from a rotation, the SVD projection U diag(1, 1, det) V^T.
+  Matrix3d r = m;
+  for (int iteration = 0; iteration < 20; ++iteration) {
+    const Matrix3d error = r.transpose() * r - Matrix3d::Identity();
+    const double deviation = error.cwiseAbs().maxCoeff();
+    if (deviation > 0.1 || !std::isfinite(deviation)) break;
+    if (deviation == 0.0) return r;
+    r = r * (Matrix3d::Identity() - 0.5 * error);
+    if (deviation < 1e-15 && r.determinant() > 0) return r;
+  }
   Eigen::JacobiSVD<Matrix3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
   Matrix3d d = Matrix3d::Identity();
   d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
