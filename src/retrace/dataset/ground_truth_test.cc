@@ -84,6 +84,10 @@ TEST(GroundTruth, KittiBadLinesNameFileAndLine) {
   EXPECT_NE(message.find("line 2"), std::string::npos) << message;
   EXPECT_NE(message.find("'x7' is not a number"), std::string::npos) << message;
 
+  WriteText(dir / "hole.txt", good + "\n" + good);
+  message = ErrorOf([&] { ReadKittiPoses(dir / "hole.txt"); });
+  EXPECT_NE(message.find("hole.txt: line 2: empty line"), std::string::npos) << message;
+
   // A scaled matrix is not a rotation with rounding: refused.
   WriteText(dir / "scaled.txt", good + "2 0 0 0 0 2 0 0 0 0 2 0\n");
   message = ErrorOf([&] { ReadKittiPoses(dir / "scaled.txt"); });

@@ -268,6 +268,25 @@ TEST(Sequence, KittiWriterRoundTripAndMissingFrames) {
   fs::remove_all(dir);
 }
 
+TEST(Sequence, KittiWriterWithoutPoses) {
+  const fs::path dir = testing::MakeTempDir("seq_kitti_nogt");
+  KittiSequenceWriter writer(dir);
+  // A 16-bit frame is stored as 8-bit gray.
+  writer.WriteFrame(cv::Mat(48, 64, CV_16UC1, cv::Scalar(256 * 77)), 0.5);
+  writer.WriteFrame(TestImage(1), 0.75);
+  EXPECT_THROW(writer.WriteFrame(TestImage(2), 1.0, Rigid3d()), std::logic_error);
+  EXPECT_EQ(writer.frames_written(), 2u);
+  std::unique_ptr<Sequence> sequence = OpenSequence(dir);
+  EXPECT_EQ(sequence->layout(), "kitti");
+  EXPECT_FALSE(sequence->ground_truth_file());
+  EXPECT_FALSE(sequence->calibration_file());
+  const std::vector<Frame> frames = ReadAll(*sequence);
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames[0].image.at<uint8_t>(5, 5), 77);
+  EXPECT_EQ(frames[1].timestamp, 0.75);
+  fs::remove_all(dir);
+}
+
 TEST(Sequence, VideoFile) {
   const fs::path dir = testing::MakeTempDir("seq_video");
   const fs::path file = dir / "clip.avi";
