@@ -28,7 +28,8 @@ struct Frame {
   size_t source_index = 0;
   // File name without folder (e.g. "000042.png"), or "frame_000042" for a video.
   std::string name;
-  // Seconds (KITTI: times.txt; EuRoC: ns * 1e-9; folder: times.txt or index / frame_rate; video: stream position).
+  // Seconds (KITTI: times.txt; EuRoC: ns * 1e-9, absolute epoch times ~1.4e9 s, so a double keeps ~0.2 us;
+  // folder: times.txt or index / frame_rate; video: CAP_PROP_POS_MSEC of the frame, else index / fps).
   double timestamp = 0;
   // 8-bit single-channel gray.
   cv::Mat image;
