@@ -11,5 +11,6 @@ namespace retrace {
 void RegisterVersionCommand(CLI::App& app);
 void RegisterSequenceInfoCommand(CLI::App& app);
 void RegisterPerturbCommand(CLI::App& app);
+void RegisterInspectCommand(CLI::App& app);
 
 }  // namespace retrace
