@@ -35,7 +35,11 @@ class Reader {
  public:
   explicit Reader(const std::filesystem::path& path) : source_(path.string()) {}
 
-  [[noreturn]] void Fail(const std::string& problem) const { throw InputError(source_, problem); }
+  // Throws the InputError; the message stays on one line even when it quotes text from the file.
+  [[noreturn]] void Fail(std::string problem) const {
+    std::replace_if(problem.begin(), problem.end(), [](char c) { return c == '\n' || c == '\r'; }, ' ');
+    throw InputError(source_, problem);
+  }
 
   static std::string Trim(const std::string& s) {
     const auto begin = s.find_first_not_of(" \t\r\n");

@@ -9,5 +9,7 @@
 namespace retrace {
 
 void RegisterVersionCommand(CLI::App& app);
+void RegisterCalibrateCommand(CLI::App& app);
+void RegisterCameraInfoCommand(CLI::App& app);
 
 }  // namespace retrace
