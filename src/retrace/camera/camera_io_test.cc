@@ -1,6 +1,7 @@
 #include "retrace/camera/camera_io.h"
 
 #include <fstream>
+#include <random>
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
@@ -298,6 +299,61 @@ TEST_F(CameraIoTest, BadFilesGiveOneLineInputErrors) {
                                         "distortion_model: equidistant\ndistortion_coefficients: [0, 0, 0, 0]\n"),
                    "unknown distortion model 'equidistant'");
   ExpectInputError(Write("other.yaml", "foo: 1\nbar: [1, 2]\n"), "missing key 'camera_matrix'");
+}
+
+TEST_F(CameraIoTest, MutatedFilesNeverCrash) {
+  // Valid files of every YAML flavour, then a thousand random corruptions: each must either read into a sane
+  // camera or throw a one-line InputError, never anything else.
+  LensDistortion d;
+  d.k1 = -0.2;
+  d.p1 = 0.001;
+  WriteCameraFile(PerspectiveCamera(640, 480, 500, 501, 320, 240, 0.0, d), dir_ / "p.yaml");
+  WriteCameraFile(UnifiedCamera(800, 600, 0.9, 300, 301, 400, 300, 0.0, d), dir_ / "u.yaml");
+  std::vector<std::string> bases;
+  for (const char* name : {"p.yaml", "u.yaml"}) {
+    std::ifstream stream(dir_ / name);
+    bases.emplace_back((std::istreambuf_iterator<char>(stream)), std::istreambuf_iterator<char>());
+  }
+  bases.push_back("%YAML:1.0\n---\nimage_width: 752\nimage_height: 480\ncamera_matrix: !!opencv-matrix\n   rows: 3\n"
+                  "   cols: 3\n   dt: d\n   data: [ 458.6, 0., 367.2, 0., 457.3, 248.4, 0., 0., 1. ]\n"
+                  "distortion_coefficients: !!opencv-matrix\n   rows: 5\n   cols: 1\n   dt: d\n"
+                  "   data: [ -0.28, 0.07, 0.0002, 0.00002, 0. ]\n");
+  bases.push_back("resolution: [752, 480]\ncamera_model: pinhole\nintrinsics: [458.654, 457.296, 367.215, 248.375]\n"
+                  "distortion_model: radial-tangential\ndistortion_coefficients: [-0.28, 0.07, 0.0002, 1.7e-05]\n");
+  bases.push_back("P0: 7.07e+02 0 6.01e+02 0 0 7.07e+02 1.83e+02 0 0 0 1 0\nP1: 1 2 3\n");
+  const std::string alphabet = "0123456789.-+eE:[]{},#!&*|>'\"\n\t abcxyz_\\%";
+  std::mt19937 rng(9);
+  int accepted = 0, rejected = 0;
+  for (int trial = 0; trial < 1200; ++trial) {
+    std::string text = bases[trial % bases.size()];
+    const int edits = 1 + trial % 4;
+    for (int e = 0; e < edits && !text.empty(); ++e) {
+      const size_t at = rng() % text.size();
+      switch (rng() % 4) {
+        case 0: text[at] = alphabet[rng() % alphabet.size()]; break;
+        case 1: text.erase(at, 1 + rng() % 12); break;
+        case 2: text.insert(at, text.substr(rng() % text.size(), 1 + rng() % 12)); break;
+        default: text.resize(at); break;
+      }
+    }
+    const auto path = Write("fuzz.yaml", text);
+    try {
+      const auto camera = ReadCameraFile(path, trial % 5 == 4 ? std::optional<cv::Size>(cv::Size(1226, 370))
+                                                              : std::nullopt);
+      ++accepted;
+      EXPECT_GT(camera->width(), 0);
+      EXPECT_GT(camera->height(), 0);
+      EXPECT_TRUE(std::isfinite(camera->FocalLength()) && camera->FocalLength() > 0.0) << text;
+    } catch (const InputError& e) {
+      ++rejected;
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << e.what();
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << "unexpected exception " << e.what() << " for:\n" << text;
+    }
+  }
+  std::printf("mutated files: %d accepted, %d rejected with InputError\n", accepted, rejected);
+  EXPECT_GT(rejected, 400);
+  EXPECT_GT(accepted, 40);
 }
 
 }  // namespace
