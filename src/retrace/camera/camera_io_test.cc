@@ -302,7 +302,7 @@ TEST_F(CameraIoTest, BadFilesGiveOneLineInputErrors) {
 }
 
 TEST_F(CameraIoTest, MutatedFilesNeverCrash) {
-  // Valid files of every YAML flavour, then a thousand random corruptions: each must either read into a sane
+  // Valid files of every YAML flavour, then hundreds of random corruptions: each must either read into a sane
   // camera or throw a one-line InputError, never anything else.
   LensDistortion d;
   d.k1 = -0.2;
@@ -324,7 +324,7 @@ TEST_F(CameraIoTest, MutatedFilesNeverCrash) {
   const std::string alphabet = "0123456789.-+eE:[]{},#!&*|>'\"\n\t abcxyz_\\%";
   std::mt19937 rng(9);
   int accepted = 0, rejected = 0;
-  for (int trial = 0; trial < 1200; ++trial) {
+  for (int trial = 0; trial < 600; ++trial) {
     std::string text = bases[trial % bases.size()];
     const int edits = 1 + trial % 4;
     for (int e = 0; e < edits && !text.empty(); ++e) {
@@ -352,8 +352,8 @@ TEST_F(CameraIoTest, MutatedFilesNeverCrash) {
     }
   }
   std::printf("mutated files: %d accepted, %d rejected with InputError\n", accepted, rejected);
-  EXPECT_GT(rejected, 400);
-  EXPECT_GT(accepted, 40);
+  EXPECT_GT(rejected, 200);
+  EXPECT_GT(accepted, 20);
 }
 
 }  // namespace
