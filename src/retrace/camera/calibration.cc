@@ -30,6 +30,7 @@ int ChessboardCalibrationResult::NumUsed() const {
 
 bool DetectChessboardCorners(const cv::Mat& image, const ChessboardCalibrationOptions& options,
                              std::vector<cv::Point2f>* corners) {
+  corners->clear();
   if (image.empty()) return false;
   cv::Mat gray;
   if (image.channels() == 3) {
@@ -40,27 +41,81 @@ bool DetectChessboardCorners(const cv::Mat& image, const ChessboardCalibrationOp
     gray = image;
   }
   if (gray.depth() != CV_8U) gray.convertTo(gray, CV_8U);
-  corners->clear();
-  if (cv::findChessboardCorners(gray, options.board_size, *corners,
-                                cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE)) {
-    // The search window must not reach the neighbouring corners: cap it at a third of the smallest corner spacing.
-    double spacing = std::numeric_limits<double>::max();
-    for (int row = 0; row < options.board_size.height; ++row) {
-      for (int col = 0; col + 1 < options.board_size.width; ++col) {
-        const int i = row * options.board_size.width + col;
+
+  // The board is searched in an image of at most kMaxSearchSide pixels (both detectors slow down sharply with
+  // size, to many seconds per megapixel image), then refined at full resolution.
+  constexpr int kMaxSearchSide = 1000;
+  const double scale = std::min(1.0, static_cast<double>(kMaxSearchSide) / std::max(gray.cols, gray.rows));
+  cv::Mat search = gray;
+  if (scale < 1.0) cv::resize(gray, search, cv::Size(), scale, scale, cv::INTER_AREA);
+  // Classic quad-based detector first (fast check: quick rejection of views without a board); the sector-based
+  // detector copes better with strong distortion (catadioptric and fisheye views) and blur.
+  bool found = cv::findChessboardCorners(search, options.board_size, *corners,
+                                         cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE |
+                                             cv::CALIB_CB_FAST_CHECK);
+  bool sector_based = false;
+  if (!found) {
+    corners->clear();
+    found = cv::findChessboardCornersSB(search, options.board_size, *corners,
+                                        cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_EXHAUSTIVE);
+    sector_based = true;
+  }
+  if (!found || static_cast<int>(corners->size()) != options.board_size.area()) {
+    corners->clear();
+    return false;
+  }
+  // Back to full-resolution pixels (pixel centres at integers: x_full = (x_search + 0.5) / scale - 0.5).
+  if (scale < 1.0) {
+    for (cv::Point2f& corner : *corners) {
+      corner = cv::Point2f(static_cast<float>((corner.x + 0.5) / scale - 0.5),
+                           static_cast<float>((corner.y + 0.5) / scale - 0.5));
+    }
+  }
+  // The refinement window must not reach the neighbouring corners: cap it at a third of the smallest spacing.
+  double spacing = std::numeric_limits<double>::max();
+  for (int row = 0; row < options.board_size.height; ++row) {
+    for (int col = 0; col < options.board_size.width; ++col) {
+      const int i = row * options.board_size.width + col;
+      if (col + 1 < options.board_size.width) {
         spacing = std::min(spacing, static_cast<double>(cv::norm((*corners)[i + 1] - (*corners)[i])));
       }
+      if (row + 1 < options.board_size.height) {
+        spacing = std::min(spacing,
+                           static_cast<double>(cv::norm((*corners)[i + options.board_size.width] - (*corners)[i])));
+      }
     }
-    const int half_window =
-        std::max(2, std::min(options.subpix_half_window, static_cast<int>(std::floor(spacing / 3.0))));
-    cv::cornerSubPix(gray, *corners, cv::Size(half_window, half_window), cv::Size(-1, -1),
-                     cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 0.001));
-    return true;
   }
-  // The sector-based detector copes better with strong distortion and blur; its corners are already sub-pixel.
-  corners->clear();
-  return cv::findChessboardCornersSB(gray, options.board_size, *corners,
-                                     cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_EXHAUSTIVE | cv::CALIB_CB_ACCURACY);
+  if (sector_based && scale < 1.0) {
+    // Sector-based corners are refined best by the same detector at full resolution (its CALIB_CB_ACCURACY mode is
+    // more robust than cornerSubPix on blurred, strongly curved catadioptric views); run it on the board's crop only.
+    cv::Rect box = cv::boundingRect(*corners);
+    const int margin = static_cast<int>(std::ceil(2.0 * spacing)) + 4;
+    box = cv::Rect(box.x - margin, box.y - margin, box.width + 2 * margin, box.height + 2 * margin) &
+          cv::Rect(0, 0, gray.cols, gray.rows);
+    std::vector<cv::Point2f> refined;
+    if (cv::findChessboardCornersSB(gray(box), options.board_size, refined,
+                                    cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_EXHAUSTIVE | cv::CALIB_CB_ACCURACY) &&
+        refined.size() == corners->size()) {
+      for (cv::Point2f& corner : refined) corner += cv::Point2f(static_cast<float>(box.x), static_cast<float>(box.y));
+      // Same board, possibly numbered from the other end.
+      if (cv::norm(refined.front() - corners->front()) > cv::norm(refined.back() - corners->front())) {
+        std::reverse(refined.begin(), refined.end());
+      }
+      double max_shift = 0.0;
+      for (size_t i = 0; i < refined.size(); ++i) {
+        max_shift = std::max(max_shift, static_cast<double>(cv::norm(refined[i] - (*corners)[i])));
+      }
+      if (max_shift < 0.5 * spacing) {
+        *corners = refined;
+        return true;
+      }
+    }
+  }
+  const int half_window =
+      std::max(2, std::min(options.subpix_half_window, static_cast<int>(std::floor(spacing / 3.0))));
+  cv::cornerSubPix(gray, *corners, cv::Size(half_window, half_window), cv::Size(-1, -1),
+                   cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 0.001));
+  return true;
 }
 
 namespace {

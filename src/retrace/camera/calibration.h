@@ -2,8 +2,9 @@
 
 // Intrinsic calibration from chessboard images (Zhang's method as implemented by OpenCV).
 //
-// Every image is searched for the board's inner corners (cv::findChessboardCorners, refined by cv::cornerSubPix;
-// cv::findChessboardCornersSB as a fallback for strongly distorted views). The perspective model is then estimated
+// Every image is searched for the board's inner corners (cv::findChessboardCorners, with cv::findChessboardCornersSB
+// as a fallback for strongly distorted views; images larger than 1000 px are searched at reduced size), refined at
+// full resolution by cv::cornerSubPix. The perspective model is then estimated
 // by cv::calibrateCamera (K + plumb bob distortion), the unified model (Mei 2007) by cv::omnidir::calibrate. Images
 // that cannot be read, have another size than the first one, or where the board is not found are skipped, logged
 // (spdlog warn, with the file name) and listed with the reason in the result.

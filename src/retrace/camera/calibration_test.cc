@@ -308,5 +308,27 @@ TEST(ChessboardCalibration, RealOpenCvSampleMatchesOpenCvResult) {
   EXPECT_LT(relative(estimate.cy(), reference.cy()), 0.02);
 }
 
+TEST(ChessboardCalibration, RealCatadioptricMeiImages) {
+  // C. Mei's own catadioptric sample images (1280x1024, 8x6 inner corners). There is no reference calibration, so
+  // this checks the fit (RMS) and physically plausible parameters: a mirror camera has xi near 1 and its principal
+  // point near the centre of the mirror, which the images show close to the image centre.
+  RETRACE_REQUIRE_SHARED_DATA(folder, "omni_calib/catadioptric_Mei");
+  ChessboardCalibrationOptions options;
+  options.board_size = cv::Size(8, 6);
+  options.model = CalibrationModel::kUnified;
+  const ChessboardCalibrationResult result = CalibrateChessboardFolder(folder, options);
+  ASSERT_EQ(result.camera->type(), CameraModelType::kUnified);
+  const auto& camera = dynamic_cast<const UnifiedCamera&>(*result.camera);
+  std::printf("real catadioptric_Mei: %d of %zu images, rms %.4f px, xi %.4f fx %.2f fy %.2f cx %.2f cy %.2f\n",
+              result.NumUsed(), result.images.size(), result.rms_error_px, camera.xi(), camera.fx(), camera.fy(),
+              camera.cx(), camera.cy());
+  EXPECT_GE(result.NumUsed(), 7);
+  EXPECT_LT(result.rms_error_px, 0.5);
+  EXPECT_GT(camera.xi(), 0.7);
+  EXPECT_LT(camera.xi(), 1.4);
+  EXPECT_LT(std::abs(camera.cx() - 639.5), 20.0);
+  EXPECT_LT(std::abs(camera.cy() - 511.5), 20.0);
+}
+
 }  // namespace
 }  // namespace retrace
