@@ -383,6 +383,10 @@ std::unique_ptr<CameraModel> ReadCameraFile(const std::filesystem::path& path, s
   }
   try {
     if (root["intrinsics"]) return reader.ReadEurocFile(root, image_size);
+    // Kalibr camchain.yaml: the first camera, cam0, has the sensor.yaml keys.
+    if (root["cam0"] && root["cam0"].IsMap() && root["cam0"]["intrinsics"]) {
+      return reader.ReadEurocFile(root["cam0"], image_size);
+    }
     if (root["camera_matrix"] || root["cameraMatrix"] || root["K"] || root["M1"] || root["camera_model"]) {
       return reader.ReadMatrixFile(root, image_size);
     }

@@ -11,7 +11,7 @@
 //    unified model as written by OpenCV's omnidir calibration sample;
 //  - KITTI odometry calib.txt (line "P0: <3x4 projection matrix>"); it has no image size;
 //  - EuRoC / Kalibr sensor.yaml (resolution [w, h], intrinsics [fu fv cu cv], distortion_model radial-tangential;
-//    camera_model omni with intrinsics [xi fu fv cu cv] for the unified model);
+//    camera_model omni with intrinsics [xi fu fv cu cv] for the unified model), also cam0 of a Kalibr camchain.yaml;
 //  - retrace's own files written by WriteCameraFile(): ROS camera_info layout plus `camera_model: perspective |
 //    unified | equirectangular` and `xi` for the unified model.
 // When the file has no image size, `image_size` (the size of the images used with it) supplies it; when both exist

@@ -149,6 +149,29 @@ K: [430.15, 0.0, 306.5, 0.0, 430.2, 250.3, 0.0, 0.0, 1.0]
   EXPECT_EQ(m.distortion().k1, -0.3);
 }
 
+TEST_F(CameraIoTest, ReadsKalibrOmniCamchain) {
+  const auto file = Write("camchain.yaml", R"(cam0:
+  cam_overlaps: []
+  camera_model: omni
+  distortion_coeffs: [-0.05, 0.003, 0.0007, -0.0003]
+  distortion_model: radtan
+  intrinsics: [1.04, 303.5, 303.7, 643.8, 521.1]
+  resolution: [1280, 1024]
+  rostopic: /cam0/image_raw
+)");
+  const auto camera = ReadCameraFile(file);
+  ASSERT_EQ(camera->type(), CameraModelType::kUnified);
+  const auto& u = dynamic_cast<const UnifiedCamera&>(*camera);
+  EXPECT_EQ(u.width(), 1280);
+  EXPECT_EQ(u.xi(), 1.04);
+  EXPECT_EQ(u.fx(), 303.5);
+  EXPECT_EQ(u.fy(), 303.7);
+  EXPECT_EQ(u.cx(), 643.8);
+  EXPECT_EQ(u.cy(), 521.1);
+  EXPECT_EQ(u.distortion().k1, -0.05);
+  EXPECT_EQ(u.distortion().p2, -0.0003);
+}
+
 TEST_F(CameraIoTest, ReadsOpenCvXml) {
   const std::filesystem::path file = dir_ / "camera.xml";
   {
