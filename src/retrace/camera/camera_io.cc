@@ -5,12 +5,13 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <regex>
 #include <sstream>
 #include <vector>
 
 #include <fmt/format.h>
-#include <opencv2/core.hpp>
+#include <opencv2/core/types.hpp>
 #include <yaml-cpp/yaml.h>
 
 #include "retrace/camera/equirectangular_camera.h"
@@ -309,32 +310,104 @@ class Reader {
     Fail("missing key 'P0'");
   }
 
-  // Converts an OpenCV FileStorage node (XML files) into the same YAML tree the YAML files give.
-  static YAML::Node FromFileNode(const cv::FileNode& node) {
-    if (node.isMap()) {
-      YAML::Node map(YAML::NodeType::Map);
-      for (auto it = node.begin(); it != node.end(); ++it) map[(*it).name()] = FromFileNode(*it);
-      return map;
-    }
-    if (node.isSeq()) {
-      YAML::Node seq(YAML::NodeType::Sequence);
-      for (auto it = node.begin(); it != node.end(); ++it) seq.push_back(FromFileNode(*it));
-      return seq;
-    }
-    if (node.isInt()) return YAML::Node(std::to_string(static_cast<int>(node)));
-    if (node.isReal()) return YAML::Node(fmt::format("{}", static_cast<double>(node)));
-    if (node.isString()) return YAML::Node(static_cast<std::string>(node));
-    return YAML::Node(YAML::NodeType::Null);
-  }
-
-  YAML::Node ParseXml(const std::filesystem::path& path) const {
-    try {
-      cv::FileStorage storage(path.string(), cv::FileStorage::READ | cv::FileStorage::FORMAT_XML);
-      if (!storage.isOpened()) Fail("not a valid OpenCV XML file");
-      return FromFileNode(storage.root());
-    } catch (const cv::Exception& e) {
-      Fail("not a valid OpenCV XML file (" + Trim(e.err) + ")");
-    }
+  // OpenCV FileStorage XML, parsed here into the same YAML tree the YAML files give. (OpenCV 4.6's own XML parser
+  // crashes on some truncated files, e.g. one ending inside an attribute, so it is not used for untrusted input.)
+  // The format: <opencv_storage> holds elements; an element holds child elements (a map, or a sequence when all
+  // children are named "_") or text: one token is a scalar, several (or type_id="opencv-matrix" data) a sequence.
+  YAML::Node ParseXml(const std::string& text) const {
+    size_t at = 0;
+    const auto skip_space = [&]() {
+      while (at < text.size() && std::isspace(static_cast<unsigned char>(text[at]))) ++at;
+    };
+    // Skips the prolog, comments and declarations (<?...?>, <!--...-->, <!...>).
+    const auto skip_markup = [&]() {
+      for (;;) {
+        skip_space();
+        if (text.compare(at, 4, "<!--") == 0) {
+          const size_t end = text.find("-->", at + 4);
+          if (end == std::string::npos) Fail("not valid XML: unterminated comment");
+          at = end + 3;
+        } else if (text.compare(at, 2, "<?") == 0 || text.compare(at, 2, "<!") == 0) {
+          const size_t end = text.find('>', at + 2);
+          if (end == std::string::npos) Fail("not valid XML: unterminated declaration");
+          at = end + 1;
+        } else {
+          return;
+        }
+      }
+    };
+    std::function<YAML::Node(int, std::string*)> parse_element = [&](int depth, std::string* name) -> YAML::Node {
+      if (depth > 32) Fail("XML nested too deeply for a calibration file");
+      skip_markup();
+      if (at >= text.size() || text[at] != '<') Fail("not valid XML: expected an element");
+      const size_t tag_end = text.find('>', at);
+      if (tag_end == std::string::npos) Fail("not valid XML: unterminated tag");
+      std::string tag = text.substr(at + 1, tag_end - at - 1);
+      at = tag_end + 1;
+      const bool empty = !tag.empty() && tag.back() == '/';
+      if (empty) tag.pop_back();
+      const size_t name_end = tag.find_first_of(" \t\r\n");
+      *name = tag.substr(0, name_end);
+      if (name->empty() || !std::all_of(name->begin(), name->end(), [](char ch) {
+            return std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-' || ch == '.' || ch == ':';
+          })) {
+        Fail("not valid XML: bad element name '" + name->substr(0, 40) + "'");
+      }
+      const bool is_matrix = tag.find("opencv-matrix") != std::string::npos;
+      if (empty) return YAML::Node(YAML::NodeType::Null);
+      const std::string closing = "</" + *name + ">";
+      skip_markup();
+      if (text.compare(at, 1, "<") == 0 && text.compare(at, 2, "</") != 0) {
+        // Child elements.
+        std::vector<std::pair<std::string, YAML::Node>> children;
+        for (;;) {
+          skip_markup();
+          if (text.compare(at, 2, "</") == 0) break;
+          std::string child_name;
+          YAML::Node child = parse_element(depth + 1, &child_name);
+          children.emplace_back(child_name, child);
+        }
+        if (text.compare(at, closing.size(), closing) != 0) Fail("not valid XML: missing " + closing);
+        at += closing.size();
+        const bool is_sequence = std::all_of(children.begin(), children.end(), [](const auto& c) {
+          return c.first == "_";
+        });
+        YAML::Node node(is_sequence ? YAML::NodeType::Sequence : YAML::NodeType::Map);
+        for (const auto& [child_name, child] : children) {
+          if (is_sequence) {
+            node.push_back(child);
+          } else {
+            node[child_name] = child;
+          }
+        }
+        if (is_matrix && node.IsMap() && node["data"] && node["data"].IsScalar()) {
+          YAML::Node data(YAML::NodeType::Sequence);
+          data.push_back(node["data"]);
+          node["data"] = data;
+        }
+        return node;
+      }
+      // Text content.
+      const size_t end = text.find(closing, at);
+      const size_t next_tag = text.find('<', at);
+      if (end == std::string::npos || next_tag != end) Fail("not valid XML: missing " + closing);
+      std::string content = Trim(text.substr(at, end - at));
+      at = end + closing.size();
+      if (content.size() >= 2 && content.front() == '"' && content.back() == '"') {
+        return YAML::Node(content.substr(1, content.size() - 2));
+      }
+      std::istringstream tokens(content);
+      std::vector<std::string> values;
+      for (std::string token; tokens >> token;) values.push_back(token);
+      if (values.size() == 1 && *name != "data") return YAML::Node(values[0]);
+      YAML::Node sequence(YAML::NodeType::Sequence);
+      for (const std::string& value : values) sequence.push_back(value);
+      return sequence;
+    };
+    std::string root_name;
+    YAML::Node root = parse_element(0, &root_name);
+    if (root_name != "opencv_storage") Fail("not an OpenCV XML file: the root element is <" + root_name + ">");
+    return root;
   }
 
   YAML::Node ParseYaml(std::string text) const {
@@ -376,7 +449,7 @@ std::unique_ptr<CameraModel> ReadCameraFile(const std::filesystem::path& path, s
   if (std::regex_search(text, std::regex(R"((^|\n)\s*P0\s*:)"))) return reader.ReadKittiFile(text, image_size);
 
   const bool is_xml = Reader::Trim(text).rfind("<?xml", 0) == 0 || Reader::Trim(text).rfind("<opencv_storage", 0) == 0;
-  const YAML::Node root = is_xml ? reader.ParseXml(path) : reader.ParseYaml(text);
+  const YAML::Node root = is_xml ? reader.ParseXml(text) : reader.ParseYaml(text);
   if (!root.IsMap()) {
     reader.Fail(std::string("not a camera calibration file: expected a YAML mapping of keys, found a ") +
                 (root.IsSequence() ? "list" : root.IsScalar() ? "plain text" : "empty document"));

@@ -186,7 +186,15 @@ TEST_F(CameraIoTest, ReadsOpenCvXml) {
   EXPECT_EQ(p.fx(), 610.5);
   EXPECT_EQ(p.cx(), 401.25);
   EXPECT_EQ(p.distortion().k3, 0.01);
-  ExpectInputError(Write("broken.xml", "<?xml version=\"1.0\"?>\n<opencv_storage><a>1</b>"), "XML");
+  std::string deep = "<?xml version=\"1.0\"?>\n<opencv_storage>";
+  for (int i = 0; i < 100000; ++i) deep += "<a>";
+  ExpectInputError(Write("deep.xml", deep), "XML nested too deeply");
+  ExpectInputError(Write("broken.xml", "<?xml version=\"1.0\"?>\n<opencv_storage><a>1</b>"), "not valid XML");
+  ExpectInputError(Write("truncated.xml", "<?xml version=\"1.0\"?>\n<opencv_storage>\n<image_width>640</image_width>\n"
+                                          "<camera_matrix type_id="),
+                   "not valid XML");  // crashes OpenCV 4.6's own FileStorage parser
+  ExpectInputError(Write("other.xml", "<?xml version=\"1.0\"?>\n<html><body>hi</body></html>"),
+                   "the root element is <html>");
 }
 
 TEST_F(CameraIoTest, WriteReadRoundTripOfEveryModel) {
@@ -343,8 +351,14 @@ TEST_F(CameraIoTest, MutatedFilesNeverCrash) {
                   "   data: [ -0.28, 0.07, 0.0002, 0.00002, 0. ]\n");
   bases.push_back("resolution: [752, 480]\ncamera_model: pinhole\nintrinsics: [458.654, 457.296, 367.215, 248.375]\n"
                   "distortion_model: radial-tangential\ndistortion_coefficients: [-0.28, 0.07, 0.0002, 1.7e-05]\n");
+  bases.push_back("<?xml version=\"1.0\"?>\n<opencv_storage>\n<image_width>640</image_width>\n"
+                  "<image_height>480</image_height>\n<camera_matrix type_id=\"opencv-matrix\">\n  <rows>3</rows>\n"
+                  "  <cols>3</cols>\n  <dt>d</dt>\n  <data>\n    500. 0. 320. 0. 500. 240. 0. 0. 1.</data></camera_matrix>\n"
+                  "<distortion_coefficients type_id=\"opencv-matrix\">\n  <rows>5</rows>\n  <cols>1</cols>\n"
+                  "  <dt>d</dt>\n  <data>\n    -0.2 0.05 0. 0. 0.01</data></distortion_coefficients>\n"
+                  "</opencv_storage>\n");
   bases.push_back("P0: 7.07e+02 0 6.01e+02 0 0 7.07e+02 1.83e+02 0 0 0 1 0\nP1: 1 2 3\n");
-  const std::string alphabet = "0123456789.-+eE:[]{},#!&*|>'\"\n\t abcxyz_\\%";
+  const std::string alphabet = "0123456789.-+eE:[]{},#!&*|<>/='\"\n\t abcxyz_\\%";
   std::mt19937 rng(9);
   int accepted = 0, rejected = 0;
   for (int trial = 0; trial < 600; ++trial) {
