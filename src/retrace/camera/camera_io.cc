@@ -34,7 +34,7 @@ struct Matrix {
 // Reads one calibration file's YAML tree and turns problems into InputError naming the file.
 class Reader {
  public:
-  explicit Reader(const std::filesystem::path& path) : source_(path.string()) {}
+  explicit Reader(std::string source) : source_(std::move(source)) {}
 
   // Throws the InputError; the message stays on one line even when it quotes text from the file.
   [[noreturn]] void Fail(std::string problem) const {
@@ -444,8 +444,15 @@ std::string ReadText(const Reader& reader, const std::filesystem::path& path) {
 }  // namespace
 
 std::unique_ptr<CameraModel> ReadCameraFile(const std::filesystem::path& path, std::optional<cv::Size> image_size) {
-  const Reader reader(path);
-  const std::string text = ReadText(reader, path);
+  const Reader reader(path.string());
+  return ParseCameraText(ReadText(reader, path), path.string(), image_size);
+}
+
+std::unique_ptr<CameraModel> ParseCameraText(const std::string& text, const std::string& source,
+                                             std::optional<cv::Size> image_size) {
+  const Reader reader(source);
+  if (Reader::Trim(text).empty()) reader.Fail("empty camera text");
+  if (text.find('\0') != std::string::npos) reader.Fail("binary data, not a calibration file");
   if (std::regex_search(text, std::regex(R"((^|\n)\s*P0\s*:)"))) return reader.ReadKittiFile(text, image_size);
 
   const bool is_xml = Reader::Trim(text).rfind("<?xml", 0) == 0 || Reader::Trim(text).rfind("<opencv_storage", 0) == 0;
@@ -490,7 +497,7 @@ std::string CameraMatrixYaml(const Matrix3d& k) {
 
 }  // namespace
 
-void WriteCameraFile(const CameraModel& camera, const std::filesystem::path& path) {
+std::string CameraToYaml(const CameraModel& camera) {
   std::string yaml = fmt::format("# Camera calibration written by retrace.\nimage_width: {}\nimage_height: {}\n",
                                  camera.width(), camera.height());
   if (const auto* perspective = dynamic_cast<const PerspectiveCamera*>(&camera)) {
@@ -513,8 +520,13 @@ void WriteCameraFile(const CameraModel& camera, const std::filesystem::path& pat
   } else if (camera.type() == CameraModelType::kEquirectangular) {
     yaml += "camera_model: equirectangular\n";
   } else {
-    throw InputError(path.string(), "cannot write camera model '" + camera.model_name() + "'");
+    throw std::invalid_argument("CameraToYaml: unknown camera model '" + camera.model_name() + "'");
   }
+  return yaml;
+}
+
+void WriteCameraFile(const CameraModel& camera, const std::filesystem::path& path) {
+  const std::string yaml = CameraToYaml(camera);
   std::ofstream stream(path);
   stream << yaml;
   stream.close();

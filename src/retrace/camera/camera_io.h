@@ -35,10 +35,18 @@ namespace retrace {
 std::unique_ptr<CameraModel> ReadCameraFile(const std::filesystem::path& path,
                                              std::optional<cv::Size> image_size = std::nullopt);
 
+// ReadCameraFile() on text already in memory (e.g. the camera stored in a map database); `source` names it in
+// errors, e.g. "map.db: cameras".
+std::unique_ptr<CameraModel> ParseCameraText(const std::string& text, const std::string& source,
+                                             std::optional<cv::Size> image_size = std::nullopt);
+
 // Writes `camera` as YAML: a standard ROS camera_info file for the perspective model (plumb_bob distortion, also
 // readable by ROS), the same layout with `camera_model` and `xi` for the unified model, and only the image size
 // and `camera_model: equirectangular` for panoramas. Throws InputError when the file cannot be written.
 void WriteCameraFile(const CameraModel& camera, const std::filesystem::path& path);
+
+// The YAML text WriteCameraFile() writes (for storing a camera elsewhere, e.g. in a map database).
+std::string CameraToYaml(const CameraModel& camera);
 
 // Human-readable multi-line description of the model and its parameters (for the command line).
 std::string DescribeCamera(const CameraModel& camera);

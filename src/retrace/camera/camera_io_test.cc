@@ -252,6 +252,21 @@ TEST_F(CameraIoTest, WriteReadRoundTripOfEveryModel) {
   EXPECT_EQ(panorama->height(), 1024);
 }
 
+TEST_F(CameraIoTest, TextRoundTripAndErrorsNameTheSource) {
+  const UnifiedCamera camera(800, 600, 0.87, 290.5, 291.25, 401.0, 299.0);
+  const std::string yaml = CameraToYaml(camera);
+  const auto parsed = ParseCameraText(yaml, "map.db: cameras");
+  ASSERT_EQ(parsed->type(), CameraModelType::kUnified);
+  EXPECT_EQ(dynamic_cast<const UnifiedCamera&>(*parsed).xi(), 0.87);
+  EXPECT_EQ(dynamic_cast<const UnifiedCamera&>(*parsed).fy(), 291.25);
+  try {
+    ParseCameraText("camera_model: perspective\nimage_width: 10\n", "map.db: cameras");
+    ADD_FAILURE() << "accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "map.db: cameras: missing key 'image_height'");
+  }
+}
+
 TEST_F(CameraIoTest, WrittenPerspectiveFileIsRosCameraInfo) {
   WriteCameraFile(PerspectiveCamera(640, 480, 500, 501, 320, 240), dir_ / "ros.yaml");
   std::ifstream stream(dir_ / "ros.yaml");
