@@ -17,6 +17,8 @@ constexpr void (*kCommands[])(CLI::App&) = {
     &retrace::RegisterSequenceInfoCommand,
     &retrace::RegisterPerturbCommand,
     &retrace::RegisterInspectCommand,
+    &retrace::RegisterCalibrateCommand,
+    &retrace::RegisterCameraInfoCommand,
 };
 
 }  // namespace

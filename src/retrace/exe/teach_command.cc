@@ -64,7 +64,7 @@ void RunTeach(const TeachArguments& args) {
   database->SetMetadata("frames_every", std::to_string(args.every));
   database->SetMetadata("frames_offset", std::to_string(args.offset));
   database->SetMetadata("width", std::to_string(camera->width()));
-  database->WriteCamera(camera->model_name(), camera->width(), camera->height(), CameraToYamlString(*camera));
+  database->WriteCamera(camera->model_name(), camera->width(), camera->height(), CameraToYaml(*camera));
 
   Teacher teacher(*camera, args.options, database.get());
   database->SetMetadata("r_p", fmt::format("{:.3f}", teacher.sigma_p_threshold_px()));
