@@ -28,7 +28,7 @@ struct CornerDetectorOptions {
   // Side (pixels of the level) of the window over which the structure tensor is summed.
   int block_size = 5;
   // Pyramid levels searched (1 = level 0 only); limited by the pyramid's number of levels.
-  int num_scales = 2;
+  int num_scales = 1;
   // Corners closer than this to the image border (level-0 pixels) are dropped; it should be at least half the
   // tracker window plus one so that a reference patch can be cut around every corner.
   int border = 9;

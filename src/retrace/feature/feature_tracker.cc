@@ -113,7 +113,7 @@ void SampleWindowCubic(const cv::Mat& image, double dx, double dy, double scale,
 bool AlignmentOptions::Check() const {
   return window_size >= 3 && window_size <= kMaxWindowSize && window_size % 2 == 1 && max_iterations_coarse >= 0 &&
          max_iterations_fine >= 1 && convergence_epsilon > 0.0 && max_residual > 0.0 && min_scale > 0.0 &&
-         min_scale < 1.0 && max_scale > 1.0 && min_gain > 0.0 && min_gain < 1.0 && max_gain > 1.0;
+         min_scale < 1.0 && max_scale > 1.0 && min_gain > 0.0 && min_gain < 1.0 && max_gain > 1.0 && scale_prior_sigma >= 0.0 && max_block_residual > 0.0;
 }
 
 std::string TrackStatusName(TrackStatus status) {
@@ -246,6 +246,9 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
   bool converged = false;
   double residual = std::numeric_limits<double>::infinity();
 
+  // Weight of the scale prior in units of squared grey levels (residual noise of 1 grey level per pixel).
+  const double scale_prior_weight =
+      options.scale_prior_sigma > 0.0 ? 1.0 / (options.scale_prior_sigma * options.scale_prior_sigma) : 0.0;
   float values[kMaxWindowSize * kMaxWindowSize];
   bool contrast_initialised = false;
 
@@ -262,9 +265,9 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
     const float* gs = reference.Gs(level);
     // Coarse levels estimate translation and contrast only (the scale is kept): with the scale free, coarse windows
     // far from the solution too easily shrink or grow onto a neighbouring structure.
+    const bool estimate_scale = fine || !options.coarse_translation_only;
     const Eigen::Matrix<float, 5, 5>& inverse_hessian =
-        (fine || !options.coarse_translation_only) ? reference.InverseHessian(level)
-                                                    : reference.InverseHessianTranslation(level);
+        estimate_scale ? reference.InverseHessian(level) : reference.InverseHessianTranslation(level);
     const double mean = reference.Mean(level);
     converged = false;
     for (int iteration = 0;; ++iteration) {
@@ -317,13 +320,44 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
       }
       if (fine && (converged || iteration >= max_iterations)) {
         residual = std::sqrt(sse / n) / lambda;
+        // RMS residual of the worst of the 3x3 blocks of the window: an occluder over part of the window shows
+        // there even when the whole-window RMS stays small.
+        double block_sse[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+        int block_count[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+        for (int r = 0; r < w; ++r) {
+          for (int c = 0; c < w; ++c) {
+            const int k = r * w + c;
+            const double e = values[k] - lam * t[k] - del;
+            const int block = (r * 3 / w) * 3 + c * 3 / w;
+            block_sse[block] += e * e;
+            ++block_count[block];
+          }
+        }
+        double worst = 0.0;
+        for (int b = 0; b < 9; ++b) worst = std::max(worst, block_sse[b] / std::max(1, block_count[b]));
+        result.block_residual = std::sqrt(worst) / lambda;
         result.iterations += iteration;
         break;
       }
       Eigen::Matrix<float, 5, 1> b;
       b << b0, b1, b2, b3, b4;
-      const Eigen::Matrix<float, 5, 1> step = inverse_hessian * b;
-      const double step_x = step(0) / lambda, step_y = step(1) / lambda, step_s = step(2) / lambda;
+      const Eigen::Matrix<float, 5, 1> h0_step = inverse_hessian * b;
+      // Gauss-Newton step of (dx, dy, ds, dlambda, ddelta): D^-1 H0^-1 J0^T e with D = diag(l, l, l, 1, 1).
+      Eigen::Matrix<double, 5, 1> step;
+      step << h0_step(0) / lambda, h0_step(1) / lambda, h0_step(2) / lambda, h0_step(3), h0_step(4);
+      if (estimate_scale && scale_prior_weight > 0.0) {
+        // Prior mu (log s' - log s0)^2 with s' ~ s (1 - ds): adds mu to the ds diagonal and mu (log s - log s0)
+        // to its right-hand side; solved with the precomputed inverse by Sherman-Morrison.
+        Eigen::Matrix<double, 5, 1> u;
+        for (int i = 0; i < 5; ++i) u(i) = inverse_hessian(i, 2);
+        u.head<3>() /= lambda;
+        u /= lambda;  // u = A^-1 e2 with A = D H0 D
+        const double a22 = inverse_hessian(2, 2) / (lambda * lambda);
+        const double c = std::log(scale / initial.scale);
+        const Eigen::Matrix<double, 5, 1> x0 = step + u * (scale_prior_weight * c);
+        step = x0 - u * (scale_prior_weight * x0(2) / (1.0 + scale_prior_weight * a22));
+      }
+      const double step_x = step(0), step_y = step(1), step_s = step(2);
       if (!(1.0 + step_s > 0.5) || !std::isfinite(step_x) || !std::isfinite(step_y)) {
         result.status = TrackStatus::kNotConverged;
         result.iterations += iteration + 1;
@@ -372,7 +406,7 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
     result.status = TrackStatus::kGainOutOfRange;
   } else if (!converged) {
     result.status = TrackStatus::kNotConverged;
-  } else if (!(residual <= options.max_residual)) {
+  } else if (!(residual <= options.max_residual) || !(result.block_residual <= options.max_block_residual)) {
     result.status = TrackStatus::kResidualTooLarge;
   } else {
     result.status = TrackStatus::kTracked;
@@ -455,6 +489,7 @@ const std::vector<TrackedFeature>& FeatureTracker::Track(const ImagePyramid& pyr
     TrackedFeature updated = feature;
     updated.warp = result.warp;
     updated.residual = result.residual;
+    updated.block_residual = result.block_residual;
     updated.converged = result.converged;
     updated.status = result.status;
     if (result.ok()) {

@@ -21,7 +21,7 @@ struct ImagePyramidOptions {
   // displacements of more than 10 px at 320x240 (Segvic 2009, §4.2 and §6.5).
   int num_levels = 3;
   // Standard deviation (pixels of level 0) of the Gaussian pre-smoothing; 0 disables it.
-  double smoothing_sigma = 1.0;
+  double smoothing_sigma = 0.5;
 
   bool Check() const { return num_levels >= 1 && num_levels <= 10 && smoothing_sigma >= 0.0; }
 };
