@@ -15,6 +15,8 @@ namespace {
 constexpr double kMinEigenvaluePerPixel = 0.05;
 // Smallest accepted standard deviation of a reference window (grey levels).
 constexpr double kMinStdDev = 0.5;
+// Alignment stops early at level 0 when the RMS residual is still above this multiple of R after 3 iterations.
+constexpr double kGiveUpResidualFactor = 3.0;
 // Largest window size supported by the stack buffers of the alignment.
 constexpr int kMaxWindowSize = 63;
 
@@ -341,6 +343,17 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
       }
       Eigen::Matrix<float, 5, 1> b;
       b << b0, b1, b2, b3, b4;
+      if (fine && iteration >= 3 && sse > n * kGiveUpResidualFactor * kGiveUpResidualFactor *
+                                                options.max_residual * options.max_residual * lambda * lambda) {
+        // Still far above R after a few iterations at level 0: this window will not match (occlusion, wrong
+        // basin); stop early instead of spending the remaining iterations.
+        result.status = TrackStatus::kResidualTooLarge;
+        result.residual = std::sqrt(sse / n) / lambda;
+        result.warp.position = Vector2d(dx, dy);
+        result.warp.scale = scale;
+        result.iterations += iteration;
+        return result;
+      }
       const Eigen::Matrix<float, 5, 1> h0_step = inverse_hessian * b;
       // Gauss-Newton step of (dx, dy, ds, dlambda, ddelta): D^-1 H0^-1 J0^T e with D = diag(l, l, l, 1, 1).
       Eigen::Matrix<double, 5, 1> step;

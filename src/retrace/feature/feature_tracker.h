@@ -49,7 +49,7 @@ struct AlignmentOptions {
   // Gauss-Newton iterations allowed at each coarse level.
   int max_iterations_coarse = 8;
   // Gauss-Newton iterations allowed at level 0; not converging within them rejects the track.
-  int max_iterations_fine = 10;
+  int max_iterations_fine = 15;
   // Convergence: largest displacement of a window corner caused by the last step, in pixels of the level.
   double convergence_epsilon = 0.01;
   // R: largest accepted RMS residual (grey levels of the pre-smoothed reference, after gain/bias compensation).
