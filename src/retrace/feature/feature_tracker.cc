@@ -310,16 +310,37 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
       }
       // Error image and J0^T e (Segvic 2009 §4.2 warp; inverse compositional, see the header).
       const float lam = static_cast<float>(lambda), del = static_cast<float>(delta + lambda * mean);
-      float b0 = 0.f, b1 = 0.f, b2 = 0.f, b3 = 0.f, b4 = 0.f, sse = 0.f;
-      for (int k = 0; k < n; ++k) {
-        const float e = values[k] - lam * t[k] - del;
-        b0 += gx[k] * e;
-        b1 += gy[k] * e;
-        b2 += gs[k] * e;
-        b3 += t[k] * e;
-        b4 += e;
-        sse += e * e;
+      // Eight independent partial sums per quantity so that the compiler can keep them in SIMD registers (float
+      // additions are not reassociated otherwise).
+      constexpr int kLanes = 8;
+      float acc[6][kLanes] = {};
+      int k = 0;
+      for (; k + kLanes <= n; k += kLanes) {
+        for (int l = 0; l < kLanes; ++l) {
+          const float e = values[k + l] - lam * t[k + l] - del;
+          acc[0][l] += gx[k + l] * e;
+          acc[1][l] += gy[k + l] * e;
+          acc[2][l] += gs[k + l] * e;
+          acc[3][l] += t[k + l] * e;
+          acc[4][l] += e;
+          acc[5][l] += e * e;
+        }
       }
+      for (; k < n; ++k) {
+        const float e = values[k] - lam * t[k] - del;
+        acc[0][0] += gx[k] * e;
+        acc[1][0] += gy[k] * e;
+        acc[2][0] += gs[k] * e;
+        acc[3][0] += t[k] * e;
+        acc[4][0] += e;
+        acc[5][0] += e * e;
+      }
+      float sums[6];
+      for (int q = 0; q < 6; ++q) {
+        sums[q] = 0.f;
+        for (int l = 0; l < kLanes; ++l) sums[q] += acc[q][l];
+      }
+      const float b0 = sums[0], b1 = sums[1], b2 = sums[2], b3 = sums[3], b4 = sums[4], sse = sums[5];
       if (fine && (converged || iteration >= max_iterations)) {
         residual = std::sqrt(sse / n) / lambda;
         // RMS residual of the worst of the 3x3 blocks of the window: an occluder over part of the window shows
