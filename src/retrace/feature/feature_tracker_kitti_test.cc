@@ -3,15 +3,14 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <fstream>
 #include <map>
-#include <sstream>
 #include <vector>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/video/tracking.hpp>
 
+#include "retrace/dataset/ground_truth.h"
 #include "retrace/feature/corner_detector.h"
 #include "retrace/feature/feature_tracker.h"
 #include "retrace/util/testing.h"
@@ -22,21 +21,6 @@ namespace {
 constexpr int kNumFrames = 41;  // frames 0..40 (the car turns left by 90 degrees between frames 15 and 50)
 // KITTI 07 camera 0 (P0 of calib.txt), rectified, no distortion.
 constexpr double kFocal = 707.0912, kCx = 601.8873, kCy = 183.1104;
-
-// world_from_cam of every line of a KITTI poses file (row-major 3x4).
-std::vector<Rigid3d> ReadPoses(const std::filesystem::path& path) {
-  std::ifstream file(path);
-  std::vector<Rigid3d> poses;
-  std::string line;
-  while (std::getline(file, line)) {
-    std::istringstream in(line);
-    Matrix34d m;
-    for (int i = 0; i < 12; ++i) in >> m(i / 4, i % 4);
-    if (!in) break;
-    poses.emplace_back(m.leftCols<3>(), m.col(3));
-  }
-  return poses;
-}
 
 // Distance (pixels) of x_b to the epipolar line of x_a, for cam_b_from_cam_a: F = K^-T [t]x R K^-1.
 double EpipolarDistance(const Rigid3d& b_from_a, const Vector2d& x_a, const Vector2d& x_b) {
@@ -92,7 +76,8 @@ LifetimeSummary Summarise(const std::vector<TrackRecord>& tracks, const std::vec
 
 TEST(FeatureTrackerKitti, EpipolarAccuracyAndLifetimesVersusLucasKanade) {
   RETRACE_REQUIRE_SHARED_DATA(kitti, "kitti07");
-  const std::vector<Rigid3d> poses = ReadPoses(kitti / "poses.txt");
+  std::vector<Rigid3d> poses;  // world_from_cam
+  for (const TimedPose& pose : ReadKittiPoses(kitti / "poses.txt")) poses.push_back(pose.world_from_cam);
   ASSERT_GE(poses.size(), static_cast<size_t>(kNumFrames));
   std::vector<cv::Mat> frames;
   for (int i = 0; i < kNumFrames; ++i) {

@@ -20,7 +20,10 @@ struct ImagePyramidOptions {
   // Number of levels including the full-resolution level 0. 3 levels (1, 1/2, 1/4) let the tracker follow
   // displacements of more than 10 px at 320x240 (Segvic 2009, §4.2 and §6.5).
   int num_levels = 3;
-  // Standard deviation (pixels of level 0) of the Gaussian pre-smoothing; 0 disables it.
+  // Standard deviation (pixels of level 0) of the Gaussian pre-smoothing; 0 disables it. Measured trade-off:
+  // 1.0 gives longer tracks on KITTI at R = 6 (residuals are smaller) but biases the scale (and with it the
+  // position) of the tracker more under scale changes, because the smoothing is fixed in pixels; 0.5 keeps the
+  // synthetic-warp errors at a median of 0.02-0.03 px.
   double smoothing_sigma = 0.5;
 
   bool Check() const { return num_levels >= 1 && num_levels <= 10 && smoothing_sigma >= 0.0; }
