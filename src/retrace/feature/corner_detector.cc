@@ -2,9 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <stdexcept>
-
 #include <opencv2/imgproc.hpp>
+#include <stdexcept>
 
 namespace retrace {
 namespace {
@@ -32,7 +31,9 @@ class DistanceGrid {
     return true;
   }
 
-  void Add(const Vector2d& p) { cells_[static_cast<size_t>(CellY(p.y())) * cols_ + CellX(p.x())].push_back(p); }
+  void Add(const Vector2d& p) {
+    cells_[static_cast<size_t>(CellY(p.y())) * cols_ + CellX(p.x())].push_back(p);
+  }
 
  private:
   int CellX(double x) const { return std::clamp(static_cast<int>(x / cell_), 0, cols_ - 1); }
@@ -50,7 +51,8 @@ std::vector<Corner> DetectCorners(const ImagePyramid& pyramid, const CornerDetec
                                   const cv::Mat& mask, const std::vector<Vector2d>& existing) {
   if (!options.Check()) throw std::invalid_argument("DetectCorners: invalid options");
   if (pyramid.Empty()) return {};
-  if (!mask.empty() && (mask.type() != CV_8UC1 || mask.cols != pyramid.Width() || mask.rows != pyramid.Height())) {
+  if (!mask.empty() &&
+      (mask.type() != CV_8UC1 || mask.cols != pyramid.Width() || mask.rows != pyramid.Height())) {
     throw std::invalid_argument("DetectCorners: mask must be CV_8UC1 of the image size");
   }
   const int width = pyramid.Width(), height = pyramid.Height();
@@ -83,7 +85,7 @@ std::vector<Corner> DetectCorners(const ImagePyramid& pyramid, const CornerDetec
           continue;
         }
         if (!mask.empty() && mask.at<uint8_t>(static_cast<int>(std::lround(p.y())),
-                                               static_cast<int>(std::lround(p.x()))) == 0) {
+                                              static_cast<int>(std::lround(p.x()))) == 0) {
           continue;
         }
         candidates.push_back({p, s[x] / max_score, level});

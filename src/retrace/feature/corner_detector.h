@@ -2,16 +2,15 @@
 
 // Multi-scale corner detection (Shi-Tomasi minimum eigenvalue, or Harris) on an ImagePyramid.
 //
-// The mapper initialises the tracker "with all Harris corners in the initial frame" (Segvic 2009, §5.1.1) and the
-// wide-baseline matcher uses multi-scale Harris key-points (§4.1). Here the corner score is computed on every
-// detection level of the (pre-smoothed) pyramid, local maxima above `quality_level` times the strongest response
-// of their level are collected, and the strongest ones are kept greedily with a minimum distance between them (in
-// level-0 pixels), inside an optional mask and away from already tracked points. Corners found on coarse levels
-// are reported at level-0 pixels; their `level` says where they were found.
-
-#include <vector>
+// The mapper initialises the tracker "with all Harris corners in the initial frame" (Segvic 2009, §5.1.1) and
+// the wide-baseline matcher uses multi-scale Harris key-points (§4.1). Here the corner score is computed on
+// every detection level of the (pre-smoothed) pyramid, local maxima above `quality_level` times the strongest
+// response of their level are collected, and the strongest ones are kept greedily with a minimum distance
+// between them (in level-0 pixels), inside an optional mask and away from already tracked points. Corners
+// found on coarse levels are reported at level-0 pixels; their `level` says where they were found.
 
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "retrace/feature/image_pyramid.h"
 #include "retrace/util/types.h"
@@ -21,7 +20,8 @@ namespace retrace {
 struct CornerDetectorOptions {
   // Maximum number of corners returned (strongest first); <= 0 means no limit.
   int max_corners = 300;
-  // Minimum distance (level-0 pixels) between two returned corners and between a corner and an `existing` point.
+  // Minimum distance (level-0 pixels) between two returned corners and between a corner and an `existing`
+  // point.
   double min_distance = 8.0;
   // Keep a local maximum when its score is at least this fraction of the strongest score of its level.
   double quality_level = 0.01;
@@ -38,8 +38,8 @@ struct CornerDetectorOptions {
   double harris_k = 0.04;
 
   bool Check() const {
-    return min_distance >= 0.0 && quality_level > 0.0 && quality_level < 1.0 && block_size >= 2 && num_scales >= 1 &&
-           border >= 0 && harris_k > 0.0;
+    return min_distance >= 0.0 && quality_level > 0.0 && quality_level < 1.0 && block_size >= 2 &&
+           num_scales >= 1 && border >= 0 && harris_k > 0.0;
   }
 };
 
@@ -49,10 +49,11 @@ struct Corner {
   int level = 0;                         // pyramid level where the corner was found
 };
 
-// Detects corners in `pyramid`, strongest first. `mask` (optional, CV_8UC1 of the level-0 size): corners only where
-// it is non-zero. `existing` (optional): positions that new corners must keep `min_distance` away from (e.g. the
-// features tracked already).
+// Detects corners in `pyramid`, strongest first. `mask` (optional, CV_8UC1 of the level-0 size): corners only
+// where it is non-zero. `existing` (optional): positions that new corners must keep `min_distance` away from
+// (e.g. the features tracked already).
 std::vector<Corner> DetectCorners(const ImagePyramid& pyramid, const CornerDetectorOptions& options,
-                                  const cv::Mat& mask = cv::Mat(), const std::vector<Vector2d>& existing = {});
+                                  const cv::Mat& mask = cv::Mat(),
+                                  const std::vector<Vector2d>& existing = {});
 
 }  // namespace retrace

@@ -1,9 +1,9 @@
 #include "retrace/feature/corner_detector.h"
 
-#include <vector>
-
 #include <gtest/gtest.h>
+
 #include <opencv2/imgproc.hpp>
+#include <vector>
 
 namespace retrace {
 namespace {
@@ -11,7 +11,8 @@ namespace {
 // Dark image with bright axis-aligned rectangles: every rectangle corner is a corner with a known position.
 cv::Mat RectanglesImage(std::vector<Vector2d>* corners) {
   cv::Mat image(240, 320, CV_8UC1, cv::Scalar(40));
-  const std::vector<cv::Rect> rects = {{40, 40, 50, 30}, {150, 60, 40, 60}, {230, 150, 50, 40}, {60, 150, 70, 50}};
+  const std::vector<cv::Rect> rects = {
+      {40, 40, 50, 30}, {150, 60, 40, 60}, {230, 150, 50, 40}, {60, 150, 70, 50}};
   for (const cv::Rect& r : rects) {
     cv::rectangle(image, r, cv::Scalar(200), cv::FILLED);
     // Pixel centres of the corner pixels: the corner lies between the last inside and first outside pixel.
@@ -37,7 +38,8 @@ TEST(CornerDetector, FindsRectangleCornersWithMinimumDistance) {
   options.min_distance = 10.0;
   options.quality_level = 0.1;
   const std::vector<Corner> corners = DetectCorners(pyramid, options);
-  // Every true corner is found within 2.5 px (the minimum-eigenvalue maximum of a sharp corner lies ~1.5 px inside), and nothing else (edges and flat areas are not corners).
+  // Every true corner is found within 2.5 px (the minimum-eigenvalue maximum of a sharp corner lies ~1.5 px
+  // inside), and nothing else (edges and flat areas are not corners).
   for (const Vector2d& t : truth) {
     std::vector<Vector2d> found;
     for (const Corner& c : corners) found.push_back(c.position);
@@ -76,13 +78,15 @@ TEST(CornerDetector, RespectsMaskExistingPointsAndLimit) {
 
 TEST(CornerDetector, MultiScaleFindsBlurredCornersOnCoarseLevel) {
   // A sharp small square on the left, a strongly blurred large square on the right: at level 0 the blurred
-  // corners respond far below the sharp ones; on the coarse levels they are found, and reported in level-0 pixels.
+  // corners respond far below the sharp ones; on the coarse levels they are found, and reported in level-0
+  // pixels.
   cv::Mat blurred(240, 320, CV_8UC1, cv::Scalar(40));
   cv::rectangle(blurred, cv::Rect(160, 60, 120, 120), cv::Scalar(200), cv::FILLED);
   cv::GaussianBlur(blurred, blurred, cv::Size(0, 0), 5.0);
   cv::Mat image = blurred.clone();
   cv::rectangle(image, cv::Rect(40, 100, 30, 30), cv::Scalar(220), cv::FILLED);
-  const std::vector<Vector2d> blurred_corners = {{159.5, 59.5}, {279.5, 59.5}, {159.5, 179.5}, {279.5, 179.5}};
+  const std::vector<Vector2d> blurred_corners = {
+      {159.5, 59.5}, {279.5, 59.5}, {159.5, 179.5}, {279.5, 179.5}};
   const ImagePyramid pyramid(image);
   CornerDetectorOptions options;
   options.quality_level = 0.1;
@@ -94,7 +98,8 @@ TEST(CornerDetector, MultiScaleFindsBlurredCornersOnCoarseLevel) {
   options.num_scales = 3;
   int found = 0;
   for (const Corner& c : DetectCorners(pyramid, options)) {
-    // The response maximum of a corner blurred with sigma = 5 px lies about 1.7 sigma inside the corner (8.5 px here).
+    // The response maximum of a corner blurred with sigma = 5 px lies about 1.7 sigma inside the corner (8.5
+    // px here).
     if (NearestDistance(c.position, blurred_corners) < 14.0) {
       ++found;
       EXPECT_GT(c.level, 0);

@@ -1,21 +1,21 @@
 #include "retrace/feature/feature_tracker.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 
-#include <Eigen/Dense>
-
 namespace retrace {
 namespace {
 
-// Smallest accepted eigenvalue per window pixel of the geometric Gauss-Newton block once the contrast parameters
-// are projected out ((grey levels / pixel)^2): below it the window is too flat to be aligned.
+// Smallest accepted eigenvalue per window pixel of the geometric Gauss-Newton block once the contrast
+// parameters are projected out ((grey levels / pixel)^2): below it the window is too flat to be aligned.
 constexpr double kMinEigenvaluePerPixel = 0.05;
 // Smallest accepted standard deviation of a reference window (grey levels).
 constexpr double kMinStdDev = 0.5;
-// Alignment stops early at level 0 when the RMS residual is still above this multiple of R after 3 iterations.
+// Alignment stops early at level 0 when the RMS residual is still above this multiple of R after 3
+// iterations.
 constexpr double kGiveUpResidualFactor = 3.0;
 // Largest window size supported by the stack buffers of the alignment.
 constexpr int kMaxWindowSize = 63;
@@ -69,10 +69,10 @@ void SampleWindowBilinear(const cv::Mat& image, double dx, double dy, double sca
   }
 }
 
-// The same with separable cubic interpolation: the warp is axis-aligned, so every image row touched is filtered
-// horizontally once at the w sample columns, then the rows are combined vertically. Bilinear interpolation blurs
-// by an amount that depends on the sub-pixel phase, which biases the scale and the position by several hundredths
-// of a pixel; cubic interpolation removes most of it.
+// The same with separable cubic interpolation: the warp is axis-aligned, so every image row touched is
+// filtered horizontally once at the w sample columns, then the rows are combined vertically. Bilinear
+// interpolation blurs by an amount that depends on the sub-pixel phase, which biases the scale and the
+// position by several hundredths of a pixel; cubic interpolation removes most of it.
 void SampleWindowCubic(const cv::Mat& image, double dx, double dy, double scale, int w, float* out) {
   const int half = w / 2;
   int ix[kMaxWindowSize], iy[kMaxWindowSize];
@@ -113,28 +113,39 @@ void SampleWindowCubic(const cv::Mat& image, double dx, double dy, double scale,
 }  // namespace
 
 bool AlignmentOptions::Check() const {
-  return window_size >= 3 && window_size <= kMaxWindowSize && window_size % 2 == 1 && max_iterations_coarse >= 0 &&
-         max_iterations_fine >= 1 && convergence_epsilon > 0.0 && max_residual > 0.0 && min_scale > 0.0 &&
-         min_scale < 1.0 && max_scale > 1.0 && min_gain > 0.0 && min_gain < 1.0 && max_gain > 1.0 && scale_prior_sigma >= 0.0 && max_block_residual > 0.0;
+  return window_size >= 3 && window_size <= kMaxWindowSize && window_size % 2 == 1 &&
+         max_iterations_coarse >= 0 && max_iterations_fine >= 1 && convergence_epsilon > 0.0 &&
+         max_residual > 0.0 && min_scale > 0.0 && min_scale < 1.0 && max_scale > 1.0 && min_gain > 0.0 &&
+         min_gain < 1.0 && max_gain > 1.0 && scale_prior_sigma >= 0.0 && max_block_residual > 0.0;
 }
 
 std::string TrackStatusName(TrackStatus status) {
   switch (status) {
-    case TrackStatus::kTracked: return "tracked";
-    case TrackStatus::kResidualTooLarge: return "residual too large";
-    case TrackStatus::kNotConverged: return "not converged";
-    case TrackStatus::kOutOfImage: return "out of image";
-    case TrackStatus::kScaleOutOfRange: return "scale out of range";
-    case TrackStatus::kGainOutOfRange: return "gain out of range";
-    case TrackStatus::kFarFromPrediction: return "far from prediction";
-    case TrackStatus::kDegenerate: return "degenerate";
+    case TrackStatus::kTracked:
+      return "tracked";
+    case TrackStatus::kResidualTooLarge:
+      return "residual too large";
+    case TrackStatus::kNotConverged:
+      return "not converged";
+    case TrackStatus::kOutOfImage:
+      return "out of image";
+    case TrackStatus::kScaleOutOfRange:
+      return "scale out of range";
+    case TrackStatus::kGainOutOfRange:
+      return "gain out of range";
+    case TrackStatus::kFarFromPrediction:
+      return "far from prediction";
+    case TrackStatus::kDegenerate:
+      return "degenerate";
   }
   return "unknown";
 }
 
-bool ReferencePatch::Create(const ImagePyramid& pyramid, const Vector2d& position, int window_size, int max_levels) {
+bool ReferencePatch::Create(const ImagePyramid& pyramid, const Vector2d& position, int window_size,
+                            int max_levels) {
   num_levels_ = 0;
-  if (window_size < 3 || window_size > kMaxWindowSize || window_size % 2 == 0 || pyramid.Empty()) return false;
+  if (window_size < 3 || window_size > kMaxWindowSize || window_size % 2 == 0 || pyramid.Empty())
+    return false;
   window_size_ = window_size;
   position_ = position;
   const int half = window_size / 2;
@@ -192,9 +203,10 @@ bool ReferencePatch::Create(const ImagePyramid& pyramid, const Vector2d& positio
     if (level == 0) std_dev_ = std_dev;
     if (std_dev < kMinStdDev) break;
     // Conditioning of the geometric parameters with the contrast parameters projected out (Schur complement).
-    const Eigen::Matrix3d schur = hessian.topLeftCorner<3, 3>() - hessian.topRightCorner<3, 2>() *
-                                                                      hessian.bottomRightCorner<2, 2>().inverse() *
-                                                                      hessian.bottomLeftCorner<2, 3>();
+    const Eigen::Matrix3d schur =
+        hessian.topLeftCorner<3, 3>() - hessian.topRightCorner<3, 2>() *
+                                            hessian.bottomRightCorner<2, 2>().inverse() *
+                                            hessian.bottomLeftCorner<2, 3>();
     // Compare in units where the scale column is a corner displacement (scale step * half window).
     Eigen::Vector3d unit(1.0, 1.0, 1.0 / half);
     const Eigen::Matrix3d normalised = unit.asDiagonal() * schur * unit.asDiagonal();
@@ -211,7 +223,8 @@ bool ReferencePatch::Create(const ImagePyramid& pyramid, const Vector2d& positio
     Eigen::Matrix<float, 5, 5>& translation_only = inverse_hessian_translation_[level];
     translation_only.setZero();
     for (int i = 0; i < 4; ++i) {
-      for (int j = 0; j < 4; ++j) translation_only(keep[i], keep[j]) = static_cast<float>(reduced_inverse(i, j));
+      for (int j = 0; j < 4; ++j)
+        translation_only(keep[i], keep[j]) = static_cast<float>(reduced_inverse(i, j));
     }
     num_levels_ = level + 1;
   }
@@ -229,8 +242,8 @@ bool ReferencePatch::Create(const ImagePyramid& pyramid, const Vector2d& positio
   return true;
 }
 
-AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePatch& reference, const WarpState& initial,
-                                 const AlignmentOptions& options) {
+AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePatch& reference,
+                                 const WarpState& initial, const AlignmentOptions& options) {
   AlignmentResult result;
   result.warp = initial;
   result.residual = std::numeric_limits<double>::infinity();
@@ -265,8 +278,8 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
     const float* gx = reference.Gx(level);
     const float* gy = reference.Gy(level);
     const float* gs = reference.Gs(level);
-    // Coarse levels estimate translation and contrast only (the scale is kept): with the scale free, coarse windows
-    // far from the solution too easily shrink or grow onto a neighbouring structure.
+    // Coarse levels estimate translation and contrast only (the scale is kept): with the scale free, coarse
+    // windows far from the solution too easily shrink or grow onto a neighbouring structure.
     const bool estimate_scale = fine || !options.coarse_translation_only;
     const Eigen::Matrix<float, 5, 5>& inverse_hessian =
         estimate_scale ? reference.InverseHessian(level) : reference.InverseHessianTranslation(level);
@@ -310,8 +323,8 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
       }
       // Error image and J0^T e (Segvic 2009 §4.2 warp; inverse compositional, see the header).
       const float lam = static_cast<float>(lambda), del = static_cast<float>(delta + lambda * mean);
-      // Eight independent partial sums per quantity so that the compiler can keep them in SIMD registers (float
-      // additions are not reassociated otherwise).
+      // Eight independent partial sums per quantity so that the compiler can keep them in SIMD registers
+      // (float additions are not reassociated otherwise).
       constexpr int kLanes = 8;
       float acc[6][kLanes] = {};
       int k = 0;
@@ -343,8 +356,8 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
       const float b0 = sums[0], b1 = sums[1], b2 = sums[2], b3 = sums[3], b4 = sums[4], sse = sums[5];
       if (fine && (converged || iteration >= max_iterations)) {
         residual = std::sqrt(sse / n) / lambda;
-        // RMS residual of the worst of the 3x3 blocks of the window: an occluder over part of the window shows
-        // there even when the whole-window RMS stays small.
+        // RMS residual of the worst of the 3x3 blocks of the window: an occluder over part of the window
+        // shows there even when the whole-window RMS stays small.
         double block_sse[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
         int block_count[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
         for (int r = 0; r < w; ++r) {
@@ -364,8 +377,9 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
       }
       Eigen::Matrix<float, 5, 1> b;
       b << b0, b1, b2, b3, b4;
-      if (fine && iteration >= 3 && sse > n * kGiveUpResidualFactor * kGiveUpResidualFactor *
-                                                options.max_residual * options.max_residual * lambda * lambda) {
+      if (fine && iteration >= 3 &&
+          sse > n * kGiveUpResidualFactor * kGiveUpResidualFactor * options.max_residual *
+                    options.max_residual * lambda * lambda) {
         // Still far above R after a few iterations at level 0: this window will not match (occlusion, wrong
         // basin); stop early instead of spending the remaining iterations.
         result.status = TrackStatus::kResidualTooLarge;
@@ -380,8 +394,8 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
       Eigen::Matrix<double, 5, 1> step;
       step << h0_step(0) / lambda, h0_step(1) / lambda, h0_step(2) / lambda, h0_step(3), h0_step(4);
       if (estimate_scale && scale_prior_weight > 0.0) {
-        // Prior mu (log s' - log s0)^2 with s' ~ s (1 - ds): adds mu to the ds diagonal and mu (log s - log s0)
-        // to its right-hand side; solved with the precomputed inverse by Sherman-Morrison.
+        // Prior mu (log s' - log s0)^2 with s' ~ s (1 - ds): adds mu to the ds diagonal and mu (log s - log
+        // s0) to its right-hand side; solved with the precomputed inverse by Sherman-Morrison.
         Eigen::Matrix<double, 5, 1> u;
         for (int i = 0; i < 5; ++i) u(i) = inverse_hessian(i, 2);
         u.head<3>() /= lambda;
@@ -401,7 +415,8 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
       const double new_scale = scale / (1.0 + step_s);
       const double new_dx = dx - scale * step_x / (1.0 + step_s);
       const double new_dy = dy - scale * step_y / (1.0 + step_s);
-      const double corner_shift = std::hypot(new_dx - dx, new_dy - dy) + std::abs(new_scale - scale) * half * 1.4142135623730951;
+      const double corner_shift =
+          std::hypot(new_dx - dx, new_dy - dy) + std::abs(new_scale - scale) * half * 1.4142135623730951;
       dx = new_dx;
       dy = new_dy;
       scale = new_scale;
@@ -412,8 +427,8 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
         return result;
       }
       // Contrast step (on the offset of the centred template). Far from the solution (coarse levels, large
-      // displacements) the contrast step can be wild; it is then skipped for this iteration, and the final gain
-      // is checked against its range after convergence.
+      // displacements) the contrast step can be wild; it is then skipped for this iteration, and the final
+      // gain is checked against its range after convergence.
       const double new_lambda = lambda + step(3);
       if (new_lambda > 1.0 / options.max_gain && new_lambda < 1.0 / options.min_gain) {
         delta += step(4) - step(3) * mean;
@@ -481,15 +496,18 @@ feature_t FeatureTracker::AddFeature(const ImagePyramid& pyramid, const Vector2d
   return AddFeature(reference, alignment, id);
 }
 
-std::vector<feature_t> FeatureTracker::AddFeatures(const ImagePyramid& pyramid, const std::vector<Vector2d>& positions) {
+std::vector<feature_t> FeatureTracker::AddFeatures(const ImagePyramid& pyramid,
+                                                   const std::vector<Vector2d>& positions) {
   std::vector<feature_t> ids;
   ids.reserve(positions.size());
   for (const Vector2d& p : positions) ids.push_back(AddFeature(pyramid, p));
   return ids;
 }
 
-feature_t FeatureTracker::AddFeature(const ReferencePatch& reference, const AlignmentResult& alignment, feature_t id) {
-  if (!reference.Valid() || reference.WindowSize() != options_.alignment.window_size) return kInvalidFeatureId;
+feature_t FeatureTracker::AddFeature(const ReferencePatch& reference, const AlignmentResult& alignment,
+                                     feature_t id) {
+  if (!reference.Valid() || reference.WindowSize() != options_.alignment.window_size)
+    return kInvalidFeatureId;
   if (id == kInvalidFeatureId) id = next_id_;
   if (IndexOf(id) >= 0) return kInvalidFeatureId;
   next_id_ = std::max(next_id_, id + 1);
@@ -516,7 +534,8 @@ const std::vector<TrackedFeature>& FeatureTracker::Track(const ImagePyramid& pyr
     if (predicted) initial.position += velocities_[i];
     AlignmentResult result = AlignToReference(pyramid, references_[i], initial, options_.alignment);
     if (!result.ok() && predicted) {
-      // The constant-velocity guess may be wrong after an abrupt change of motion: retry from the last position.
+      // The constant-velocity guess may be wrong after an abrupt change of motion: retry from the last
+      // position.
       AlignmentResult retry = AlignToReference(pyramid, references_[i], feature.warp, options_.alignment);
       if (retry.ok()) result = retry;
     }

@@ -1,17 +1,18 @@
-// Speed of the reference-aligned tracker: 150 features per 320x240 frame, single thread, including the per-frame
-// image preparation (float conversion, pre-smoothing, 3-level pyramid).
+// Speed of the reference-aligned tracker: 150 features per 320x240 frame, single thread, including the
+// per-frame image preparation (float conversion, pre-smoothing, 3-level pyramid).
 //
-//   build/src/retrace/feature/bench_feature_tracker --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+//   build/src/retrace/feature/bench_feature_tracker --benchmark_repetitions=5
+//   --benchmark_report_aggregates_only=true
+
+#include <benchmark/benchmark.h>
 
 #include <cmath>
 #include <filesystem>
-#include <string>
-#include <vector>
-
-#include <benchmark/benchmark.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <string>
+#include <vector>
 
 #include "retrace/feature/corner_detector.h"
 #include "retrace/feature/feature_tracker.h"
@@ -24,8 +25,8 @@ constexpr int kWidth = 320;
 constexpr int kHeight = 240;
 constexpr int kNumFeatures = 150;
 
-// A periodic camera motion over the generated texture: translation on a circle of radius 25 px (about 2.5 px per
-// frame) and a zoom oscillating by +-8 %, so that the sequence can be looped.
+// A periodic camera motion over the generated texture: translation on a circle of radius 25 px (about 2.5 px
+// per frame) and a zoom oscillating by +-8 %, so that the sequence can be looped.
 std::vector<cv::Mat> SyntheticSequence(int num_frames) {
   SyntheticTextureOptions options;
   options.width = 640;
@@ -95,15 +96,19 @@ void TrackSequence(benchmark::State& state, const std::vector<cv::Mat>& frames) 
       for (const TrackedFeature& f : tracker.Features()) existing.push_back(f.warp.position);
       detector.max_corners = kNumFeatures - tracker.NumFeatures();
       std::vector<Vector2d> positions;
-      for (const Corner& c : DetectCorners(pyramid, detector, cv::Mat(), existing)) positions.push_back(c.position);
+      for (const Corner& c : DetectCorners(pyramid, detector, cv::Mat(), existing))
+        positions.push_back(c.position);
       tracker.AddFeatures(pyramid, positions);
       ++refills;
       state.ResumeTiming();
     }
   }
-  state.counters["features_per_frame"] = benchmark::Counter(static_cast<double>(tracked) / std::max<int64_t>(1, frames_done));
-  state.counters["attempted_per_frame"] = benchmark::Counter(static_cast<double>(attempted) / std::max<int64_t>(1, frames_done));
-  state.counters["refills_per_frame"] = benchmark::Counter(static_cast<double>(refills) / std::max<int64_t>(1, frames_done));
+  state.counters["features_per_frame"] =
+      benchmark::Counter(static_cast<double>(tracked) / std::max<int64_t>(1, frames_done));
+  state.counters["attempted_per_frame"] =
+      benchmark::Counter(static_cast<double>(attempted) / std::max<int64_t>(1, frames_done));
+  state.counters["refills_per_frame"] =
+      benchmark::Counter(static_cast<double>(refills) / std::max<int64_t>(1, frames_done));
   state.counters["fps"] = benchmark::Counter(static_cast<double>(frames_done), benchmark::Counter::kIsRate);
 }
 

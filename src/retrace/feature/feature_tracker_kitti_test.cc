@@ -1,14 +1,15 @@
-// The reference-aligned tracker on the real KITTI 07 sequence, checked against the ground-truth poses (epipolar
-// distances), with track lifetimes side by side with OpenCV's pyramidal Lucas-Kanade (forward-backward checked).
+// The reference-aligned tracker on the real KITTI 07 sequence, checked against the ground-truth poses
+// (epipolar distances), with track lifetimes side by side with OpenCV's pyramidal Lucas-Kanade
+// (forward-backward checked).
+
+#include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cstdio>
 #include <map>
-#include <vector>
-
-#include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/video/tracking.hpp>
+#include <vector>
 
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/feature/corner_detector.h"
@@ -64,8 +65,10 @@ LifetimeSummary Summarise(const std::vector<TrackRecord>& tracks, const std::vec
     s.survivors_20 += t.lifetime >= 20;
     s.survivors_40 += t.lifetime >= 40;
     s.survivors_5 += t.lifetime >= 5;
-    if (t.positions.count(10)) epi10.push_back(EpipolarDistance(cam10_from_cam0, t.start, t.positions.at(10)));
-    if (t.positions.count(20)) epi20.push_back(EpipolarDistance(cam20_from_cam0, t.start, t.positions.at(20)));
+    if (t.positions.count(10))
+      epi10.push_back(EpipolarDistance(cam10_from_cam0, t.start, t.positions.at(10)));
+    if (t.positions.count(20))
+      epi20.push_back(EpipolarDistance(cam20_from_cam0, t.start, t.positions.at(20)));
   }
   for (double l : lifetimes) s.mean += l / lifetimes.size();
   s.median = Median(lifetimes);
@@ -87,7 +90,8 @@ TEST(FeatureTrackerKitti, EpipolarAccuracyAndLifetimesVersusLucasKanade) {
     ASSERT_FALSE(frames.back().empty()) << name;
   }
 
-  // Full resolution (1226x370): 4 levels so that the coarsest window spans 120 px (fast motion near the border).
+  // Full resolution (1226x370): 4 levels so that the coarsest window spans 120 px (fast motion near the
+  // border).
   ImagePyramidOptions pyramid_options;
   pyramid_options.num_levels = 4;
   FeatureTrackerOptions tracker_options;
@@ -144,13 +148,16 @@ TEST(FeatureTrackerKitti, EpipolarAccuracyAndLifetimesVersusLucasKanade) {
     std::vector<cv::Point2f> next, back;
     std::vector<uchar> status, status_back;
     std::vector<float> error;
-    cv::calcOpticalFlowPyrLK(frames[frame - 1], frames[frame], current, next, status, error, window, 3, criteria);
-    cv::calcOpticalFlowPyrLK(frames[frame], frames[frame - 1], next, back, status_back, error, window, 3, criteria);
+    cv::calcOpticalFlowPyrLK(frames[frame - 1], frames[frame], current, next, status, error, window, 3,
+                             criteria);
+    cv::calcOpticalFlowPyrLK(frames[frame], frames[frame - 1], next, back, status_back, error, window, 3,
+                             criteria);
     std::vector<cv::Point2f> kept;
     std::vector<int> kept_alive;
     for (size_t k = 0; k < current.size(); ++k) {
       const cv::Point2f p = next[k];
-      const bool inside = p.x >= 0 && p.y >= 0 && p.x <= frames[frame].cols - 1 && p.y <= frames[frame].rows - 1;
+      const bool inside =
+          p.x >= 0 && p.y >= 0 && p.x <= frames[frame].cols - 1 && p.y <= frames[frame].rows - 1;
       if (!status[k] || !status_back[k] || !inside || cv::norm(back[k] - current[k]) > 0.5) continue;
       TrackRecord& record = lk[alive[k]];
       record.positions[frame] = Vector2d(p.x, p.y);
@@ -166,20 +173,22 @@ TEST(FeatureTrackerKitti, EpipolarAccuracyAndLifetimesVersusLucasKanade) {
   const LifetimeSummary b = Summarise(lk, poses);
   std::sort(residuals.begin(), residuals.end());
   std::printf("KITTI 07 frames 0-%d, %zu corners of frame 0 (1226x370)\n", kNumFrames - 1, positions.size());
-  std::printf("| tracker | mean life | median life | alive@5 | alive@10 | alive@20 | alive@40 | epipolar median @10 "
-              "| @20 |\n");
-  std::printf("| reference-aligned | %.1f | %.0f | %d | %d | %d | %d | %.3f px | %.3f px |\n", a.mean, a.median,
-              a.survivors_5, a.survivors_10, a.survivors_20, a.survivors_40, a.epipolar_median_10,
+  std::printf(
+      "| tracker | mean life | median life | alive@5 | alive@10 | alive@20 | alive@40 | epipolar median @10 "
+      "| @20 |\n");
+  std::printf("| reference-aligned | %.1f | %.0f | %d | %d | %d | %d | %.3f px | %.3f px |\n", a.mean,
+              a.median, a.survivors_5, a.survivors_10, a.survivors_20, a.survivors_40, a.epipolar_median_10,
               a.epipolar_median_20);
-  std::printf("| OpenCV LK + FB check | %.1f | %.0f | %d | %d | %d | %d | %.3f px | %.3f px |\n", b.mean, b.median,
-              b.survivors_5, b.survivors_10, b.survivors_20, b.survivors_40, b.epipolar_median_10,
+  std::printf("| OpenCV LK + FB check | %.1f | %.0f | %d | %d | %d | %d | %.3f px | %.3f px |\n", b.mean,
+              b.median, b.survivors_5, b.survivors_10, b.survivors_20, b.survivors_40, b.epipolar_median_10,
               b.epipolar_median_20);
   if (!residuals.empty()) {
     std::printf("residuals of accepted tracks: median %.2f, 90%% %.2f, 99%% %.2f grey levels\n",
                 residuals[residuals.size() / 2], residuals[residuals.size() * 9 / 10],
                 residuals[residuals.size() * 99 / 100]);
   }
-  for (const auto& [status, count] : failures) std::printf("  lost: %s x%d\n", TrackStatusName(status).c_str(), count);
+  for (const auto& [status, count] : failures)
+    std::printf("  lost: %s x%d\n", TrackStatusName(status).c_str(), count);
 
   EXPECT_GE(a.survivors_10, 50);
   EXPECT_GE(a.epipolar_median_10, 0.0);

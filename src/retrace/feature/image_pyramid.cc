@@ -1,13 +1,14 @@
 #include "retrace/feature/image_pyramid.h"
 
 #include <cmath>
-#include <stdexcept>
-
 #include <opencv2/imgproc.hpp>
+#include <stdexcept>
 
 namespace retrace {
 
-ImagePyramid::ImagePyramid(const cv::Mat& image, const ImagePyramidOptions& options) { Build(image, options); }
+ImagePyramid::ImagePyramid(const cv::Mat& image, const ImagePyramidOptions& options) {
+  Build(image, options);
+}
 
 void ImagePyramid::Build(const cv::Mat& image, const ImagePyramidOptions& options) {
   if (!options.Check()) throw std::invalid_argument("ImagePyramid: invalid options");

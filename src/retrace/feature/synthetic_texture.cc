@@ -42,8 +42,8 @@ SyntheticTexture::SyntheticTexture(const SyntheticTextureOptions& options) : opt
   }
 }
 
-cv::Mat SyntheticTexture::Render(int width, int height, double scale, const Vector2d& translation, double gain,
-                                 double bias) const {
+cv::Mat SyntheticTexture::Render(int width, int height, double scale, const Vector2d& translation,
+                                 double gain, double bias) const {
   cv::Mat canvas(height, width, CV_64FC1);
   // Background.
   for (int y = 0; y < height; ++y) {
@@ -51,7 +51,8 @@ cv::Mat SyntheticTexture::Render(int width, int height, double scale, const Vect
     const double ty = (y - translation.y()) / scale;
     for (int x = 0; x < width; ++x) {
       const double tx = (x - translation.x()) / scale;
-      row[x] = 0.5 + 0.15 * std::sin(background_fx_ * tx + background_px_) * std::cos(background_fy_ * ty + background_py_);
+      row[x] = 0.5 + 0.15 * std::sin(background_fx_ * tx + background_px_) *
+                         std::cos(background_fy_ * ty + background_py_);
     }
   }
   const double sigma = options_.edge_sigma;
@@ -60,10 +61,15 @@ cv::Mat SyntheticTexture::Render(int width, int height, double scale, const Vect
   for (const Shape& s : shapes_) {
     double bx0, by0, bx1, by1;  // bounding box in texture units
     if (s.disc) {
-      bx0 = s.x0 - s.x1 - margin; bx1 = s.x0 + s.x1 + margin;
-      by0 = s.y0 - s.x1 - margin; by1 = s.y0 + s.x1 + margin;
+      bx0 = s.x0 - s.x1 - margin;
+      bx1 = s.x0 + s.x1 + margin;
+      by0 = s.y0 - s.x1 - margin;
+      by1 = s.y0 + s.x1 + margin;
     } else {
-      bx0 = s.x0 - margin; bx1 = s.x1 + margin; by0 = s.y0 - margin; by1 = s.y1 + margin;
+      bx0 = s.x0 - margin;
+      bx1 = s.x1 + margin;
+      by0 = s.y0 - margin;
+      by1 = s.y1 + margin;
     }
     const int px0 = std::max(0, static_cast<int>(std::floor(scale * bx0 + translation.x())));
     const int px1 = std::min(width - 1, static_cast<int>(std::ceil(scale * bx1 + translation.x())));
