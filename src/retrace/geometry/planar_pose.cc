@@ -68,6 +68,8 @@ Rigid3d UpdatePlanarPose(const Rigid3d& pose, const double* delta) {
 
 }  // namespace
 
+internal::PoseManifold internal::PlanarPoseManifold() { return internal::PoseManifold{2, &UpdatePlanarPose}; }
+
 TwoViewGeometry EstimatePlanarRelativePose(const std::vector<Vector3d>& bearings_a,
                                            const std::vector<Vector3d>& bearings_b, double focal_length_px,
                                            const TwoViewOptions& options) {

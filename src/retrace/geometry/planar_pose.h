@@ -47,4 +47,9 @@ Rigid3d PlanarPose(double theta, double beta);
 // positive = to the right (clockwise seen from above), ±π = behind.
 double PlanarHeading(const Rigid3d& b_from_a);
 
+namespace internal {
+// The 2-parameter manifold of the planar refinement: θ ← θ + δ₀, t ← R_y(δ₁) t.
+PoseManifold PlanarPoseManifold();
+}  // namespace internal
+
 }  // namespace retrace

@@ -70,6 +70,8 @@ Rigid3d UpdateGeneralPose(const Rigid3d& pose, const double* delta) {
 
 }  // namespace
 
+internal::PoseManifold internal::GeneralPoseManifold() { return internal::PoseManifold{5, &UpdateGeneralPose}; }
+
 void SolveFivePoint(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
                     const std::vector<int>& sample, std::vector<Rigid3d>* poses) {
   FivePointSolver(bearings_a, bearings_b)(sample, poses);

@@ -32,4 +32,9 @@ TwoViewGeometry EstimateRelativePose(const std::vector<Vector3d>& bearings_a, co
 void SolveFivePoint(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
                     const std::vector<int>& sample, std::vector<Rigid3d>* poses);
 
+namespace internal {
+// The 5-parameter manifold of the refinement: R <- exp(δ₀₁₂) R, t <- normalize(t + δ₃ b₁ + δ₄ b₂).
+PoseManifold GeneralPoseManifold();
+}  // namespace internal
+
 }  // namespace retrace

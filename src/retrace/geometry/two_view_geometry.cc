@@ -7,6 +7,7 @@
 #include <random>
 
 #include <Eigen/Cholesky>
+#include <Eigen/SVD>
 
 #include "retrace/geometry/essential.h"
 #include "retrace/geometry/sigma_p.h"
@@ -48,16 +49,28 @@ TwoViewGeometry Failure(TwoViewFailure failure, const std::string& detail, size_
   return geometry;
 }
 
+// Inlier test shared by scoring and evaluation: Sampson error below τ, triangulated (midpoint) in front of both
+// cameras, and the triangulated point reprojects within τ (both images together). The last test rejects the
+// occasional outlier that lies near its epipolar line but far from where the two rays meet. Returns the squared
+// Sampson error (radians²) of an inlier, or a negative value for an outlier; fills `point` for inliers.
+inline double InlierError(const Rigid3d& pose, const Matrix3d& e, const Vector3d& fa, const Vector3d& fb,
+                          double tau2, TriangulatedPoint* point) {
+  const double e2 = SampsonErrorSquared(e, fa, fb);
+  if (!(e2 < tau2)) return -1.0;
+  if (!TriangulateMidpoint(pose, fa, fb, point) || point->depth_a <= 0.0 || point->depth_b <= 0.0) return -1.0;
+  const Vector2d residual_a = TangentResidualPx(fa, point->point_in_a, 1.0);
+  const Vector2d residual_b = TangentResidualPx(fb, pose * point->point_in_a, 1.0);
+  if (!(residual_a.squaredNorm() + residual_b.squaredNorm() < tau2)) return -1.0;
+  return e2;
+}
+
 // MSAC cost of one correspondence and whether it is an inlier; τ² in radians².
 inline double CorrespondenceCost(const Rigid3d& pose, const Matrix3d& e, const Vector3d& fa, const Vector3d& fb,
                                  double tau2, bool* inlier) {
-  const double e2 = SampsonErrorSquared(e, fa, fb);
-  if (!(e2 < tau2) || !InFrontOfBothCameras(pose, fa, fb)) {
-    *inlier = false;
-    return tau2;
-  }
-  *inlier = true;
-  return e2;
+  TriangulatedPoint point;
+  const double e2 = InlierError(pose, e, fa, fb, tau2, &point);
+  *inlier = e2 >= 0.0;
+  return *inlier ? e2 : tau2;
 }
 
 // MSAC cost of a pose over all correspondences, stopping early once it exceeds `bound`.
@@ -123,9 +136,8 @@ void EvaluateTwoViewGeometry(const std::vector<Vector3d>& bearings_a, const std:
   for (size_t i = 0; i < n; ++i) {
     const Vector3d& fa = bearings_a[i];
     const Vector3d& fb = bearings_b[i];
-    if (!(SampsonErrorSquared(e, fa, fb) < tau2)) continue;
     TriangulatedPoint point;
-    if (!TriangulateMidpoint(pose, fa, fb, &point) || point.depth_a <= 0.0 || point.depth_b <= 0.0) continue;
+    if (InlierError(pose, e, fa, fb, tau2, &point) < 0.0) continue;
     geometry->inlier_mask[i] = true;
     ++geometry->num_inliers;
     geometry->points_in_a[i] = point.point_in_a;
@@ -133,8 +145,22 @@ void EvaluateTwoViewGeometry(const std::vector<Vector3d>& bearings_a, const std:
     geometry->depths_b[i] = point.depth_b;
     // Residual measured in image B only (Segvic 2009 §4.5: 2n components), pixels.
     sum_squares += TangentResidualPx(fb, pose * point.point_in_a, focal_length_px).squaredNorm();
-    const Vector3d rotated = pose.rotation * fa;
-    parallax.push_back(std::atan2(rotated.cross(fb).norm(), rotated.dot(fb)) * focal_length_px);
+  }
+  // Parallax w.r.t. the best pure rotation of the inliers (not w.r.t. the estimated R: under pure rotation the
+  // estimator can trade a little rotation for a fictitious translation and invent parallax). Rotation-only fit:
+  // R_0 = argmin Σ |f_B - R f_A|² (Kabsch / Arun et al. 1987).
+  Matrix3d correlation = Matrix3d::Zero();
+  for (size_t i = 0; i < n; ++i) {
+    if (geometry->inlier_mask[i]) correlation += bearings_b[i] * bearings_a[i].transpose();
+  }
+  const Eigen::JacobiSVD<Matrix3d> svd(correlation, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Matrix3d sign = Matrix3d::Identity();
+  sign(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0.0 ? -1.0 : 1.0;
+  const Matrix3d rotation_only = svd.matrixU() * sign * svd.matrixV().transpose();
+  for (size_t i = 0; i < n; ++i) {
+    if (!geometry->inlier_mask[i]) continue;
+    const Vector3d rotated = rotation_only * bearings_a[i];
+    parallax.push_back(std::atan2(rotated.cross(bearings_b[i]).norm(), rotated.dot(bearings_b[i])) * focal_length_px);
   }
   const int m = geometry->num_inliers;
   geometry->sigma_p = SigmaPFromSumSquares(sum_squares, m, sigma_p_probability);
@@ -153,17 +179,33 @@ namespace internal {
 
 Rigid3d RefineOnSampson(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
                         const std::vector<int>& indices, const Rigid3d& initial, const PoseManifold& manifold,
-                        int max_iterations) {
+                        int max_iterations, double cauchy_scale) {
   const int dim = manifold.dim;
   const int m = static_cast<int>(indices.size());
   if (m < dim || max_iterations <= 0) return initial;
+  // Cauchy loss ρ(s) = c² log(1 + s / c²) on the squared Sampson residuals, minimised as weighted least squares
+  // (iteratively reweighted: the weights are fixed during one LM step). A correspondence that passed the inlier
+  // threshold by chance then pulls the pose much less than under a plain quadratic.
+  const double c2 = cauchy_scale > 0.0 ? cauchy_scale * cauchy_scale : 0.0;
+  Eigen::VectorXd weights = Eigen::VectorXd::Ones(m);
   auto residuals = [&](const Rigid3d& pose, Eigen::VectorXd* r) {
     const Matrix3d e = EssentialFromPose(pose);
     r->resize(m);
-    for (int k = 0; k < m; ++k) (*r)(k) = SampsonResidual(e, bearings_a[indices[k]], bearings_b[indices[k]]);
+    for (int k = 0; k < m; ++k) {
+      (*r)(k) = weights(k) * SampsonResidual(e, bearings_a[indices[k]], bearings_b[indices[k]]);
+    }
+  };
+  auto update_weights = [&](const Rigid3d& pose) {
+    if (c2 == 0.0) return;
+    const Matrix3d e = EssentialFromPose(pose);
+    for (int k = 0; k < m; ++k) {
+      const double s = SampsonErrorSquared(e, bearings_a[indices[k]], bearings_b[indices[k]]);
+      weights(k) = std::sqrt(1.0 / (1.0 + s / c2));  // sqrt of the IRLS weight ρ'(s)
+    }
   };
   Rigid3d pose = initial;
   Eigen::VectorXd r, r_plus, r_minus;
+  update_weights(pose);
   residuals(pose, &r);
   double cost = r.squaredNorm();
   double lambda = 1e-4;
@@ -171,6 +213,11 @@ Rigid3d RefineOnSampson(const std::vector<Vector3d>& bearings_a, const std::vect
   std::vector<double> delta(dim, 0.0);
   constexpr double kStep = 1e-7;
   for (int iteration = 0; iteration < max_iterations; ++iteration) {
+    if (iteration > 0 && c2 > 0.0) {
+      update_weights(pose);
+      residuals(pose, &r);
+      cost = r.squaredNorm();
+    }
     // Central-difference Jacobian: 5 parameters at most, so this costs a few residual evaluations.
     for (int j = 0; j < dim; ++j) {
       std::fill(delta.begin(), delta.end(), 0.0);
@@ -200,7 +247,7 @@ Rigid3d RefineOnSampson(const std::vector<Vector3d>& bearings_a, const std::vect
         cost = candidate_cost;
         lambda = std::max(lambda * 0.1, 1e-12);
         improved = true;
-        if (relative_decrease < 1e-10) return pose;
+        if (relative_decrease < 1e-10 && c2 == 0.0) return pose;
       } else {
         lambda *= 10.0;
       }
@@ -232,6 +279,7 @@ TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const s
 
   const double tau = options.ransac.max_error_px / focal_length_px;
   const double tau2 = tau * tau;
+  const double min_separation2 = 0.01 * tau2;  // 0.1 τ apart at least
   std::mt19937_64 rng(options.ransac.seed);
   std::vector<int> pool(n);
   std::iota(pool.begin(), pool.end(), 0);
@@ -251,6 +299,18 @@ TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const s
       std::swap(pool[k], pool[pick(rng)]);
       sample[k] = pool[k];
     }
+    // Degenerate sample: two correspondences on (nearly) the same ray in either image carry no information.
+    bool distinct = true;
+    for (int i = 0; i < sample_size && distinct; ++i) {
+      for (int j = i + 1; j < sample_size; ++j) {
+        if ((bearings_a[sample[i]] - bearings_a[sample[j]]).squaredNorm() < min_separation2 ||
+            (bearings_b[sample[i]] - bearings_b[sample[j]]).squaredNorm() < min_separation2) {
+          distinct = false;
+          break;
+        }
+      }
+    }
+    if (!distinct) continue;
     candidates.clear();
     solver(sample, &candidates);
     for (const Rigid3d& pose : candidates) {
@@ -276,8 +336,8 @@ TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const s
   Rigid3d pose = best_pose;
   std::vector<int> inliers = InlierIndices(pose, bearings_a, bearings_b, tau2);
   for (int round = 0; round < 3 && static_cast<int>(inliers.size()) >= manifold.dim; ++round) {
-    const Rigid3d refined =
-        RefineOnSampson(bearings_a, bearings_b, inliers, pose, manifold, options.refinement_iterations);
+    const Rigid3d refined = RefineOnSampson(bearings_a, bearings_b, inliers, pose, manifold,
+                                            options.refinement_iterations);
     std::vector<int> refined_inliers = InlierIndices(refined, bearings_a, bearings_b, tau2);
     if (refined_inliers.size() < inliers.size()) break;
     pose = refined;

@@ -14,7 +14,9 @@
 //  - the number of iterations adapts to the best inlier ratio w: N = log(1 - confidence) / log(1 - w^k);
 //  - the best hypothesis is refined on its inliers by Levenberg-Marquardt on the Sampson error (R and unit t), the
 //    inliers are re-selected and refined again (local optimisation);
-//  - inliers = Sampson error below the threshold AND triangulated in front of both cameras;
+//  - inliers = Sampson error below the threshold AND triangulated in front of both cameras AND the triangulated
+//    point reprojects within the threshold (both images together; this rejects the occasional outlier that lies
+//    near its epipolar line far from where the rays meet);
 //  - inliers are triangulated (midpoint) and σ_p (Segvic 2009, eq. 6) is computed from their reprojection residuals
 //    in image B (see sigma_p.h).
 //
@@ -36,7 +38,7 @@ struct RansacOptions {
   // Probability that at least one sample is outlier-free when the adaptive loop stops.
   double confidence = 0.999;
   // Bounds on the number of samples drawn.
-  int min_iterations = 20;
+  int min_iterations = 100;
   int max_iterations = 5000;
   // Seed of the random sampler; equal seeds and inputs give equal results.
   uint64_t seed = 0x5eed;
@@ -50,8 +52,10 @@ struct TwoViewOptions {
   int refinement_iterations = 10;
   // Fewer inliers than this is a failure (the 5-point model has 5 degrees of freedom).
   int min_inliers = 8;
-  // Degeneracy guard: the median parallax of the inliers (angle between R f_A and f_B, times the focal length) must
-  // reach this many pixels; pure rotation or a scene at infinity has no measurable translation.
+  // Degeneracy guard: the median parallax of the inliers must reach this many pixels. Parallax is the angle between
+  // f_B and R₀ f_A times the focal length, with R₀ the pure rotation that best explains the inliers: when a rotation
+  // alone explains them within a couple of pixels (pure rotation, a scene at infinity, a tiny baseline), the
+  // translation is not observable.
   double min_parallax_px = 2.0;
   // Tolerated probability p of σ_p (Segvic 2009, eq. 6).
   double sigma_p_probability = 0.05;
@@ -92,7 +96,7 @@ struct TwoViewGeometry {
   double sigma_p = std::numeric_limits<double>::infinity();
   // sqrt(Σ (Δx² + Δy²) / 2n): RMS of the same residual components, pixels.
   double rms_residual_px = std::numeric_limits<double>::infinity();
-  // Median parallax of the inliers, pixels (see TwoViewOptions::min_parallax_px).
+  // Median parallax of the inliers w.r.t. their best pure rotation, pixels (see TwoViewOptions::min_parallax_px).
   double median_parallax_px = 0.0;
   // Samples drawn by the robust loop.
   int num_iterations = 0;
@@ -115,15 +119,18 @@ TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const s
                                 double focal_length_px, const TwoViewOptions& options, int sample_size,
                                 const MinimalSolver& solver, const PoseManifold& manifold);
 
-// Levenberg-Marquardt on the Sampson residuals of `indices` over the manifold; returns the refined pose.
+// Levenberg-Marquardt on the Sampson residuals (radians) of `indices` over the manifold, with an optional Cauchy
+// loss of scale `cauchy_scale` (radians; 0, the default used by the estimators, is plain least squares: on a clean
+// inlier set it is the maximum-likelihood estimate, while a robust loss moved the optimum of these weakly
+// conditioned problems noticeably); returns the refined pose.
 Rigid3d RefineOnSampson(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
                         const std::vector<int>& indices, const Rigid3d& initial, const PoseManifold& manifold,
-                        int max_iterations);
+                        int max_iterations, double cauchy_scale = 0.0);
 
 }  // namespace internal
 
 // Fills inliers, triangulated points, depths, residuals, σ_p and parallax of `geometry` for its pose `b_from_a`,
-// with the inlier definition of the estimators (Sampson error <= max_error_px and in front of both cameras). Also
+// with the inlier definition of the estimators (see above, threshold max_error_px). Also
 // useful to evaluate a geometry on a new set of correspondences.
 void EvaluateTwoViewGeometry(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
                              double focal_length_px, double max_error_px, double sigma_p_probability,
