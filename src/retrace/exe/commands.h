@@ -9,5 +9,7 @@
 namespace retrace {
 
 void RegisterVersionCommand(CLI::App& app);
+void RegisterSequenceInfoCommand(CLI::App& app);
+void RegisterPerturbCommand(CLI::App& app);
 
 }  // namespace retrace
