@@ -1,0 +1,93 @@
+// Relative pose on real data: KITTI odometry sequence 07 (shared data), SIFT matches, against ground-truth poses.
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "retrace/camera/perspective_camera.h"
+#include "retrace/dataset/ground_truth.h"
+#include "retrace/geometry/planar_pose.h"
+#include "retrace/geometry/relative_pose.h"
+#include "retrace/geometry/two_view_matching.h"
+#include "retrace/util/testing.h"
+
+namespace retrace {
+namespace {
+
+// The left grey camera of KITTI from the P0 line of calib.txt (rectified: no distortion).
+PerspectiveCamera KittiCamera(const std::filesystem::path& calib, int width, int height) {
+  std::ifstream in(calib);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("P0:", 0) != 0) continue;
+    std::istringstream values(line.substr(3));
+    double p[12];
+    for (double& v : p) values >> v;
+    return PerspectiveCamera(width, height, p[0], p[5], p[2], p[6]);
+  }
+  ADD_FAILURE() << "no P0 line in " << calib;
+  return PerspectiveCamera(width, height, 1.0, 1.0, 0.0, 0.0);
+}
+
+cv::Mat Frame(const std::filesystem::path& dir, int index) {
+  char name[32];
+  std::snprintf(name, sizeof(name), "image_0/%06d.png", index);
+  return cv::imread((dir / name).string(), cv::IMREAD_GRAYSCALE);
+}
+
+struct KittiPair {
+  int a, b;
+};
+
+class TwoViewKittiTest : public ::testing::TestWithParam<KittiPair> {};
+
+TEST_P(TwoViewKittiTest, RelativePoseMatchesGroundTruth) {
+  RETRACE_REQUIRE_SHARED_DATA(dir, "kitti07");
+  const KittiPair pair = GetParam();
+  const cv::Mat image_a = Frame(dir, pair.a), image_b = Frame(dir, pair.b);
+  ASSERT_FALSE(image_a.empty());
+  ASSERT_FALSE(image_b.empty());
+  const PerspectiveCamera camera = KittiCamera(dir / "calib.txt", image_a.cols, image_a.rows);
+  const std::vector<TimedPose> poses = ReadKittiPoses(dir / "poses.txt");
+  ASSERT_GT(poses.size(), static_cast<size_t>(pair.b));
+  // x_B = R x_A + t: b_from_a = world_from_b⁻¹ world_from_a.
+  const Rigid3d truth = poses[pair.b].world_from_cam.Inverse() * poses[pair.a].world_from_cam;
+
+  const PixelMatches matches = MatchTwoViewFeatures(image_a, image_b);
+  std::vector<Vector3d> bearings_a, bearings_b;
+  MatchesToBearings(matches, camera, camera, &bearings_a, &bearings_b);
+  const TwoViewGeometry g = EstimateRelativePose(bearings_a, bearings_b, camera.FocalLength());
+  ASSERT_TRUE(g.success) << g.failure_message;
+  const double rotation_error = RotationErrorDeg(g.b_from_a.rotation, truth.rotation);
+  const double translation_error = AngleBetweenDeg(g.b_from_a.translation, truth.translation);
+  std::printf("  frames %d-%d: %zu matches, %d inliers, rotation error %.3f deg, translation error %.3f deg, "
+              "sigma_p %.3f px, rms %.3f px\n",
+              pair.a, pair.b, bearings_a.size(), g.num_inliers, rotation_error, translation_error, g.sigma_p,
+              g.rms_residual_px);
+  EXPECT_LT(rotation_error, 0.3);
+  EXPECT_LT(translation_error, 3.0);
+  EXPECT_GT(g.num_inliers, 100);
+  EXPECT_LT(g.sigma_p, 1.0);
+
+  // The car drives on a nearly flat road: the planar model (camera y axis vertical) fits too, less precisely since
+  // the KITTI camera is not exactly level.
+  const TwoViewGeometry planar = EstimatePlanarRelativePose(bearings_a, bearings_b, camera.FocalLength());
+  if (planar.success) {
+    std::printf("  planar model: %d inliers, rotation error %.3f deg, translation error %.3f deg\n",
+                planar.num_inliers, RotationErrorDeg(planar.b_from_a.rotation, truth.rotation),
+                AngleBetweenDeg(planar.b_from_a.translation, truth.translation));
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Kitti07, TwoViewKittiTest,
+                         ::testing::Values(KittiPair{0, 5}, KittiPair{0, 10}, KittiPair{50, 60}),
+                         [](const ::testing::TestParamInfo<KittiPair>& info) {
+                           return "frames_" + std::to_string(info.param.a) + "_" + std::to_string(info.param.b);
+                         });
+
+}  // namespace
+}  // namespace retrace
