@@ -10,7 +10,6 @@
 
 #include "retrace/camera/perspective_camera.h"
 #include "retrace/dataset/ground_truth.h"
-#include "retrace/geometry/planar_pose.h"
 #include "retrace/geometry/relative_pose.h"
 #include "retrace/geometry/two_view_matching.h"
 #include "retrace/util/testing.h"
@@ -73,14 +72,6 @@ TEST_P(TwoViewKittiTest, RelativePoseMatchesGroundTruth) {
   EXPECT_GT(g.num_inliers, 100);
   EXPECT_LT(g.sigma_p, 1.0);
 
-  // The car drives on a nearly flat road: the planar model (camera y axis vertical) fits too, less precisely since
-  // the KITTI camera is not exactly level.
-  const TwoViewGeometry planar = EstimatePlanarRelativePose(bearings_a, bearings_b, camera.FocalLength());
-  if (planar.success) {
-    std::printf("  planar model: %d inliers, rotation error %.3f deg, translation error %.3f deg\n",
-                planar.num_inliers, RotationErrorDeg(planar.b_from_a.rotation, truth.rotation),
-                AngleBetweenDeg(planar.b_from_a.translation, truth.translation));
-  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Kitti07, TwoViewKittiTest,
