@@ -76,7 +76,8 @@ enum class TwoViewFailure {
 const char* TwoViewFailureName(TwoViewFailure failure);
 
 // Result of a two-view estimation. Arrays indexed by correspondence have the size of the input; entries of
-// non-inliers are zero.
+// non-inliers are zero. On failure `success` is false and `failure`/`failure_message` say why; for
+// kInsufficientParallax the other fields still describe the (unreliable) estimate, for diagnostics.
 struct TwoViewGeometry {
   bool success = false;
   TwoViewFailure failure = TwoViewFailure::kNone;
