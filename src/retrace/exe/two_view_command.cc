@@ -1,12 +1,14 @@
 // `retrace two-view IMG_A IMG_B --camera CAM [--json]`: relative pose of two images — SIFT matches, robust 5-point
 // (or planar) estimation on bearings, σ_p (Segvic 2009, eq. 6).
 
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <string>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "retrace/camera/camera_io.h"
@@ -30,12 +32,16 @@ struct TwoViewArgs {
 };
 
 cv::Mat ReadImage(const std::string& path) {
+  // Checked first so that OpenCV does not print its own warning next to our one-line error.
+  std::error_code error;
+  if (!std::filesystem::is_regular_file(path, error)) throw InputError(path, "cannot read image (no such file)");
   cv::Mat image = cv::imread(path, cv::IMREAD_GRAYSCALE);
   if (image.empty()) throw InputError(path, "cannot read image");
   return image;
 }
 
 void RunTwoView(const TwoViewArgs& args) {
+  cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_ERROR);  // decoder warnings would break one-line errors
   const cv::Mat image_a = ReadImage(args.image_a);
   const cv::Mat image_b = ReadImage(args.image_b);
   if (image_b.size() != image_a.size()) {

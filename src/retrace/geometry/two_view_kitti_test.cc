@@ -1,14 +1,13 @@
 // Relative pose on real data: KITTI odometry sequence 07 (shared data), SIFT matches, against ground-truth poses.
 
 #include <cstdio>
-#include <fstream>
-#include <sstream>
+#include <memory>
 #include <string>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
-#include "retrace/camera/perspective_camera.h"
+#include "retrace/camera/camera_io.h"
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/geometry/relative_pose.h"
 #include "retrace/geometry/two_view_matching.h"
@@ -16,21 +15,6 @@
 
 namespace retrace {
 namespace {
-
-// The left grey camera of KITTI from the P0 line of calib.txt (rectified: no distortion).
-PerspectiveCamera KittiCamera(const std::filesystem::path& calib, int width, int height) {
-  std::ifstream in(calib);
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.rfind("P0:", 0) != 0) continue;
-    std::istringstream values(line.substr(3));
-    double p[12];
-    for (double& v : p) values >> v;
-    return PerspectiveCamera(width, height, p[0], p[5], p[2], p[6]);
-  }
-  ADD_FAILURE() << "no P0 line in " << calib;
-  return PerspectiveCamera(width, height, 1.0, 1.0, 0.0, 0.0);
-}
 
 cv::Mat Frame(const std::filesystem::path& dir, int index) {
   char name[32];
@@ -50,7 +34,9 @@ TEST_P(TwoViewKittiTest, RelativePoseMatchesGroundTruth) {
   const cv::Mat image_a = Frame(dir, pair.a), image_b = Frame(dir, pair.b);
   ASSERT_FALSE(image_a.empty());
   ASSERT_FALSE(image_b.empty());
-  const PerspectiveCamera camera = KittiCamera(dir / "calib.txt", image_a.cols, image_a.rows);
+  // KITTI's calib.txt has no image size: the size of the first image is passed.
+  const std::unique_ptr<CameraModel> camera_model = ReadCameraFile(dir / "calib.txt", image_a.size());
+  const CameraModel& camera = *camera_model;
   const std::vector<TimedPose> poses = ReadKittiPoses(dir / "poses.txt");
   ASSERT_GT(poses.size(), static_cast<size_t>(pair.b));
   // x_B = R x_A + t: b_from_a = world_from_b⁻¹ world_from_a.

@@ -2,13 +2,16 @@
 # CLI checks of `retrace two-view` (sourced by cli_test.sh: $bin, $data, $tmp, expect).
 
 printf 'P0: 500 0 320 0 0 500 240 0 0 0 1 0\n' > "$tmp/two_view_calib.txt"
-expect two-view-missing-image 1 "^retrace: error: $tmp/no_such_a.png: cannot read image$" -- \
+expect two-view-missing-image 1 "^retrace: error: $tmp/no_such_a.png: cannot read image \\(no such file\\)$" -- \
   "$bin" two-view "$tmp/no_such_a.png" "$tmp/no_such_b.png" --camera "$tmp/two_view_calib.txt"
 expect two-view-needs-camera 106 "--camera is required" -- "$bin" two-view a.png b.png
+head -c 100 /dev/urandom > "$tmp/garbage.png"
+expect two-view-corrupt-image 1 "^retrace: error: $tmp/garbage.png: cannot read image$" -- \
+  "$bin" two-view "$tmp/garbage.png" "$tmp/garbage.png" --camera "$tmp/two_view_calib.txt"
 
 if [[ -d $data/kitti07 ]]; then
   k=$data/kitti07
-  expect two-view-missing-second 1 "^retrace: error: $tmp/no_such_b.png: cannot read image$" -- \
+  expect two-view-missing-second 1 "^retrace: error: $tmp/no_such_b.png: cannot read image \\(no such file\\)$" -- \
     "$bin" two-view "$k/image_0/000000.png" "$tmp/no_such_b.png" --camera "$k/calib.txt"
   # JSON parses and its rotation is within 0.3 deg of the ground truth b_from_a = world_from_b^-1 world_from_a
   # (poses.txt lines 1 and 11: frames 0 and 10), its translation direction within 3 deg.
