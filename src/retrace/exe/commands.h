@@ -13,5 +13,6 @@ void RegisterSequenceInfoCommand(CLI::App& app);
 void RegisterPerturbCommand(CLI::App& app);
 void RegisterCalibrateCommand(CLI::App& app);
 void RegisterCameraInfoCommand(CLI::App& app);
+void RegisterTwoViewCommand(CLI::App& app);
 
 }  // namespace retrace
