@@ -4,30 +4,22 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "retrace/util/testing.h"
+#include "retrace/feature/synthetic_texture.h"
 
 namespace retrace {
 namespace {
 
-// A cluttered texture with corners, blobs and edges at many scales, generated from a seed.
+// A cluttered texture with corners, blobs and edges, generated from a seed, as 8-bit gray.
 cv::Mat ClutteredTexture(int width, int height, uint64_t seed) {
-  cv::RNG rng(seed);
-  cv::Mat image(height, width, CV_8UC1, cv::Scalar(128));
-  for (int i = 0; i < 400; ++i) {
-    const cv::Point center(rng.uniform(0, width), rng.uniform(0, height));
-    const int size = rng.uniform(3, 40);
-    const cv::Scalar grey(rng.uniform(0, 256));
-    if (i % 3 == 0) {
-      cv::circle(image, center, size / 2, grey, cv::FILLED, cv::LINE_AA);
-    } else {
-      const cv::RotatedRect box(center, cv::Size2f(size, rng.uniform(3, 40)), rng.uniform(0.f, 180.f));
-      cv::Point2f corners[4];
-      box.points(corners);
-      std::vector<cv::Point> polygon(corners, corners + 4);
-      cv::fillConvexPoly(image, polygon, grey, cv::LINE_AA);
-    }
-  }
-  cv::GaussianBlur(image, image, cv::Size(0, 0), 0.8);
+  SyntheticTextureOptions options;
+  options.width = width;
+  options.height = height;
+  options.num_shapes = std::max(4, width * height / 500);
+  options.min_grey = 10;
+  options.max_grey = 240;
+  options.seed = seed;
+  cv::Mat image;
+  SyntheticTexture(options).Render(width, height).convertTo(image, CV_8U);
   return image;
 }
 
