@@ -14,5 +14,6 @@ void RegisterPerturbCommand(CLI::App& app);
 void RegisterInspectCommand(CLI::App& app);
 void RegisterCalibrateCommand(CLI::App& app);
 void RegisterCameraInfoCommand(CLI::App& app);
+void RegisterTwoViewCommand(CLI::App& app);
 
 }  // namespace retrace

@@ -19,6 +19,7 @@ constexpr void (*kCommands[])(CLI::App&) = {
     &retrace::RegisterInspectCommand,
     &retrace::RegisterCalibrateCommand,
     &retrace::RegisterCameraInfoCommand,
+    &retrace::RegisterTwoViewCommand,
 };
 
 }  // namespace
