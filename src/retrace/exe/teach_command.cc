@@ -36,7 +36,7 @@ struct TeachArguments {
 };
 
 // The camera of the sequence: --camera, else the calibration file found in the sequence's layout.
-std::unique_ptr<CameraModel> LoadCamera(const TeachArguments& args, const Sequence& sequence) {
+std::unique_ptr<CameraModel> LoadCamera(const TeachArguments& args, Sequence& sequence) {
   std::filesystem::path path = args.camera;
   if (path.empty()) {
     const auto found = sequence.calibration_file();

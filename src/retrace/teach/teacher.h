@@ -51,9 +51,13 @@ struct TeachOptions {
   // R: tracks whose RMS residual against their reference exceeds this are dropped (grey levels). Paper: 6.
   double max_residual = 6.0;
   // Corners handed to the tracker at the start of a subrange, surviving tracks included.
-  int max_corners = 500;
+  int max_corners = 1000;
   // Minimum distance between corners (pixels at reference_width).
-  double corner_min_distance_px = 5.0;
+  double corner_min_distance_px = 2.0;
+  // Gaussian pre-smoothing of the tracker's images (pixels at reference_width). Scaling it with the image keeps
+  // the residual R meaningful at any resolution: fine texture that the paper's 320x240 images did not resolve
+  // would otherwise count as appearance change.
+  double smoothing_sigma_px = 0.4;
   // Sampson-error threshold of the geometry's inliers (pixels at reference_width).
   double inlier_threshold_px = 1.5;
   // Relate a key-image and the current image by wide-baseline matching when tracking fails at once.
@@ -133,6 +137,7 @@ class Teacher {
   double max_sigma_p_px_;
   TwoViewOptions geometry_options_;
   CornerDetectorOptions detector_options_;
+  ImagePyramidOptions pyramid_options_;
   FeatureTracker tracker_;
 
   std::unique_ptr<FrameState> previous_;
