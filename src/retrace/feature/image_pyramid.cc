@@ -1,5 +1,6 @@
 #include "retrace/feature/image_pyramid.h"
 
+#include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
@@ -33,6 +34,14 @@ void ImagePyramid::Build(const cv::Mat& image, const ImagePyramidOptions& option
   for (int l = 1; l < options.num_levels; ++l) {
     cv::pyrDown(levels_[l - 1], levels_[l]);
   }
+}
+
+ImagePyramidOptions TrackingPyramidOptions(int width, int reference_width, double smoothing_sigma_px) {
+  const double pixel_scale = static_cast<double>(width) / std::max(1, reference_width);
+  ImagePyramidOptions options;
+  options.smoothing_sigma = smoothing_sigma_px * pixel_scale;
+  options.num_levels = 3 + std::max(0, static_cast<int>(std::floor(std::log2(pixel_scale) + 0.25)));
+  return options;
 }
 
 }  // namespace retrace

@@ -29,6 +29,13 @@ struct ImagePyramidOptions {
   bool Check() const { return num_levels >= 1 && num_levels <= 10 && smoothing_sigma >= 0.0; }
 };
 
+// Pyramid settings for tracking in images `width` pixels wide, with pixel quantities given for images
+// `reference_width` wide (Segvic 2009 works at 320x240): the pre-smoothing scales with the resolution
+// (`smoothing_sigma_px` at the reference width), and there is one more level per doubling of the resolution so
+// that the coarsest level sees the same motion. Teach and repeat must use the same settings, so that the tracker's
+// residuals (and thus R) mean the same in both phases.
+ImagePyramidOptions TrackingPyramidOptions(int width, int reference_width = 320, double smoothing_sigma_px = 0.4);
+
 class ImagePyramid {
  public:
   ImagePyramid() = default;

@@ -106,9 +106,8 @@ Teacher::Teacher(const CameraModel& camera, const TeachOptions& options, MapData
   detector_options_ = options_.detector;
   detector_options_.min_distance = options_.corner_min_distance_px * pixel_scale;
   detector_options_.border = std::max(detector_options_.border, options_.tracker.alignment.window_size / 2 + 2);
-  pyramid_options_.smoothing_sigma = options_.smoothing_sigma_px * pixel_scale;
-  // One more pyramid level per doubling of the resolution, so the coarsest level sees the same motion.
-  pyramid_options_.num_levels = 3 + std::max(0, static_cast<int>(std::floor(std::log2(pixel_scale) + 0.25)));
+  // Shared with repeat: one more pyramid level per doubling of the resolution, smoothing scaled with it.
+  pyramid_options_ = TrackingPyramidOptions(camera.width(), options_.reference_width, options_.smoothing_sigma_px);
   FeatureTrackerOptions tracker_options = options_.tracker;
   tracker_options.alignment.max_residual = options_.max_residual;
   tracker_options.num_levels = pyramid_options_.num_levels;

@@ -1,0 +1,234 @@
+// retrace repeat: localize every frame of a drive in a taught map and steer (Segvic 2009 §5.2, §6.3; design §6).
+//
+// Writes one CSV row per input frame (flushed as written, so a live run can be followed with `tail -f`):
+//   frame,image,timestamp,state,arc,node_from,node_to,tracked,tracked_previous,tracked_current,tracked_next,
+//   resumed,dropped,drifted,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,steering,ms
+// frame = 0-based index in the input sequence (after --every/--offset), state = tracking | lost | relocalizing,
+// node ids and arc -1 when not tracking, σ_p columns -1 when not estimated, ms = processing time of the frame.
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+
+#include <fmt/format.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <spdlog/spdlog.h>
+
+#include "retrace/camera/camera_io.h"
+#include "retrace/dataset/ground_truth.h"
+#include "retrace/dataset/sequence.h"
+#include "retrace/exe/commands.h"
+#include "retrace/image/image_utils.h"
+#include "retrace/map/map_database.h"
+#include "retrace/repeat/evaluation.h"
+#include "retrace/repeat/localizer.h"
+#include "retrace/util/error.h"
+#include "retrace/util/progress.h"
+#include "retrace/viz/plot.h"
+
+namespace retrace {
+namespace {
+
+struct RepeatArguments {
+  std::filesystem::path map;
+  std::filesystem::path sequence;
+  std::filesystem::path camera;
+  std::filesystem::path output;
+  std::filesystem::path overlay;
+  arc_t start_arc = kInvalidArcId;
+  size_t every = 1;
+  size_t offset = 0;
+  bool evaluate = false;
+  bool no_progress = false;
+  LocalizerOptions options;
+};
+
+const cv::Scalar kRoleColors[3] = {cv::Scalar(200, 120, 0), cv::Scalar(0, 200, 0), cv::Scalar(0, 160, 255)};
+
+cv::Mat DrawOverlay(const cv::Mat& gray, const FrameResult& result) {
+  cv::Mat image;
+  cv::cvtColor(gray, image, cv::COLOR_GRAY2BGR);
+  const int half = std::max(3, gray.cols / 200);
+  for (const FeatureMark& mark : result.marks) {
+    const cv::Point p(static_cast<int>(std::lround(mark.position.x())), static_cast<int>(std::lround(mark.position.y())));
+    const cv::Scalar color = kRoleColors[static_cast<int>(mark.role)];
+    if (mark.tracked) {
+      cv::rectangle(image, p - cv::Point(half, half), p + cv::Point(half, half), color, 1);
+    } else {
+      cv::line(image, p - cv::Point(half, half), p + cv::Point(half, half), cv::Scalar(0, 0, 255), 1);
+      cv::line(image, p - cv::Point(half, -half), p + cv::Point(half, -half), cv::Scalar(0, 0, 255), 1);
+    }
+  }
+  std::string text = fmt::format("frame {}  {}", result.frame_index, LocalizerStateName(result.state));
+  if (result.state == LocalizerState::kTracking) {
+    text += fmt::format("  arc {} ({}->{})  tracked {}  steering {:+.3f}", result.arc, result.node_from,
+                        result.node_to, result.tracked, result.steering);
+  }
+  cv::putText(image, text, cv::Point(8, 20), cv::FONT_HERSHEY_SIMPLEX, 0.55, cv::Scalar(0, 0, 0), 3);
+  cv::putText(image, text, cv::Point(8, 20), cv::FONT_HERSHEY_SIMPLEX, 0.55, cv::Scalar(255, 255, 255), 1);
+  return image;
+}
+
+void WriteTrackedPlot(const std::vector<FrameResult>& results, const std::filesystem::path& path) {
+  std::map<arc_t, PlotSeries> by_arc;
+  PlotSeries lost;
+  lost.label = "lost / relocalizing";
+  lost.style = PlotSeries::Style::kPoints;
+  lost.color = cv::Scalar(0, 0, 220);
+  lost.thickness = 3;
+  for (const FrameResult& r : results) {
+    if (r.state != LocalizerState::kTracking) {
+      lost.x.push_back(static_cast<double>(r.frame_index));
+      lost.y.push_back(0.0);
+      continue;
+    }
+    PlotSeries& series = by_arc[r.arc];
+    if (series.label.empty()) {
+      series.label = fmt::format("arc {}", r.arc);
+      series.style = PlotSeries::Style::kPoints;
+      series.color = SeriesColor(static_cast<int>(by_arc.size()) - 1);
+      series.thickness = 3;
+    }
+    series.x.push_back(static_cast<double>(r.frame_index));
+    series.y.push_back(r.tracked);
+  }
+  std::vector<PlotSeries> series;
+  for (auto& [arc, s] : by_arc) series.push_back(std::move(s));
+  if (!lost.x.empty()) series.push_back(std::move(lost));
+  PlotOptions options;
+  options.title = "repeat: tracked features per frame, coloured by arc";
+  options.x_label = "frame";
+  options.y_label = "tracked features";
+  options.y_min = 0.0;
+  cv::imwrite(path.string(), RenderPlot(series, options));
+}
+
+void RunRepeat(const RepeatArguments& args) {
+  auto database = MapDatabase::Open(args.map);
+  const Map map = database->ReadMap(/*load_images=*/true);
+  if (map.arcs().empty()) throw InputError(args.map.string(), "the map has no arcs");
+  std::unique_ptr<Sequence> sequence = OpenSequence(args.sequence);
+
+  std::unique_ptr<CameraModel> camera;
+  if (!args.camera.empty()) {
+    camera = ReadCameraFile(args.camera, sequence->image_size());
+  } else {
+    const auto yaml = database->ReadCameraYaml();
+    if (!yaml) throw InputError(args.map.string(), "the map stores no camera; give --camera FILE");
+    camera = ParseCameraText(*yaml, args.map.string());
+  }
+  const int key_width = map.nodes().front().image.cols;
+  if (camera->width() != key_width) camera = camera->Scaled(static_cast<double>(key_width) / camera->width());
+  const std::optional<std::string> source = database->Metadata("source_sequence");
+  database.reset();
+
+  if (args.every > 1 || args.offset > 0) {
+    sequence = std::make_unique<SubsampledSequence>(std::move(sequence), std::max<size_t>(1, args.every), args.offset);
+  }
+  Localizer localizer(map, *camera, args.options);
+  if (args.start_arc != kInvalidArcId) localizer.SetStartArc(args.start_arc);
+
+  std::ofstream csv(args.output);
+  if (!csv) throw InputError(args.output.string(), "cannot be written");
+  csv << "frame,image,timestamp,state,arc,node_from,node_to,tracked,tracked_previous,tracked_current,tracked_next,"
+         "resumed,dropped,drifted,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,steering,ms\n";
+  csv.flush();
+  if (!args.overlay.empty()) std::filesystem::create_directories(args.overlay);
+
+  std::vector<FrameResult> results;
+  std::vector<RepeatRecord> records;
+  {
+    ProgressBar progress("repeat", sequence->size(), !args.no_progress);
+    while (std::optional<Frame> frame = sequence->Next()) {
+      if (frame->image.cols != camera->width()) {
+        cv::Mat resized;
+        ResizeToWidth(frame->image, camera->width(), &resized);
+        frame->image = resized;
+      }
+      FrameResult r = localizer.ProcessFrame(*frame);
+      csv << fmt::format("{},{},{:.6f},{},{},{},{},{},{},{},{},{},{},{},{:.3f},{:.3f},{:.3f},{:.4f},{},{:.5f},{:.2f}\n",
+                         frame->index, frame->name, frame->timestamp, LocalizerStateName(r.state), r.arc,
+                         r.node_from, r.node_to, r.tracked, r.tracked_by_role[0], r.tracked_by_role[1],
+                         r.tracked_by_role[2], r.resumed, r.dropped, r.drifted, r.sigma_p, r.sigma_p_from,
+                         r.sigma_p_to, r.position_valid ? r.position_on_arc : 0.0, r.transition,
+                         r.steering_valid ? r.steering : 0.0, 1000.0 * r.seconds);
+      csv.flush();
+      if (!csv) throw InputError(args.output.string(), "write failed");
+      if (!args.overlay.empty()) {
+        const auto path = args.overlay / fmt::format("{:06d}.png", frame->index);
+        if (!cv::imwrite(path.string(), DrawOverlay(frame->image, r))) {
+          throw InputError(path.string(), "cannot be written");
+        }
+      }
+      records.push_back({frame->source_index, r.state == LocalizerState::kTracking, r.arc});
+      progress.Advance(1, r.state == LocalizerState::kTracking ? fmt::format("arc {}", r.arc)
+                                                               : LocalizerStateName(r.state));
+      r.marks.clear();
+      r.marks.shrink_to_fit();
+      results.push_back(std::move(r));
+    }
+  }
+  if (!args.overlay.empty()) WriteTrackedPlot(results, args.overlay / "tracked.png");
+
+  int tracking = 0, lost = 0, transitions = 0;
+  double seconds = 0;
+  for (const FrameResult& r : results) {
+    tracking += r.state == LocalizerState::kTracking;
+    lost += r.state == LocalizerState::kLost;
+    transitions += r.transition != 0;
+    seconds += r.seconds;
+  }
+  std::cout << fmt::format("repeat: {} frames, {} tracking, {} lost events, {} transitions; {:.1f} ms/frame "
+                           "({:.1f} frames/s)\n",
+                           results.size(), tracking, lost, transitions, 1000.0 * seconds / std::max<size_t>(1, results.size()),
+                           results.size() / std::max(seconds, 1e-9));
+
+  if (args.evaluate) {
+    // Pseudo-repeat: key-images are frames of the teach sequence (map metadata), repeat frames of this one.
+    const auto repeat_truth_file = OpenSequence(args.sequence)->ground_truth_file();
+    if (!repeat_truth_file || repeat_truth_file->filename() != "poses.txt") {
+      throw InputError(args.sequence.string(), "--evaluate needs KITTI ground-truth poses (poses.txt)");
+    }
+    if (!source) throw InputError(args.map.string(), "--evaluate: the map does not name its teach sequence");
+    const auto key_truth_file = OpenSequence(*source)->ground_truth_file();
+    if (!key_truth_file || key_truth_file->filename() != "poses.txt") {
+      throw InputError(*source, "--evaluate needs KITTI ground-truth poses (poses.txt) of the teach sequence");
+    }
+    const TopologicalEvaluation evaluation =
+        EvaluateTopological(map, ReadKittiPoses(*key_truth_file), ReadKittiPoses(*repeat_truth_file), records);
+    std::cout << "topological ground truth: " << evaluation.Summary() << "\n";
+  }
+}
+
+}  // namespace
+
+void RegisterRepeatCommand(CLI::App& app) {
+  auto args = std::make_shared<RepeatArguments>();
+  CLI::App* cmd = app.add_subcommand("repeat", "Localize a drive in a taught map, frame by frame, and steer");
+  cmd->add_option("--map", args->map, "Map file written by `retrace teach`")->required();
+  cmd->add_option("--sequence", args->sequence, "Image folder, video, KITTI or EuRoC layout")->required();
+  cmd->add_option("--camera", args->camera, "Calibration file (default: the camera stored in the map)");
+  cmd->add_option("--start-arc", args->start_arc, "Arc to bootstrap on (default: found by retrieval)");
+  cmd->add_option("--output", args->output, "CSV file, one row per frame")->required();
+  cmd->add_option("--overlay", args->overlay, "Folder for overlay images and a plot of tracked features");
+  cmd->add_option("--every", args->every, "Use every k-th frame (e.g. 2)")->check(CLI::PositiveNumber);
+  cmd->add_option("--offset", args->offset, "First frame used with --every (1 = odd frames)");
+  cmd->add_flag("--evaluate", args->evaluate,
+                "Compare the arcs with topological ground truth (KITTI poses of the teach and repeat sequences)");
+  cmd->add_flag("--no-progress", args->no_progress, "Do not show the progress bar");
+  cmd->add_option("--max-residual", args->options.max_residual, "R: largest tracking residual, grey levels")
+      ->capture_default_str();
+  cmd->add_option("--max-sigma-p", args->options.max_sigma_p_px, "sigma_p gate of current geometries, px at 320 px")
+      ->capture_default_str();
+  cmd->add_option("--steering-gain", args->options.steering_gain, "k of eq. (10)")->capture_default_str();
+  cmd->callback([args]() {
+    std::string error;
+    if (!args->options.Check(&error)) throw InputError("repeat options", error);
+    RunRepeat(*args);
+  });
+}
+
+}  // namespace retrace

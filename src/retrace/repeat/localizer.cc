@@ -1,0 +1,839 @@
+#include "retrace/repeat/localizer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include <Eigen/SVD>
+#include <spdlog/spdlog.h>
+
+#include "retrace/geometry/relative_pose.h"
+#include "retrace/util/error.h"
+
+namespace retrace {
+namespace {
+
+double Median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  const size_t mid = values.size() / 2;
+  std::nth_element(values.begin(), values.begin() + mid, values.end());
+  return values[mid];
+}
+
+Vector3d CameraCentre(const Rigid3d& cam_from_world) {
+  return -cam_from_world.rotation.transpose() * cam_from_world.translation;
+}
+
+}  // namespace
+
+const char* LocalizerStateName(LocalizerState state) {
+  switch (state) {
+    case LocalizerState::kTracking:
+      return "tracking";
+    case LocalizerState::kLost:
+      return "lost";
+    case LocalizerState::kRelocalizing:
+      return "relocalizing";
+  }
+  return "?";
+}
+
+bool LocalizerOptions::Check(std::string* error) const {
+  const auto fail = [&](const std::string& message) {
+    if (error != nullptr) *error = message;
+    return false;
+  };
+  if (reference_width <= 0) return fail("reference_width must be positive");
+  if (!(smoothing_sigma_px >= 0)) return fail("smoothing_sigma_px must be >= 0");
+  if (!(max_residual > 0)) return fail("max_residual (R) must be positive");
+  if (!(max_sigma_p_px > 0)) return fail("max_sigma_p_px must be positive");
+  if (!(inlier_threshold_px > 0)) return fail("inlier_threshold_px must be positive");
+  if (!(next_arc_ratio > 0) || !(previous_arc_ratio > 0)) return fail("prudence ratios must be positive");
+  if (!(prediction_radius_px > 0) || !(prediction_scale_ratio >= 1)) return fail("invalid prediction acceptance");
+  if (!(max_drift_px > 0)) return fail("max_drift_px must be positive");
+  if (!(backward_margin >= 0)) return fail("backward_margin must be >= 0");
+  if (retry_interval < 1) return fail("retry_interval must be >= 1");
+  if (min_features < 8) return fail("min_features must be >= 8");
+  if (max_bad_frames < 1) return fail("max_bad_frames must be >= 1");
+  if (min_bootstrap_inliers < 8 || min_bootstrap_features < 8) return fail("bootstrap minima must be >= 8");
+  if (!(bootstrap_neighbour_radius_px > 0) || !(bootstrap_radius_px > 0)) return fail("invalid bootstrap radii");
+  if (!tracker.Check()) return fail("invalid tracker options");
+  if (!geometry.Check()) return fail("invalid geometry options");
+  std::string matching_error;
+  if (!matching.Check(&matching_error)) return fail("matching: " + matching_error);
+  return true;
+}
+
+ArcPosition LocateOnArc(const Rigid3d& current_from_a, const Rigid3d& arc_b_from_a) {
+  ArcPosition position;
+  const Vector3d c_t = CameraCentre(current_from_a);
+  const Vector3d c_b = CameraCentre(arc_b_from_a);
+  const double length_sq = c_b.squaredNorm();
+  if (!c_t.allFinite() || !(length_sq > 0)) return position;
+  position.valid = true;
+  position.along = c_t.dot(c_b) / length_sq;
+  const double length = std::sqrt(length_sq);
+  position.distance_to_from = c_t.norm() / length;
+  position.distance_to_to = (c_t - c_b).norm() / length;
+  return position;
+}
+
+bool PassedArcEnd(const Rigid3d& current_from_b, const Rigid3d& arc_b_from_a) {
+  // Segvic 2009, eq. (9). In b's frame the camera centre is C_t = -R_tb^T t_tb and the direction of travel is
+  // C_b - C_a = -t_ab (a's centre is at t_ab); the plane through C_b = 0 perpendicular to it is passed when
+  // <C_t, -t_ab> > 0. Both geometries have arbitrary positive scales, which do not change the sign.
+  const Vector3d c_t = CameraCentre(current_from_b);
+  return c_t.dot(-arc_b_from_a.translation) > 0.0;
+}
+
+ResumptionPolicy DecideResumption(const ArcPosition& position, double next_arc_ratio, double previous_arc_ratio) {
+  ResumptionPolicy policy;
+  if (!position.valid) return policy;
+  policy.next = position.distance_to_to < next_arc_ratio;              // Segvic 2009, eq. (7)
+  policy.previous = position.distance_to_from < previous_arc_ratio;    // Segvic 2009, eq. (8)
+  return policy;
+}
+
+bool GeometryUsable(const TwoViewGeometry& geometry, double max_sigma_p_px) {
+  return geometry.success && geometry.sigma_p < max_sigma_p_px;
+}
+
+int DecideTransition(const TwoViewGeometry* current_from_b, const ArcPosition& position_from_a_geometry,
+                     const TwoViewGeometry* current_from_a, const Rigid3d& arc_b_from_a, double max_sigma_p_px,
+                     double backward_margin) {
+  if (current_from_b != nullptr && GeometryUsable(*current_from_b, max_sigma_p_px) &&
+      PassedArcEnd(current_from_b->b_from_a, arc_b_from_a)) {
+    return +1;
+  }
+  if (current_from_a != nullptr && GeometryUsable(*current_from_a, max_sigma_p_px) &&
+      position_from_a_geometry.valid && position_from_a_geometry.along < -backward_margin) {
+    return -1;
+  }
+  return 0;
+}
+
+struct Localizer::NodeData {
+  const MapNode* node = nullptr;
+  std::unordered_map<feature_t, Vector2d> positions;
+  std::unordered_map<feature_t, Vector3d> bearings;
+  std::unique_ptr<ImagePyramid> pyramid;
+  std::optional<WideBaselineFeatures> wide_baseline;
+  std::unordered_map<feature_t, std::unique_ptr<ReferencePatch>> references;  // null = cannot be cut
+};
+
+struct Localizer::ArcData {
+  const MapArc* arc = nullptr;
+  std::unordered_map<feature_t, Vector3d> points;
+  arc_t previous = kInvalidArcId;
+  arc_t next = kInvalidArcId;
+};
+
+struct Localizer::CurrentGeometry {
+  node_t node = kInvalidNodeId;
+  bool estimated = false;
+  TwoViewGeometry geometry;       // key_from... : a = key-image, b = current image
+  std::vector<feature_t> ids;     // feature of each correspondence
+  bool usable = false;
+};
+
+Localizer::Localizer(const Map& map, const CameraModel& camera, const LocalizerOptions& options)
+    : camera_(camera.Clone()), options_(options), map_(map) {
+  std::string error;
+  if (!options_.Check(&error)) throw std::invalid_argument("LocalizerOptions: " + error);
+  pixel_scale_ = static_cast<double>(camera.width()) / options_.reference_width;
+  max_sigma_p_px_ = options_.max_sigma_p_px * pixel_scale_;
+  pyramid_options_ = TrackingPyramidOptions(camera.width(), options_.reference_width, options_.smoothing_sigma_px);
+  geometry_options_ = options_.geometry;
+  geometry_options_.ransac.max_error_px = options_.inlier_threshold_px * pixel_scale_;
+  FeatureTrackerOptions tracker_options = options_.tracker;
+  tracker_options.alignment.max_residual = options_.max_residual;
+  tracker_options.num_levels = pyramid_options_.num_levels;
+  tracker_ = FeatureTracker(tracker_options);
+  refine_options_.alignment = options_.tracker.alignment;
+  refine_options_.alignment.max_residual = options_.max_residual;
+  refine_options_.alignment.scale_prior_sigma = 0.0;
+  refine_options_.max_distance = options_.prediction_radius_px * pixel_scale_;
+  refine_options_.max_scale_ratio = options_.prediction_scale_ratio;
+
+  for (const MapNode& node : map_.nodes()) {
+    if (node.image.empty()) throw InputError("map", "key-image " + std::to_string(node.id) + " is not loaded");
+    if (node.image.cols != camera.width() || node.image.rows != camera.height()) {
+      throw InputError("map", "key-image " + std::to_string(node.id) + " is " + std::to_string(node.image.cols) +
+                                  "x" + std::to_string(node.image.rows) + " but the camera is " +
+                                  std::to_string(camera.width()) + "x" + std::to_string(camera.height()));
+    }
+    auto data = std::make_unique<NodeData>();
+    data->node = &node;
+    for (const FeatureObservation& f : node.features) {
+      Vector3d bearing;
+      if (!camera_->Unproject(f.position, &bearing)) continue;
+      data->positions[f.feature_id] = f.position;
+      data->bearings[f.feature_id] = bearing;
+    }
+    nodes_[node.id] = std::move(data);
+  }
+  for (const MapArc& arc : map_.arcs()) {
+    auto data = std::make_unique<ArcData>();
+    data->arc = &arc;
+    for (const ArcPoint& p : arc.points) data->points[p.feature_id] = p.point_in_from;
+    // Linear and circular routes: the neighbouring arcs continue the chain (first one found, not straight back).
+    for (const MapArc* next : map_.ArcsFrom(arc.to)) {
+      if (next->to != arc.from) {
+        data->next = next->id;
+        break;
+      }
+    }
+    for (const MapArc* previous : map_.ArcsTo(arc.from)) {
+      if (previous->from != arc.to) {
+        data->previous = previous->id;
+        break;
+      }
+    }
+    arcs_[arc.id] = std::move(data);
+  }
+}
+
+Localizer::~Localizer() = default;
+
+void Localizer::SetStartArc(arc_t arc) {
+  if (Arc(arc) == nullptr) throw InputError("start arc", "the map has no arc " + std::to_string(arc));
+  start_arc_ = arc;
+}
+
+Localizer::NodeData& Localizer::Node(node_t id) { return *nodes_.at(id); }
+
+const Localizer::ArcData* Localizer::Arc(arc_t id) const {
+  const auto it = arcs_.find(id);
+  return it == arcs_.end() ? nullptr : it->second.get();
+}
+
+const ImagePyramid& Localizer::NodePyramid(node_t id) {
+  NodeData& node = Node(id);
+  if (!node.pyramid) node.pyramid = std::make_unique<ImagePyramid>(node.node->image, pyramid_options_);
+  return *node.pyramid;
+}
+
+const WideBaselineFeatures& Localizer::NodeWideBaseline(node_t id) {
+  NodeData& node = Node(id);
+  if (!node.wide_baseline) node.wide_baseline = ExtractWideBaselineFeatures(node.node->image, options_.matching);
+  return *node.wide_baseline;
+}
+
+const ReferencePatch* Localizer::Reference(node_t node_id, feature_t feature) {
+  NodeData& node = Node(node_id);
+  auto it = node.references.find(feature);
+  if (it == node.references.end()) {
+    std::unique_ptr<ReferencePatch> patch;
+    const auto position = node.positions.find(feature);
+    if (position != node.positions.end()) {
+      patch = std::make_unique<ReferencePatch>();
+      if (!patch->Create(NodePyramid(node_id), position->second, tracker_.Options().alignment.window_size,
+                         tracker_.Options().num_levels)) {
+        patch.reset();
+      }
+    }
+    it = node.references.emplace(feature, std::move(patch)).first;
+  }
+  return it->second.get();
+}
+
+node_t Localizer::ReferenceNode(const ArcData& arc, feature_t feature, node_t preferred) const {
+  const node_t other = preferred == arc.arc->from ? arc.arc->to : arc.arc->from;
+  if (nodes_.at(preferred)->positions.count(feature)) return preferred;
+  if (nodes_.at(other)->positions.count(feature)) return other;
+  return kInvalidNodeId;
+}
+
+void Localizer::ClearTracks() {
+  for (const TrackedFeature& f : std::vector<TrackedFeature>(tracker_.Features())) tracker_.Remove(f.id);
+  reference_node_.clear();
+  retry_after_.clear();
+}
+
+FrameResult Localizer::ProcessFrame(const Frame& frame) {
+  const auto start = std::chrono::steady_clock::now();
+  if (frame.image.cols != camera_->width() || frame.image.rows != camera_->height() ||
+      frame.image.type() != CV_8UC1) {
+    throw InputError(frame.name, "image is " + std::to_string(frame.image.cols) + "x" +
+                                     std::to_string(frame.image.rows) + " 8-bit gray expected " +
+                                     std::to_string(camera_->width()) + "x" + std::to_string(camera_->height()));
+  }
+  ++frame_counter_;
+  FrameResult result;
+  result.frame_index = frame.index;
+  pyramid_.Build(frame.image, pyramid_options_);
+
+  if (state_ == LocalizerState::kTracking) {
+    const int before = tracker_.NumFeatures();
+    tracker_.Track(pyramid_);
+    result.dropped += before - tracker_.NumFeatures();
+    for (auto it = reference_node_.begin(); it != reference_node_.end();) {
+      it = tracker_.Find(it->first) == nullptr ? reference_node_.erase(it) : std::next(it);
+    }
+    Localize(&result);
+  } else {
+    if (Bootstrap(frame, &result)) {
+      state_ = LocalizerState::kTracking;
+      bad_frames_ = 0;
+      result.bootstrapped = true;
+      Localize(&result);
+    } else {
+      state_ = LocalizerState::kRelocalizing;
+    }
+  }
+
+  if (state_ == LocalizerState::kTracking) {
+    const ArcData* arc = Arc(arc_);
+    result.state = LocalizerState::kTracking;
+    result.arc = arc_;
+    result.node_from = arc->arc->from;
+    result.node_to = arc->arc->to;
+  } else {
+    result.state = state_;
+    result.position_valid = false;
+    result.steering_valid = false;
+    result.steering = 0.0;
+  }
+  FillCounts(&result);
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+void Localizer::FillCounts(FrameResult* result) const {
+  result->tracked = tracker_.NumFeatures();
+  result->tracked_by_role = {0, 0, 0};
+  const ArcData* arc = Arc(arc_);
+  if (arc == nullptr) return;
+  const ArcData* previous = Arc(arc->previous);
+  const ArcData* next = Arc(arc->next);
+  for (const TrackedFeature& f : tracker_.Features()) {
+    ArcRole role;
+    if (arc->points.count(f.id)) {
+      role = ArcRole::kCurrent;
+    } else if (next != nullptr && next->points.count(f.id)) {
+      role = ArcRole::kNext;
+    } else {
+      role = ArcRole::kPrevious;
+    }
+    ++result->tracked_by_role[static_cast<int>(role)];
+    result->marks.push_back({f.warp.position, role, true});
+  }
+  (void)previous;
+}
+
+Localizer::CurrentGeometry Localizer::EstimateCurrentGeometry(node_t node_id) {
+  CurrentGeometry current;
+  current.node = node_id;
+  const NodeData& node = Node(node_id);
+  std::vector<Vector3d> bearings_key, bearings_current;
+  for (const TrackedFeature& f : tracker_.Features()) {
+    const auto key = node.bearings.find(f.id);
+    const auto now = bearings_.find(f.id);
+    if (key == node.bearings.end() || now == bearings_.end()) continue;
+    bearings_key.push_back(key->second);
+    bearings_current.push_back(now->second);
+    current.ids.push_back(f.id);
+  }
+  if (static_cast<int>(current.ids.size()) < geometry_options_.min_inliers) return current;
+  current.estimated = true;
+  current.geometry = EstimateRelativePose(bearings_key, bearings_current, camera_->FocalLength(), geometry_options_);
+  current.usable = GeometryUsable(current.geometry, max_sigma_p_px_);
+  return current;
+}
+
+namespace {
+
+// Steps 1-3 of the decomposed point transfer for `arc` with a current geometry W_t:key (key = one of the arc's
+// key-images): the shared features are the geometry's inliers that the arc reconstructs.
+std::optional<PointTransfer> MakeTransfer(const MapArc& arc, const std::unordered_map<feature_t, Vector3d>& points,
+                                          const TwoViewGeometry& geometry, const std::vector<feature_t>& ids,
+                                          ArcImage key, double image_margin) {
+  std::vector<Vector3d> arc_points, current_points;
+  for (size_t i = 0; i < ids.size(); ++i) {
+    if (!geometry.inlier_mask[i]) continue;
+    const auto it = points.find(ids[i]);
+    if (it == points.end()) continue;
+    arc_points.push_back(it->second);
+    current_points.push_back(geometry.points_in_a[i]);
+  }
+  PointTransferOptions options;
+  options.image_margin_px = image_margin;
+  PointTransfer transfer =
+      PointTransfer::Create(arc.to_from_from, geometry.b_from_a, key, arc_points, current_points, options);
+  if (!transfer.valid()) return std::nullopt;
+  return transfer;
+}
+
+}  // namespace
+
+// The current camera in an arc's frame and scale, from which the arc's points are predicted (step 4 of the
+// decomposed point transfer). Built from a PointTransfer, or chained to a neighbouring arc through the relative scale
+// stored at their common node when the current geometry shares too few features with that arc.
+struct ArcPredictor {
+  Rigid3d current_from_a;  // arc frame and scale
+  Rigid3d b_from_a;        // the arc's geometry (|t| = 1)
+
+  TransferredPoint Transfer(const Vector3d& point_in_a, const CameraModel& camera, ArcImage reference,
+                            double margin) const {
+    TransferredPoint result;
+    const Vector3d in_current = current_from_a * point_in_a;
+    const Vector3d in_reference = reference == ArcImage::kA ? point_in_a : b_from_a * point_in_a;
+    const double reference_distance = in_reference.norm();
+    result.distance_ratio = reference_distance > 0.0 ? in_current.norm() / reference_distance : 0.0;
+    result.projectable = camera.Project(in_current, &result.pixel) && result.pixel.allFinite();
+    result.in_image = result.projectable && camera.InImage(result.pixel, margin);
+    return result;
+  }
+};
+
+namespace {
+
+std::optional<ArcPredictor> FromTransfer(const std::optional<PointTransfer>& transfer) {
+  if (!transfer) return std::nullopt;
+  return ArcPredictor{transfer->current_from_a(), transfer->arc_b_from_a()};
+}
+
+}  // namespace
+
+void Localizer::Localize(FrameResult* result) {
+  const ArcData* arc = Arc(arc_);
+  const ArcData* previous = Arc(arc->previous);
+  const ArcData* next = Arc(arc->next);
+  const node_t a = arc->arc->from;
+  const node_t b = arc->arc->to;
+
+  bearings_.clear();
+  for (const TrackedFeature& f : tracker_.Features()) {
+    Vector3d bearing;
+    if (camera_->Unproject(f.warp.position, &bearing)) bearings_[f.id] = bearing;
+  }
+  const CurrentGeometry geometry_a = EstimateCurrentGeometry(a);
+  const CurrentGeometry geometry_b = EstimateCurrentGeometry(b);
+  if (geometry_a.geometry.success) result->sigma_p_from = geometry_a.geometry.sigma_p;
+  if (geometry_b.geometry.success) result->sigma_p_to = geometry_b.geometry.sigma_p;
+
+  const double margin = tracker_.Options().alignment.window_size / 2 + 2;
+  // Transfers through usable geometries only (σ_p gating, Segvic 2009 §5.2.1).
+  std::optional<PointTransfer> transfer_a, transfer_b, transfer_next, transfer_previous;
+  if (geometry_a.usable) {
+    transfer_a = MakeTransfer(*arc->arc, arc->points, geometry_a.geometry, geometry_a.ids, ArcImage::kA, margin);
+    if (previous != nullptr) {
+      transfer_previous = MakeTransfer(*previous->arc, previous->points, geometry_a.geometry, geometry_a.ids,
+                                       ArcImage::kB, margin);
+    }
+  }
+  if (geometry_b.usable) {
+    transfer_b = MakeTransfer(*arc->arc, arc->points, geometry_b.geometry, geometry_b.ids, ArcImage::kB, margin);
+    if (next != nullptr) {
+      transfer_next =
+          MakeTransfer(*next->arc, next->points, geometry_b.geometry, geometry_b.ids, ArcImage::kA, margin);
+    }
+  }
+  // The three-view geometry of the current arc: W_k adjusted to the more accurate current geometry.
+  std::optional<PointTransfer> transfer_current;
+  if (transfer_a && (!transfer_b || geometry_a.geometry.sigma_p <= geometry_b.geometry.sigma_p)) {
+    transfer_current = transfer_a;
+    result->sigma_p = geometry_a.geometry.sigma_p;
+  } else if (transfer_b) {
+    transfer_current = transfer_b;
+    result->sigma_p = geometry_b.geometry.sigma_p;
+  }
+
+  std::optional<ArcPredictor> predict_current = FromTransfer(transfer_current);
+  std::optional<ArcPredictor> predict_next = FromTransfer(transfer_next);
+  std::optional<ArcPredictor> predict_previous = FromTransfer(transfer_previous);
+  // Neighbouring arcs that share too few features with the current geometries: chain the current arc's pose through
+  // the relative scale stored at the common node (a length in units of the arc leaving the node times the scale is
+  // the same length in units of the arc entering it, design §1).
+  if (predict_current && !predict_next && next != nullptr) {
+    if (const std::optional<double> s = map_.ScaleAt(b, arc->arc->id, next->arc->id); s && *s > 0) {
+      Rigid3d current_from_b = predict_current->current_from_a * arc->arc->to_from_from.Inverse();
+      current_from_b.translation /= *s;
+      predict_next = ArcPredictor{current_from_b, next->arc->to_from_from};
+    }
+  }
+  if (predict_current && !predict_previous && previous != nullptr) {
+    if (const std::optional<double> s = map_.ScaleAt(a, previous->arc->id, arc->arc->id); s && *s > 0) {
+      Rigid3d a_from_z = previous->arc->to_from_from;
+      a_from_z.translation /= *s;  // previous arc's unit -> current arc's unit
+      Rigid3d current_from_z = predict_current->current_from_a * a_from_z;
+      current_from_z.translation *= *s;  // back to the previous arc's unit
+      predict_previous = ArcPredictor{current_from_z, previous->arc->to_from_from};
+    }
+  }
+
+  ArcPosition position;
+  if (transfer_current) position = LocateOnArc(transfer_current->current_from_a(), arc->arc->to_from_from);
+  result->position_valid = position.valid;
+  result->position_on_arc = position.along;
+
+  // Consistency (Segvic 2009 §5.2.1): discontinue tracks that drifted from their prediction.
+  struct RoleTransfer {
+    const ArcData* arc;
+    const std::optional<ArcPredictor>* transfer;
+    ArcRole role;
+  };
+  const std::array<RoleTransfer, 3> roles = {RoleTransfer{arc, &predict_current, ArcRole::kCurrent},
+                                             RoleTransfer{next, &predict_next, ArcRole::kNext},
+                                             RoleTransfer{previous, &predict_previous, ArcRole::kPrevious}};
+  const double drift_limit =
+      std::max(options_.max_drift_px * pixel_scale_, 3.0 * std::max(0.0, result->sigma_p));
+  for (const TrackedFeature& f : std::vector<TrackedFeature>(tracker_.Features())) {
+    for (const RoleTransfer& r : roles) {
+      if (r.arc == nullptr) continue;
+      const auto point = r.arc->points.find(f.id);
+      if (point == r.arc->points.end()) continue;
+      if (!r.transfer->has_value()) break;  // the feature's arc has no trustworthy prediction now
+      const TransferredPoint predicted = (*r.transfer)->Transfer(point->second, *camera_, ArcImage::kA, 0.0);
+      if (predicted.projectable && (predicted.pixel - f.warp.position).norm() > drift_limit) {
+        tracker_.Remove(f.id);
+        reference_node_.erase(f.id);
+        ++result->dropped;
+        ++result->drifted;
+      }
+      break;
+    }
+  }
+
+  // Prudence (eqs. (7), (8)) and resumption of mapped but untracked features.
+  const ResumptionPolicy policy =
+      DecideResumption(position, options_.next_arc_ratio, options_.previous_arc_ratio);
+  // References are cut from the arc's key-image nearest to the camera (see LocalizerOptions / header).
+  std::array<node_t, 3> near_node{};
+  near_node[static_cast<int>(ArcRole::kCurrent)] = position.valid && position.along < 0.5 ? a : b;
+  near_node[static_cast<int>(ArcRole::kNext)] = b;
+  near_node[static_cast<int>(ArcRole::kPrevious)] = a;
+  for (const RoleTransfer& r : roles) {
+    if (r.arc == nullptr || !r.transfer->has_value()) continue;
+    if (r.role == ArcRole::kNext && !policy.next) continue;
+    if (r.role == ArcRole::kPrevious && !policy.previous) continue;
+    const ArcPredictor& transfer = **r.transfer;
+    for (const auto& [id, point] : r.arc->points) {
+      if (tracker_.Find(id) != nullptr) continue;
+      const auto retry = retry_after_.find(id);
+      if (retry != retry_after_.end() && retry->second > frame_counter_) continue;
+      const node_t reference_node = ReferenceNode(*r.arc, id, near_node[static_cast<int>(r.role)]);
+      if (reference_node == kInvalidNodeId) continue;
+      const ArcImage reference_image = reference_node == r.arc->arc->to ? ArcImage::kB : ArcImage::kA;
+      const TransferredPoint predicted = transfer.Transfer(point, *camera_, reference_image, margin);
+      if (!predicted.in_image || !(predicted.distance_ratio > 0)) continue;
+      const ReferencePatch* reference = Reference(reference_node, id);
+      if (reference == nullptr) continue;
+      // Segvic 2009 §5.2.1: initial scale = |Q - C_ref| / |Q - C_t| (the feature looks larger when nearer).
+      const AlignmentResult refined =
+          RefinePrediction(pyramid_, *reference, predicted.pixel, 1.0 / predicted.distance_ratio, refine_options_);
+      if (refined.ok() && tracker_.AddFeature(*reference, refined, id) != kInvalidFeatureId) {
+        reference_node_[id] = reference_node;
+        retry_after_.erase(id);
+        ++result->resumed;
+        bearings_.erase(id);
+      } else {
+        retry_after_[id] = frame_counter_ + options_.retry_interval;
+        ++result->rejected;
+        result->marks.push_back({predicted.pixel, r.role, false});
+      }
+    }
+  }
+
+  // Without a transfer for the next arc (the current geometries share too few features with it and the map stores
+  // no scale at b) or for the current arc (right after a transition), features seen in the nearby key-image are
+  // predicted from the displacement of tracked neighbours seen there too: near that key-image the image motion is
+  // locally coherent, and the acceptance test of RefinePrediction guards against wrong associations.
+  if (next != nullptr && !predict_next && policy.next) ResumeFromNeighbours(*next, b, ArcRole::kNext, result);
+  if (!predict_current) ResumeFromNeighbours(*arc, last_passed_ == b ? b : a, ArcRole::kCurrent, result);
+
+  // Steering (Segvic 2009, eq. (10)): w = k * mean(x_t - x*) over the current arc's features, normalised
+  // coordinates, x* in the next key-image I_i+1 = b.
+  {
+    const NodeData& node_b = Node(b);
+    double sum = 0.0;
+    int count = 0;
+    for (const TrackedFeature& f : tracker_.Features()) {
+      if (!arc->points.count(f.id)) continue;
+      const auto target = node_b.bearings.find(f.id);
+      Vector3d now;
+      if (target == node_b.bearings.end() || target->second.z() <= 0) continue;
+      if (!camera_->Unproject(f.warp.position, &now) || now.z() <= 0) continue;
+      sum += now.x() / now.z() - target->second.x() / target->second.z();
+      ++count;
+    }
+    if (count > 0) {
+      result->steering = options_.steering_gain * sum / count;
+      result->steering_valid = true;
+    }
+  }
+
+  // Health: enough features of the current arc and a trustworthy current geometry, else lost after a few frames.
+  int current_tracked = 0;
+  for (const TrackedFeature& f : tracker_.Features()) current_tracked += arc->points.count(f.id) ? 1 : 0;
+  const bool good = current_tracked >= options_.min_features && (geometry_a.usable || geometry_b.usable);
+  bad_frames_ = good ? 0 : bad_frames_ + 1;
+  if (bad_frames_ >= options_.max_bad_frames) {
+    spdlog::debug("repeat: lost at frame {} ({} features of arc {}, W_t:a {}, W_t:b {})", result->frame_index,
+                  current_tracked, arc_, geometry_a.usable, geometry_b.usable);
+    state_ = LocalizerState::kLost;
+    ClearTracks();
+    arc_ = kInvalidArcId;
+    return;
+  }
+
+  // Topological transition (Segvic 2009 §5.2.2, eq. (9)).
+  ArcPosition position_a;
+  if (transfer_a) position_a = LocateOnArc(transfer_a->current_from_a(), arc->arc->to_from_from);
+  int direction = DecideTransition(geometry_b.estimated ? &geometry_b.geometry : nullptr, position_a,
+                                   geometry_a.estimated ? &geometry_a.geometry : nullptr, arc->arc->to_from_from,
+                                   max_sigma_p_px_, options_.backward_margin);
+  if ((direction > 0 && next == nullptr) || (direction < 0 && previous == nullptr)) direction = 0;
+  if (direction != 0) ApplyTransition(direction, result);
+}
+
+void Localizer::ApplyTransition(int direction, FrameResult* result) {
+  const ArcData* old_arc = Arc(arc_);
+  arc_ = direction > 0 ? old_arc->next : old_arc->previous;
+  result->transition = direction;
+  const ArcData* arc = Arc(arc_);
+  const ArcData* previous = Arc(arc->previous);
+  const ArcData* next = Arc(arc->next);
+  // The key-image just passed, where the camera is now.
+  last_passed_ = direction > 0 ? arc->arc->from : arc->arc->to;
+  spdlog::debug("repeat: frame {}: {} transition to arc {} ({} -> {})", result->frame_index,
+                direction > 0 ? "forward" : "backward", arc_, arc->arc->from, arc->arc->to);
+
+  // Features of no arc around the new location are dropped (Segvic 2009 §5.2.2). The others keep tracking with
+  // their references: those were cut from the key-image nearest to the camera when the feature was (re)started
+  // (the paper redefines them from the farther key-image at this point; re-cutting them here restarts their
+  // alignment without a motion prior, which lost most of them in kitti07's turns).
+  for (const TrackedFeature& f : std::vector<TrackedFeature>(tracker_.Features())) {
+    bool kept = false;
+    for (const ArcData* candidate : {arc, next, previous}) kept |= candidate != nullptr && candidate->points.count(f.id);
+    if (!kept) {
+      tracker_.Remove(f.id);
+      reference_node_.erase(f.id);
+      ++result->dropped;
+    }
+  }
+  retry_after_.clear();
+}
+
+void Localizer::ResumeFromNeighbours(const ArcData& arc, node_t node_id, ArcRole role, FrameResult* result) {
+  const NodeData& node = Node(node_id);
+  // Rotation current_from_node from the tracked features seen in the key-image (Kabsch on bearings, twice with the
+  // worst correspondences removed): near the key-image the translation hardly moves the features, while in turns the
+  // rotation moves them by hundreds of pixels (so a local or translational model fails there).
+  std::vector<Vector3d> key, now;
+  std::vector<double> scales;
+  for (const TrackedFeature& f : tracker_.Features()) {
+    const auto it = node.bearings.find(f.id);
+    const auto current = bearings_.find(f.id);
+    if (it == node.bearings.end() || current == bearings_.end()) continue;
+    key.push_back(it->second);
+    now.push_back(current->second);
+    const auto reference = reference_node_.find(f.id);
+    scales.push_back(reference != reference_node_.end() && reference->second == node_id ? f.warp.scale : 1.0);
+  }
+  if (key.size() < 5) return;
+  std::vector<bool> use(key.size(), true);
+  Matrix3d rotation = Matrix3d::Identity();
+  for (int round = 0; round < 3; ++round) {
+    Matrix3d h = Matrix3d::Zero();
+    for (size_t i = 0; i < key.size(); ++i) {
+      if (use[i]) h += now[i] * key[i].transpose();
+    }
+    const Eigen::JacobiSVD<Matrix3d> svd(h, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Matrix3d d = Matrix3d::Identity();
+    d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
+    rotation = svd.matrixU() * d * svd.matrixV().transpose();
+    std::vector<double> errors(key.size());
+    for (size_t i = 0; i < key.size(); ++i) errors[i] = (rotation * key[i] - now[i]).norm();
+    const double limit = std::max(3.0 * Median(errors), 2.0 / camera_->FocalLength());
+    for (size_t i = 0; i < key.size(); ++i) use[i] = errors[i] <= limit;
+  }
+  const double scale = Median(scales);
+  const double margin = tracker_.Options().alignment.window_size / 2 + 2;
+  // The rotation-only prediction is biased by the translation (tens of pixels in kitti07's turns), the same way for
+  // neighbouring features. Each candidate is aligned freely; the median offset of the converged ones corrects the
+  // bias, and a feature is accepted only when its alignment agrees with the corrected prediction within the usual
+  // radius — several independent features agreeing on one offset guard against wrong associations.
+  struct Candidate {
+    feature_t id;
+    const ReferencePatch* reference;
+    Vector2d predicted;
+    AlignmentResult aligned;
+  };
+  std::vector<Candidate> candidates;
+  std::vector<double> offset_x, offset_y;
+  for (const auto& [id, point] : arc.points) {
+    if (tracker_.Find(id) != nullptr) continue;
+    const auto retry = retry_after_.find(id);
+    if (retry != retry_after_.end() && retry->second > frame_counter_) continue;
+    const auto bearing = node.bearings.find(id);
+    if (bearing == node.bearings.end()) continue;
+    Vector2d predicted;
+    if (!camera_->Project(rotation * bearing->second, &predicted) || !camera_->InImage(predicted, margin)) continue;
+    const ReferencePatch* reference = Reference(node_id, id);
+    if (reference == nullptr) continue;
+    WarpState initial;
+    initial.position = predicted;
+    initial.scale = scale;
+    Candidate candidate{id, reference, predicted, AlignToReference(pyramid_, *reference, initial, refine_options_.alignment)};
+    if (candidate.aligned.ok()) {
+      offset_x.push_back(candidate.aligned.warp.position.x() - predicted.x());
+      offset_y.push_back(candidate.aligned.warp.position.y() - predicted.y());
+    }
+    candidates.push_back(std::move(candidate));
+  }
+  const bool corrected = offset_x.size() >= 5;
+  const Vector2d offset = corrected ? Vector2d(Median(offset_x), Median(offset_y)) : Vector2d::Zero();
+  for (const Candidate& c : candidates) {
+    const Vector2d predicted = c.predicted + offset;
+    const double scale_ratio = c.aligned.warp.scale / scale;
+    const bool accepted = corrected && c.aligned.ok() &&
+                          (c.aligned.warp.position - predicted).norm() <= refine_options_.max_distance &&
+                          scale_ratio <= refine_options_.max_scale_ratio &&
+                          scale_ratio >= 1.0 / refine_options_.max_scale_ratio;
+    if (accepted && tracker_.AddFeature(*c.reference, c.aligned, c.id) != kInvalidFeatureId) {
+      reference_node_[c.id] = node_id;
+      retry_after_.erase(c.id);
+      ++result->resumed;
+    } else {
+      retry_after_[c.id] = frame_counter_ + options_.retry_interval;
+      ++result->rejected;
+      result->marks.push_back({predicted, role, false});
+    }
+  }
+}
+
+bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
+  std::vector<node_t> candidates;
+  const bool use_start_arc = start_arc_ != kInvalidArcId;
+  if (use_start_arc) {
+    const MapArc* arc = Arc(start_arc_)->arc;
+    candidates = {arc->from, arc->to};
+  } else {
+    for (const MapNode& node : map_.nodes()) candidates.push_back(node.id);
+  }
+  ClearTracks();
+  arc_ = kInvalidArcId;
+
+  const WideBaselineFeatures current = ExtractWideBaselineFeatures(frame.image, options_.matching);
+  struct Candidate {
+    node_t node = kInvalidNodeId;
+    TwoViewGeometry geometry;
+    std::vector<Vector2d> key_points, current_points;  // inlier matches
+    std::vector<double> size_ratios;
+  };
+  std::vector<Candidate> verified;
+  for (const node_t node : candidates) {
+    const WideBaselineFeatures& key = NodeWideBaseline(node);
+    const std::vector<cv::DMatch> matches = MatchWideBaseline(key, current, options_.matching);
+    if (static_cast<int>(matches.size()) < options_.min_bootstrap_inliers) continue;
+    Candidate candidate;
+    candidate.node = node;
+    std::vector<Vector3d> bearings_key, bearings_current;
+    std::vector<const cv::DMatch*> used;
+    for (const cv::DMatch& m : matches) {
+      const cv::KeyPoint& kk = key.keypoints[m.queryIdx];
+      const cv::KeyPoint& kc = current.keypoints[m.trainIdx];
+      Vector3d bk, bc;
+      if (!camera_->Unproject(Vector2d(kk.pt.x, kk.pt.y), &bk) || !camera_->Unproject(Vector2d(kc.pt.x, kc.pt.y), &bc)) {
+        continue;
+      }
+      bearings_key.push_back(bk);
+      bearings_current.push_back(bc);
+      used.push_back(&m);
+    }
+    candidate.geometry = EstimateRelativePose(bearings_key, bearings_current, camera_->FocalLength(), geometry_options_);
+    // A frame taken (almost) where the key-image was shows no parallax: the rotation-only fit still verifies it.
+    const bool verified_geometry = candidate.geometry.success ||
+                                   candidate.geometry.failure == TwoViewFailure::kInsufficientParallax;
+    if (!verified_geometry || candidate.geometry.num_inliers < options_.min_bootstrap_inliers) continue;
+    for (size_t i = 0; i < used.size(); ++i) {
+      if (!candidate.geometry.inlier_mask[i]) continue;
+      const cv::KeyPoint& kk = key.keypoints[used[i]->queryIdx];
+      const cv::KeyPoint& kc = current.keypoints[used[i]->trainIdx];
+      candidate.key_points.emplace_back(kk.pt.x, kk.pt.y);
+      candidate.current_points.emplace_back(kc.pt.x, kc.pt.y);
+      candidate.size_ratios.push_back(kk.size > 0 && kc.size > 0 ? kc.size / kk.size : 1.0);
+    }
+    verified.push_back(std::move(candidate));
+  }
+  if (verified.empty()) return false;
+  const auto best = std::max_element(verified.begin(), verified.end(), [](const Candidate& x, const Candidate& y) {
+    return x.geometry.num_inliers < y.geometry.num_inliers;
+  });
+
+  // The arc: the given one, or the one on the side of the best key-image where the camera is (eq. (9)'s sign).
+  arc_t chosen = start_arc_;
+  if (!use_start_arc) {
+    const node_t k = best->node;
+    const MapArc* out = nullptr;
+    const MapArc* in = nullptr;
+    for (const auto& [id, data] : arcs_) {
+      if (data->arc->from == k && (out == nullptr || data->arc->id < out->id)) out = data->arc;
+      if (data->arc->to == k && (in == nullptr || data->arc->id < in->id)) in = data->arc;
+    }
+    if (out != nullptr && in != nullptr) {
+      // The camera is beyond k on the outgoing arc when it lies in front of the plane through k perpendicular
+      // to that arc's direction; W_t:k without parallax means "at k" (either arc is right).
+      bool beyond = true;
+      if (best->geometry.success) {
+        const Vector3d c_t = CameraCentre(best->geometry.b_from_a);  // in k's frame
+        const Vector3d c_next = CameraCentre(out->to_from_from);      // next key-image centre in k's frame
+        beyond = c_t.dot(c_next) >= 0.0;
+      }
+      chosen = beyond ? out->id : in->id;
+    } else {
+      chosen = out != nullptr ? out->id : (in != nullptr ? in->id : kInvalidArcId);
+    }
+  }
+  if (chosen == kInvalidArcId) return false;
+  const ArcData* arc = Arc(chosen);
+
+  // Locate the arc's mapped features in the frame: predicted from the displacement of the nearest matched
+  // key-points in each matched key-image of the arc, then refined against the reference cut there.
+  const double neighbour_radius = options_.bootstrap_neighbour_radius_px * pixel_scale_;
+  RefinePredictionOptions refine = refine_options_;
+  refine.max_distance = options_.bootstrap_radius_px * pixel_scale_;
+  refine.max_scale_ratio = 1.5;
+  for (const Candidate& candidate : verified) {
+    if (candidate.node != arc->arc->from && candidate.node != arc->arc->to) continue;
+    const NodeData& node = Node(candidate.node);
+    for (const auto& [id, point] : arc->points) {
+      if (tracker_.Find(id) != nullptr) continue;
+      const auto position = node.positions.find(id);
+      if (position == node.positions.end()) continue;
+      std::vector<double> dx, dy, ratios;
+      for (size_t i = 0; i < candidate.key_points.size(); ++i) {
+        if ((candidate.key_points[i] - position->second).norm() > neighbour_radius) continue;
+        const Vector2d d = candidate.current_points[i] - candidate.key_points[i];
+        dx.push_back(d.x());
+        dy.push_back(d.y());
+        ratios.push_back(candidate.size_ratios[i]);
+      }
+      if (dx.size() < 2) continue;
+      const Vector2d predicted = position->second + Vector2d(Median(dx), Median(dy));
+      if (!camera_->InImage(predicted, tracker_.Options().alignment.window_size / 2 + 2)) continue;
+      const ReferencePatch* reference = Reference(candidate.node, id);
+      if (reference == nullptr) continue;
+      const AlignmentResult refined = RefinePrediction(pyramid_, *reference, predicted, Median(ratios), refine);
+      if (refined.ok() && tracker_.AddFeature(*reference, refined, id) != kInvalidFeatureId) {
+        reference_node_[id] = candidate.node;
+        ++result->resumed;
+      }
+    }
+  }
+  if (tracker_.NumFeatures() < options_.min_bootstrap_features) {
+    spdlog::debug("repeat: bootstrap at frame {} failed: {} features located for arc {}", frame.index,
+                  tracker_.NumFeatures(), chosen);
+    ClearTracks();
+    return false;
+  }
+  arc_ = chosen;
+  start_arc_ = kInvalidArcId;  // the start arc serves the first bootstrap only
+  spdlog::debug("repeat: frame {} localized on arc {} by matching key-image {} ({} inliers), {} features",
+                frame.index, arc_, best->node, best->geometry.num_inliers, tracker_.NumFeatures());
+  return true;
+}
+
+}  // namespace retrace

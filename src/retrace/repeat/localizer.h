@@ -1,0 +1,260 @@
+#pragma once
+
+// Repeat: streaming localization in a taught map and steering (Segvic 2009 §3.3, §3.4, §5.2, §6.3; design §6).
+//
+// The Localizer is fed one frame at a time (ProcessFrame), as from a live camera, and keeps:
+//  - a topological location: the current arc (I_i, I_i+1) of the map (called (a, b) below, a = arc.from,
+//    b = arc.to), with its previous arc (ending at a) and its next arc (starting at b);
+//  - the mapped features of these three arcs that are tracked now, each aligned by the reference-aligned tracker
+//    to a reference appearance cut from a key-image (key-images are stored in the map).
+//
+// Per frame (state kTracking):
+//  1. all tracked features are aligned to their references (the same pyramid settings as teach,
+//     TrackingPyramidOptions, so the residual threshold R means the same in both phases);
+//  2. the current geometries W_t:a and W_t:b are estimated from the tracked features whose positions in the
+//     key-images a and b are known (robust 5-point, with σ_p, Segvic 2009 eq. (6)); a geometry is "usable" when
+//     it succeeded with σ_p below `max_sigma_p_px`;
+//  3. decomposed point transfer (§4.4): the current arc's points are transferred with the more accurate usable
+//     one of W_t:a / W_t:b, the next arc's with W_t:b, the previous arc's with W_t:a — only through usable
+//     geometries (σ_p gating, §5.2.1);
+//  4. consistency: a tracked feature farther than `max_drift_px` (or 3 σ_p) from its prediction is discontinued;
+//  5. prudence (eqs. (7), (8)): features of the next arc are resumed only when the camera is closer to b than
+//     `next_arc_ratio` (0.5) of the arc length, those of the previous arc only when closer to a than
+//     `previous_arc_ratio` (0.3);
+//  6. resumption: every mapped but untracked feature predicted inside the image is refined against its
+//     reference (RefinePrediction, starting at scale = 1 / distance ratio) and accepted only near the
+//     prediction; a rejected feature is retried after `retry_interval` frames;
+//  7. topological transition (eq. (9)): forward when the camera centre passes the plane through b's centre
+//     perpendicular to the arc's direction of travel, decided with W_t:b; backward symmetrically with W_t:a
+//     (with a small margin against flicker); cancelled when the geometry's σ_p is too large. After a transition
+//     the references are redefined: features of an arc take their reference from the arc's `to` key-image,
+//     features of the arc two behind are dropped;
+//  8. steering (eq. (10)): w = k * mean(x_t - x*) over the current arc's features, x the horizontal normalised
+//     coordinate in the current image and x* in key-image b.
+//
+// Lost is an answer: when fewer than `min_features` of the current arc are tracked or neither current geometry
+// is usable for `max_bad_frames` frames in a row, the state becomes kLost (no arc is reported), the tracker is
+// cleared and the following frames re-initialise (kRelocalizing) by wide-baseline matching against the
+// key-images, exactly as the bootstrap.
+//
+// Bootstrap (§3.3): the frame is matched (SIFT, ratio 0.6) against the key-images of a given start arc, or —
+// without one, or after a loss — against every key-image (retrieval); each candidate is verified geometrically
+// (relative pose on the matches) and the key-image with most inliers wins. Its arc is chosen by which side of the
+// key-image the camera is on (the sign test of eq. (9), which needs no scale). The arc's mapped features of the
+// matched key-images are then located in the frame from the displacement of the nearest matched key-points and
+// refined against their references; the regular transfer predicts the remaining ones from the next frame on.
+
+#include <array>
+#include <memory>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "retrace/camera/camera_model.h"
+#include "retrace/dataset/sequence.h"
+#include "retrace/feature/feature_tracker.h"
+#include "retrace/feature/image_pyramid.h"
+#include "retrace/feature/wide_baseline.h"
+#include "retrace/geometry/point_transfer.h"
+#include "retrace/geometry/two_view_geometry.h"
+#include "retrace/map/map.h"
+
+namespace retrace {
+
+enum class LocalizerState { kTracking, kLost, kRelocalizing };
+const char* LocalizerStateName(LocalizerState state);
+
+struct LocalizerOptions {
+  // Pixel quantities below are given for images of this width and scaled by (image width / reference_width),
+  // as in teach.
+  int reference_width = 320;
+  // Gaussian pre-smoothing of the tracker's images (pixels at reference_width); must equal teach's.
+  double smoothing_sigma_px = 0.4;
+  // R: largest RMS residual of a track against its reference (grey levels). Segvic 2009: 6.
+  double max_residual = 6.0;
+  // σ_p gate (px at reference_width): predictions, consistency checks and transitions use a current geometry only
+  // when its σ_p is below this. Teach's r_p (4 px) by default.
+  double max_sigma_p_px = 4.0;
+  // Sampson-error threshold of the current geometries' inliers (px at reference_width); teach uses the same.
+  double inlier_threshold_px = 1.5;
+  // Segvic 2009, eq. (7): resume the next arc's features when (distance to b) / (arc length) < this.
+  double next_arc_ratio = 0.5;
+  // Segvic 2009, eq. (8): resume the previous arc's features when (distance to a) / (arc length) < this.
+  double previous_arc_ratio = 0.3;
+  // A refined prediction is accepted within this distance of the prediction (px at reference_width).
+  double prediction_radius_px = 2.0;
+  // ... and with converged scale / initial scale within [1 / ratio, ratio].
+  double prediction_scale_ratio = 1.25;
+  // Consistency: a tracked feature farther than max(this, 3 σ_p) from its prediction is discontinued (px at
+  // reference_width).
+  double max_drift_px = 3.0;
+  // Backward transitions need the camera this far (arc lengths) behind a: hysteresis against flicker right after
+  // a forward transition, where W_t:a has almost no baseline.
+  double backward_margin = 0.1;
+  // Frames before a rejected prediction of a feature is tried again (saves time on occluded features).
+  int retry_interval = 3;
+  // Fewest tracked features of the current arc for a good frame.
+  int min_features = 15;
+  // Bad frames in a row (too few features or no usable current geometry) after which the state is lost.
+  int max_bad_frames = 3;
+  // k of Segvic 2009, eq. (10), radians of steering per unit of normalised image coordinate.
+  double steering_gain = 1.0;
+  // Bootstrap / relocalization: fewest geometrically verified wide-baseline matches with the best key-image.
+  int min_bootstrap_inliers = 30;
+  // ... and fewest mapped features located in the frame for the bootstrap to succeed.
+  int min_bootstrap_features = 20;
+  // Bootstrap: matched key-points nearer than this (px at reference_width) predict a mapped feature's position.
+  double bootstrap_neighbour_radius_px = 30.0;
+  // Bootstrap: accept a located feature within this distance of its local prediction (px at reference_width).
+  double bootstrap_radius_px = 4.0;
+
+  FeatureTrackerOptions tracker;
+  TwoViewOptions geometry;
+  WideBaselineOptions matching;
+
+  bool Check(std::string* error = nullptr) const;
+};
+
+// The role of an arc relative to the current topological location.
+enum class ArcRole : int { kPrevious = 0, kCurrent = 1, kNext = 2 };
+
+// A feature position drawn in overlays: tracked (square) or a rejected prediction (cross).
+struct FeatureMark {
+  Vector2d position = Vector2d::Zero();
+  ArcRole role = ArcRole::kCurrent;
+  bool tracked = true;
+};
+
+struct FrameResult {
+  size_t frame_index = 0;  // Frame::index of the processed frame
+  LocalizerState state = LocalizerState::kRelocalizing;
+  // The current arc and its nodes; invalid (-1) unless state == kTracking.
+  arc_t arc = kInvalidArcId;
+  node_t node_from = kInvalidNodeId;
+  node_t node_to = kInvalidNodeId;
+  int tracked = 0;                        // features tracked after this frame (all arcs)
+  std::array<int, 3> tracked_by_role{};  // ... per ArcRole (a feature of several arcs counts for the first role)
+  int resumed = 0;                       // features (re)started by prediction or bootstrap in this frame
+  int rejected = 0;                      // predictions refined but not accepted (drawn as crosses)
+  int dropped = 0;                       // features lost by the tracker or discontinued by the consistency check
+  int drifted = 0;                       // ... of which discontinued for drifting from their prediction
+  double sigma_p_from = -1.0;            // σ_p of W_t:a, px; -1 when not estimated / failed
+  double sigma_p_to = -1.0;              // σ_p of W_t:b
+  double sigma_p = -1.0;                 // σ_p of the geometry used for the current arc's transfer
+  double position_on_arc = 0.0;          // projection of the camera on the arc (0 at a, 1 at b), when known
+  bool position_valid = false;
+  double steering = 0.0;  // Segvic 2009 eq. (10), radians (0 when not valid)
+  bool steering_valid = false;
+  int transition = 0;         // +1 forward, -1 backward, 0 none in this frame
+  bool bootstrapped = false;  // (re)initialised by wide-baseline matching in this frame
+  double seconds = 0.0;       // processing time of this frame
+  std::vector<FeatureMark> marks;  // tracked features and rejected predictions (for overlays)
+};
+
+// Where the current camera is relative to an arc, in the arc's frame and unit (|t| = 1).
+struct ArcPosition {
+  bool valid = false;
+  double along = 0.0;             // (C_t - C_a) . (C_b - C_a): 0 at a, 1 at b
+  double distance_to_from = 0.0;  // |C_t - C_a| (arc lengths)
+  double distance_to_to = 0.0;    // |C_t - C_b|
+};
+// `current_from_a`: the current camera in the arc's frame and scale (PointTransfer::current_from_a()).
+ArcPosition LocateOnArc(const Rigid3d& current_from_a, const Rigid3d& arc_b_from_a);
+
+// Segvic 2009, eq. (9): true when the camera centre lies in front of the plane through b's centre perpendicular
+// to the arc's direction of travel. `current_from_b` is W_t:b (x_t = R x_b + t, any scale: the test is a sign).
+bool PassedArcEnd(const Rigid3d& current_from_b, const Rigid3d& arc_b_from_a);
+
+// Prudence (Segvic 2009, eqs. (7), (8)): which neighbouring arcs may have features resumed at `position`.
+struct ResumptionPolicy {
+  bool next = false;
+  bool previous = false;
+};
+ResumptionPolicy DecideResumption(const ArcPosition& position, double next_arc_ratio = 0.5,
+                                  double previous_arc_ratio = 0.3);
+
+// A current geometry (σ_p gating, Segvic 2009 §5.2.1): usable when it succeeded with σ_p below `max_sigma_p_px`.
+bool GeometryUsable(const TwoViewGeometry& geometry, double max_sigma_p_px);
+
+// The transition decision of one frame: forward with W_t:b (eq. (9)), cancelled when W_t:b is not usable; else
+// backward when the camera is more than `backward_margin` behind a (position from W_t:a), cancelled when W_t:a is
+// not usable. Returns +1, -1 or 0.
+int DecideTransition(const TwoViewGeometry* current_from_b, const ArcPosition& position_from_a_geometry,
+                     const TwoViewGeometry* current_from_a, const Rigid3d& arc_b_from_a, double max_sigma_p_px,
+                     double backward_margin);
+
+class Localizer {
+ public:
+  // `map` must hold its key-images (MapDatabase::ReadMap(true)); it is copied (images are shared, not
+  // duplicated). `camera` describes the frames given to ProcessFrame.
+  Localizer(const Map& map, const CameraModel& camera, const LocalizerOptions& options = {});
+  ~Localizer();
+
+  // Bootstrap the first frame against this arc's key-images only (Segvic 2009 §3.3: the user gives the start
+  // arc). Without it, or after a loss, the localizer finds the arc itself by retrieval over all key-images.
+  void SetStartArc(arc_t arc);
+
+  // Processes the next frame (8-bit gray, camera-sized; throws InputError otherwise).
+  FrameResult ProcessFrame(const Frame& frame);
+
+  LocalizerState state() const { return state_; }
+  arc_t current_arc() const { return arc_; }
+  const LocalizerOptions& options() const { return options_; }
+  // Thresholds in pixels of the frames given.
+  double sigma_p_threshold_px() const { return max_sigma_p_px_; }
+
+ private:
+  struct NodeData;
+  struct ArcData;
+  struct CurrentGeometry;
+
+  NodeData& Node(node_t id);
+  const ArcData* Arc(arc_t id) const;
+  const ImagePyramid& NodePyramid(node_t id);
+  const WideBaselineFeatures& NodeWideBaseline(node_t id);
+  // The reference appearance of `feature` cut from key-image `node` (cached), or null when it cannot be cut.
+  const ReferencePatch* Reference(node_t node, feature_t feature);
+  // The key-image of `arc` whose appearance serves as reference for `feature`: `preferred` (the arc's key-image
+  // nearest to the camera) when the feature is seen there, else the other one; invalid when seen in neither.
+  node_t ReferenceNode(const ArcData& arc, feature_t feature, node_t preferred) const;
+
+  bool Bootstrap(const Frame& frame, FrameResult* result);
+  void Localize(FrameResult* result);
+  CurrentGeometry EstimateCurrentGeometry(node_t node);
+  void ApplyTransition(int direction, FrameResult* result);
+  // Resumes untracked features of `arc` seen in key-image `node`, predicted from the displacement (key-image ->
+  // current image) of the tracked features seen there that lie nearby.
+  void ResumeFromNeighbours(const ArcData& arc, node_t node, ArcRole role, FrameResult* result);
+  void ClearTracks();
+  void FillCounts(FrameResult* result) const;
+
+  std::unique_ptr<CameraModel> camera_;
+  LocalizerOptions options_;
+  Map map_;
+  std::unordered_map<node_t, std::unique_ptr<NodeData>> nodes_;
+  std::unordered_map<arc_t, std::unique_ptr<ArcData>> arcs_;
+
+  double pixel_scale_ = 1.0;
+  double max_sigma_p_px_ = 0.0;
+  ImagePyramidOptions pyramid_options_;
+  TwoViewOptions geometry_options_;
+  RefinePredictionOptions refine_options_;
+  FeatureTracker tracker_;
+
+  ImagePyramid pyramid_;
+  size_t frame_counter_ = 0;
+  LocalizerState state_ = LocalizerState::kRelocalizing;
+  arc_t arc_ = kInvalidArcId;
+  arc_t start_arc_ = kInvalidArcId;
+  int bad_frames_ = 0;
+  node_t last_passed_ = kInvalidNodeId;  // the key-image passed by the last transition
+  // Key-image each tracked feature takes its reference from.
+  std::unordered_map<feature_t, node_t> reference_node_;
+  // Frame counter before which a rejected prediction is not retried.
+  std::unordered_map<feature_t, size_t> retry_after_;
+  // Current bearings of the tracked features (this frame).
+  std::unordered_map<feature_t, Vector3d> bearings_;
+};
+
+}  // namespace retrace

@@ -1,0 +1,161 @@
+// Repeat on real data against topological ground truth (design §9): kitti07 (160 frames, ~90 m), map taught from
+// the even frames, repeat on the odd frames, clean and perturbed.
+
+#include <cstdlib>
+#include <iostream>
+#include <memory>
+
+#include <gtest/gtest.h>
+
+#include "retrace/camera/camera_io.h"
+#include "retrace/dataset/ground_truth.h"
+#include "retrace/dataset/sequence.h"
+#include "retrace/image/perturbation.h"
+#include "retrace/repeat/evaluation.h"
+#include "retrace/repeat/localizer.h"
+#include "retrace/teach/teacher.h"
+#include "retrace/util/testing.h"
+
+namespace retrace {
+namespace {
+
+struct RepeatRun {
+  TopologicalEvaluation evaluation;
+  std::vector<FrameResult> results;
+  int first_localized = -1;  // index in the repeat sequence of the first localized frame
+};
+
+class RepeatKitti : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    kitti_ = testing::SharedDataPath("kitti07");
+    if (kitti_.empty()) return;
+    std::unique_ptr<Sequence> sequence = OpenSequence(kitti_);
+    camera_ = ReadCameraFile(*sequence->calibration_file(), sequence->image_size()).release();
+    truth_ = new std::vector<TimedPose>(ReadKittiPoses(*sequence->ground_truth_file()));
+    SubsampledSequence even(std::move(sequence), 2, 0);
+    Teacher teacher(*camera_, TeachOptions(), nullptr);
+    while (auto frame = even.Next()) teacher.AddFrame(*frame);
+    teacher.Finish();
+    map_ = new Map(teacher.map());
+  }
+  static void TearDownTestSuite() {
+    delete map_;
+    delete camera_;
+    delete truth_;
+  }
+
+  void SetUp() override {
+    if (kitti_.empty()) GTEST_SKIP() << "shared data 'kitti07' not found; skipping";
+  }
+
+  static RepeatRun Run(size_t step, size_t offset, const PerturbationOptions& perturbation, arc_t start_arc,
+                       const std::string& label) {
+    SubsampledSequence sequence(OpenSequence(kitti_), step, offset);
+    Localizer localizer(*map_, *camera_);
+    if (start_arc != kInvalidArcId) localizer.SetStartArc(start_arc);
+    RepeatRun run;
+    std::vector<RepeatRecord> records;
+    while (auto frame = sequence.Next()) {
+      if (!perturbation.IsIdentity()) frame->image = PerturbImage(frame->image, frame->index, perturbation);
+      FrameResult result = localizer.ProcessFrame(*frame);
+      if (run.first_localized < 0 && result.state == LocalizerState::kTracking) {
+        run.first_localized = static_cast<int>(frame->index);
+      }
+      records.push_back({frame->source_index, result.state == LocalizerState::kTracking, result.arc});
+      result.marks.clear();
+      run.results.push_back(std::move(result));
+    }
+    run.evaluation = EvaluateTopological(*map_, *truth_, *truth_, records);
+    double seconds = 0;
+    for (const FrameResult& r : run.results) seconds += r.seconds;
+    std::cout << "kitti07 repeat (" << label << "): " << run.evaluation.Summary() << "; first localized frame "
+              << run.first_localized << "; " << 1000.0 * seconds / std::max<size_t>(1, run.results.size())
+              << " ms/frame\n";
+    for (size_t i = 0; i < run.results.size(); ++i) {
+      const FrameTruth& t = run.evaluation.per_frame[i];
+      const FrameResult& r = run.results[i];
+      if (!t.correct || std::getenv("RETRACE_VERBOSE") != nullptr) {
+        std::cout << "  frame " << i << ": " << LocalizerStateName(r.state) << " arc " << r.arc << " true index "
+                  << t.true_arc_index << " estimated index " << t.estimated_arc_index << " tracked " << r.tracked
+                  << " (" << r.tracked_by_role[0] << "/" << r.tracked_by_role[1] << "/" << r.tracked_by_role[2]
+                  << ") resumed " << r.resumed << " rejected " << r.rejected << " dropped " << r.dropped << " drifted " << r.drifted << " sigma_p "
+                  << r.sigma_p_from << "/" << r.sigma_p_to << " u " << r.position_on_arc << " tr " << r.transition
+                  << " ms " << 1000 * r.seconds << "\n";
+      }
+    }
+    return run;
+  }
+
+  static std::filesystem::path kitti_;
+  static CameraModel* camera_;
+  static Map* map_;
+  static std::vector<TimedPose>* truth_;
+};
+
+std::filesystem::path RepeatKitti::kitti_;
+CameraModel* RepeatKitti::camera_ = nullptr;
+Map* RepeatKitti::map_ = nullptr;
+std::vector<TimedPose>* RepeatKitti::truth_ = nullptr;
+
+TEST_F(RepeatKitti, OddFramesStayOnTheCorrectArc) {
+  const RepeatRun run = Run(2, 1, PerturbationOptions(), 0, "odd frames, start arc 0");
+  EXPECT_GE(run.evaluation.FractionCorrect(), 0.99);
+  EXPECT_EQ(run.evaluation.wrong_by_two, 0);
+  EXPECT_LE(run.evaluation.FractionLost(), 0.01);
+  // The whole route is traversed: the last frames are on the last arc.
+  EXPECT_EQ(run.evaluation.per_frame.back().estimated_arc_index, run.evaluation.per_frame.back().true_arc_index);
+}
+
+TEST_F(RepeatKitti, OddFramesWithoutStartArcByRetrieval) {
+  const RepeatRun run = Run(2, 1, PerturbationOptions(), kInvalidArcId, "odd frames, retrieval");
+  EXPECT_EQ(run.first_localized, 0);
+  EXPECT_GE(run.evaluation.FractionCorrect(), 0.99);
+  EXPECT_EQ(run.evaluation.wrong_by_two, 0);
+}
+
+TEST_F(RepeatKitti, DarkerWithGamma) {
+  PerturbationOptions perturbation;
+  perturbation.brightness = 0.6;
+  perturbation.gamma = 1.4;
+  const RepeatRun run = Run(2, 1, perturbation, 0, "brightness 0.6, gamma 1.4");
+  EXPECT_GE(run.evaluation.FractionCorrect(), 0.95);
+  EXPECT_EQ(run.evaluation.wrong_by_two, 0);
+}
+
+TEST_F(RepeatKitti, PassingOccluder) {
+  PerturbationOptions perturbation;
+  perturbation.occluder_fraction = 0.4;
+  perturbation.occluder_first_frame = 30;
+  perturbation.occluder_last_frame = 39;
+  const RepeatRun run = Run(2, 1, perturbation, 0, "occluder 40% for 10 frames");
+  EXPECT_GE(run.evaluation.FractionCorrect(), 0.95);
+  EXPECT_EQ(run.evaluation.wrong_by_two, 0);
+}
+
+TEST_F(RepeatKitti, EverySecondFrameDropped) {
+  const RepeatRun run = Run(4, 1, PerturbationOptions(), 0, "every second odd frame dropped");
+  EXPECT_GE(run.evaluation.FractionCorrect(), 0.95);
+  EXPECT_EQ(run.evaluation.wrong_by_two, 0);
+}
+
+TEST_F(RepeatKitti, Noise) {
+  PerturbationOptions perturbation;
+  perturbation.noise_sigma = 6.0;
+  perturbation.seed = 7;
+  const RepeatRun run = Run(2, 1, perturbation, 0, "noise sigma 6");
+  EXPECT_GE(run.evaluation.FractionCorrect(), 0.95);
+  EXPECT_EQ(run.evaluation.wrong_by_two, 0);
+}
+
+TEST_F(RepeatKitti, StartInTheMiddle) {
+  const RepeatRun run = Run(2, 81, PerturbationOptions(), kInvalidArcId, "odd frames from 81, retrieval");
+  ASSERT_GE(run.first_localized, 0);
+  EXPECT_LT(run.first_localized, 3) << "localized within 3 frames";
+  EXPECT_EQ(run.evaluation.wrong_by_two, 0);
+  const int after = static_cast<int>(run.results.size()) - std::max(run.first_localized, 0);
+  EXPECT_GE(run.evaluation.correct, static_cast<int>(0.95 * after));
+}
+
+}  // namespace
+}  // namespace retrace
