@@ -110,8 +110,16 @@ struct LocalizerOptions {
   double bootstrap_radius_px = 4.0;
 
   FeatureTrackerOptions tracker;
-  TwoViewOptions geometry;
+  // The current geometries W_t:a, W_t:b are estimated every frame from tracked features (inlier ratios ~90 %), so
+  // the adaptive sampler's floor is lowered from 100 to 30 samples (at 90 % inliers the adaptive bound is ~12).
+  TwoViewOptions geometry = CurrentGeometryOptions();
   WideBaselineOptions matching;
+
+  static TwoViewOptions CurrentGeometryOptions() {
+    TwoViewOptions options;
+    options.ransac.min_iterations = 30;
+    return options;
+  }
 
   bool Check(std::string* error = nullptr) const;
 };

@@ -84,8 +84,9 @@ void BM_RepeatKitti(benchmark::State& state) {
   state.counters["tracked_per_frame"] = frames > 0 ? static_cast<double>(tracked) / frames : 0.0;
   state.counters["width"] = setup->camera->width();
 }
-// 0 = native 1226x370; 320 = resized to 320x97.
-BENCHMARK(BM_RepeatKitti)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)->Iterations(1);
+// 0 = native 1226x370. (kitti07 resized to 320 px is 320x97: teach cannot build a connected map from it, so there is
+// no 320 px figure on this data.)
+BENCHMARK(BM_RepeatKitti)->Arg(0)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 }  // namespace
 }  // namespace retrace
