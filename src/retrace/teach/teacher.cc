@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <optional>
+#include <unordered_set>
 
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
@@ -68,6 +69,7 @@ bool TeachOptions::Check(std::string* error) const {
   if (!(max_residual > 0)) return fail("max_residual (R) must be positive");
   if (max_corners < min_features) return fail("max_corners must be at least min_features");
   if (!(inlier_threshold_px > 0)) return fail("inlier_threshold_px must be positive");
+  if (!(min_parallax_px >= 0)) return fail("min_parallax_px must not be negative");
   if (!(gap_survival_fraction >= 0 && gap_survival_fraction < 1)) return fail("gap_survival_fraction must be in [0, 1)");
   if (!tracker.Check()) return fail("invalid tracker options");
   if (!geometry.Check()) return fail("invalid geometry options");
@@ -91,6 +93,9 @@ struct Teacher::Subrange {
   cv::Mat image;
   ImagePyramid pyramid;
   std::unordered_map<feature_t, Vector3d> bearings;  // every feature tracked from the key-image on
+  // Every feature seen at the key-image with its reference patch; only those that end up in an arc are stored.
+  std::unordered_map<feature_t, FeatureObservation> observations;
+  std::unordered_set<feature_t> stored;  // ids already written with the key-image
   std::optional<WideBaselineFeatures> wide_baseline;  // computed on demand
 };
 
@@ -103,6 +108,7 @@ Teacher::Teacher(const CameraModel& camera, const TeachOptions& options, MapData
   geometry_options_ = options_.geometry;
   geometry_options_.ransac.max_error_px = options_.inlier_threshold_px * pixel_scale;
   geometry_options_.min_inliers = std::max(geometry_options_.min_inliers, 8);
+  geometry_options_.min_parallax_px = options_.min_parallax_px * pixel_scale;
   detector_options_ = options_.detector;
   detector_options_.min_distance = options_.corner_min_distance_px * pixel_scale;
   detector_options_.border = std::max(detector_options_.border, options_.tracker.alignment.window_size / 2 + 2);
@@ -154,8 +160,9 @@ void Teacher::AddFrame(const Frame& frame) {
   // (Segvic 2009 §5.1), and the current frame is tracked again from there.
   const bool previous_is_key = previous_->frame.index == subrange_->frame_index;
   if (!previous_is_key && previous_->geometry.success) {
-    const KeyImageReason reason =
-        current->survivors < options_.min_features ? KeyImageReason::kFeatures : KeyImageReason::kSigmaP;
+    const bool enough_features = current->survivors >= options_.min_features &&
+                                 (!current->geometry.success || current->geometry.num_inliers >= options_.min_features);
+    const KeyImageReason reason = enough_features ? KeyImageReason::kSigmaP : KeyImageReason::kFeatures;
     RegisterKeyImage(previous_.get(), reason, /*with_arc=*/true);
     track(current.get());
     EstimateGeometryToKey(current.get());
@@ -198,21 +205,15 @@ void Teacher::EstimateGeometryToKey(FrameState* frame) {
 
 bool Teacher::GeometryAcceptable(const FrameState& frame) const {
   if (frame.survivors < options_.min_features) return false;
-  if (frame.geometry.success) return frame.geometry.sigma_p <= max_sigma_p_px_;
+  // The arc keeps only the geometry's inliers, so they are what must number at least n.
+  if (frame.geometry.success) {
+    return frame.geometry.num_inliers >= options_.min_features && frame.geometry.sigma_p <= max_sigma_p_px_;
+  }
   // Too little parallax yet (the vehicle stands or turns on the spot): no key-image is needed.
   return frame.geometry.failure == TwoViewFailure::kInsufficientParallax;
 }
 
-std::vector<FeatureObservation> Teacher::ObservationsOf(const FrameState& frame) const {
-  std::vector<FeatureObservation> observations;
-  observations.reserve(frame.features.size());
-  for (const TrackedFeature& f : frame.features) {
-    observations.push_back({f.id, f.warp.position, CutPatch(frame.frame.image, f.warp.position)});
-  }
-  return observations;
-}
-
-void Teacher::StartSubrange(FrameState* frame, std::vector<FeatureObservation>* observations) {
+void Teacher::StartSubrange(FrameState* frame) {
   // Continuing tracks take their reference from the new key-image (the tracker may be one frame further already).
   std::unordered_map<feature_t, Vector2d> position_at_key;
   for (const TrackedFeature& f : frame->features) position_at_key[f.id] = f.warp.position;
@@ -225,7 +226,10 @@ void Teacher::StartSubrange(FrameState* frame, std::vector<FeatureObservation>* 
     }
     existing.push_back(it->second);
   }
-  *observations = ObservationsOf(*frame);
+  std::unordered_map<feature_t, FeatureObservation> observations;
+  for (const TrackedFeature& f : frame->features) {
+    observations[f.id] = {f.id, f.warp.position, CutPatch(frame->frame.image, f.warp.position)};
+  }
 
   // New corners fill the subrange up to max_corners ("all Harris corners of the first frame", Segvic 2009 §5.1).
   {
@@ -237,7 +241,7 @@ void Teacher::StartSubrange(FrameState* frame, std::vector<FeatureObservation>* 
         const feature_t id = tracker_.AddFeature(frame->pyramid, corner.position, next_feature_id_);
         if (id == kInvalidFeatureId) continue;
         ++next_feature_id_;
-        observations->push_back({id, corner.position, CutPatch(frame->frame.image, corner.position)});
+        observations[id] = {id, corner.position, CutPatch(frame->frame.image, corner.position)};
       }
     }
   }
@@ -246,6 +250,7 @@ void Teacher::StartSubrange(FrameState* frame, std::vector<FeatureObservation>* 
   subrange_->frame_index = frame->frame.index;
   subrange_->image = frame->frame.image;
   subrange_->pyramid = frame->pyramid;
+  subrange_->observations = std::move(observations);
   for (const TrackedFeature& f : tracker_.Features()) {
     Vector3d bearing;
     if (camera_->Unproject(f.warp.position, &bearing)) subrange_->bearings[f.id] = bearing;
@@ -263,6 +268,10 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
   std::optional<MapArc> arc;
   std::optional<NodeScale> scale;
   std::unordered_map<feature_t, double> depth_at_to;
+  // A key-image stores the features of its arcs (the sets M_k) only: those of the arc reaching it now, and those of
+  // the arc leaving it when that arc is registered. Corners that never make it into an arc are not kept.
+  std::vector<std::pair<node_t, std::vector<FeatureObservation>>> additions;
+  std::unordered_set<feature_t> arc_features;
   if (with_arc) {
     const TwoViewGeometry& w = frame->geometry;
     arc.emplace();
@@ -273,16 +282,24 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
     arc->sigma_p = w.sigma_p;
     arc->kind = reason == KeyImageReason::kGap ? "gap" : "tracking";
     std::vector<double> depth_in_previous_arc, depth_in_this_arc;
+    std::vector<FeatureObservation> from_additions;
     for (size_t i = 0; i < frame->geometry_ids.size(); ++i) {
       if (!w.inlier_mask[i] || frame->geometry_ids[i] == kInvalidFeatureId) continue;
       const feature_t id = frame->geometry_ids[i];
       arc->points.push_back({id, w.points_in_a[i]});
+      arc_features.insert(id);
       depth_at_to[id] = w.depths_b[i];
+      if (subrange_->stored.insert(id).second) {
+        if (const auto it = subrange_->observations.find(id); it != subrange_->observations.end()) {
+          from_additions.push_back(it->second);
+        }
+      }
       if (const auto it = last_arc_depth_at_to_.find(id); it != last_arc_depth_at_to_.end()) {
         depth_in_previous_arc.push_back(it->second);
         depth_in_this_arc.push_back(w.depths_a[i]);
       }
     }
+    additions.emplace_back(subrange_->node, std::move(from_additions));
     // Design §3.3: the two geometries meeting at the key-image differ by one scalar, the median of depth ratios.
     if (last_arc_ != kInvalidArcId && map_.FindArc(last_arc_)->to == subrange_->node) {
       const ScaleEstimate estimate = EstimateScaleFromDistances(depth_in_previous_arc, depth_in_this_arc, 5);
@@ -290,10 +307,15 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
     }
   }
 
-  StartSubrange(frame, &node.features);
+  StartSubrange(frame);
   subrange_->node = node.id;
-  Commit(&node, arc ? &*arc : nullptr, scale ? &*scale : nullptr, pending_observations_);
-  pending_observations_.clear();
+  for (const feature_t id : arc_features) {
+    if (const auto it = subrange_->observations.find(id); it != subrange_->observations.end()) {
+      node.features.push_back(it->second);
+      subrange_->stored.insert(id);
+    }
+  }
+  Commit(&node, arc ? &*arc : nullptr, scale ? &*scale : nullptr, additions);
 
   map_.AddNode(std::move(node));
   if (arc) {
@@ -387,7 +409,9 @@ bool Teacher::RecoverGap(FrameState* frame) {
   }
   if (static_cast<int>(key_observations.size()) < 8) return false;
   frame->geometry = std::move(geometry);
-  pending_observations_.emplace_back(subrange_->node, std::move(key_observations));
+  for (FeatureObservation& observation : key_observations) {
+    subrange_->observations[observation.feature_id] = std::move(observation);
+  }
   RegisterKeyImage(frame, KeyImageReason::kGap, /*with_arc=*/true);
   return true;
 }

@@ -57,9 +57,12 @@ struct TeachOptions {
   // Gaussian pre-smoothing of the tracker's images (pixels at reference_width). Scaling it with the image keeps
   // the residual R meaningful at any resolution: fine texture that the paper's 320x240 images did not resolve
   // would otherwise count as appearance change.
-  double smoothing_sigma_px = 0.4;
+  double smoothing_sigma_px = 0.7;
   // Sampson-error threshold of the geometry's inliers (pixels at reference_width).
   double inlier_threshold_px = 1.5;
+  // A geometry needs this median parallax (pixels at reference_width) before it is trusted; below it the camera has
+  // not moved enough yet and no key-image is needed.
+  double min_parallax_px = 0.5;
   // Relate a key-image and the current image by wide-baseline matching when tracking fails at once.
   bool recover_gaps = true;
   // Match the first and last key-image after the last frame; a circular graph on success.
@@ -69,7 +72,13 @@ struct TeachOptions {
 
   FeatureTrackerOptions tracker;
   CornerDetectorOptions detector;
-  TwoViewOptions geometry;
+  // Two-view geometry of W(K, f). Tracked correspondences have few outliers, so the adaptive sampling may stop
+  // after few samples (the estimator's default minimum is meant for matches).
+  TwoViewOptions geometry = [] {
+    TwoViewOptions o;
+    o.ransac.min_iterations = 20;
+    return o;
+  }();
   WideBaselineOptions matching;
 
   bool Check(std::string* error = nullptr) const;
@@ -122,9 +131,8 @@ class Teacher {
   // reached by a "gap" arc. Returns false when the two images cannot be related.
   bool RecoverGap(FrameState* frame);
   // Starts a subrange at `frame`: references redefined there, new corners detected.
-  void StartSubrange(FrameState* frame, std::vector<FeatureObservation>* observations);
+  void StartSubrange(FrameState* frame);
   void CloseLoop();
-  std::vector<FeatureObservation> ObservationsOf(const FrameState& frame) const;
   void Commit(const MapNode* node, const MapArc* arc, const NodeScale* scale,
               const std::vector<std::pair<node_t, std::vector<FeatureObservation>>>& extra_observations);
 
@@ -146,8 +154,6 @@ class Teacher {
   arc_t last_arc_ = kInvalidArcId;
   std::unordered_map<feature_t, double> last_arc_depth_at_to_;
   feature_t next_feature_id_ = 0;
-  // Observations of earlier key-images found by matching, committed with the next key-image.
-  std::vector<std::pair<node_t, std::vector<FeatureObservation>>> pending_observations_;
   bool finished_ = false;
 };
 
