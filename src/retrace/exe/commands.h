@@ -9,5 +9,6 @@
 namespace retrace {
 
 void RegisterVersionCommand(CLI::App& app);
+void RegisterSimCommand(CLI::App& app);
 
 }  // namespace retrace

@@ -14,6 +14,7 @@ namespace {
 // The table of subcommands, in the order `retrace --help` lists them.
 constexpr void (*kCommands[])(CLI::App&) = {
     &retrace::RegisterVersionCommand,
+    &retrace::RegisterSimCommand,
 };
 
 }  // namespace
