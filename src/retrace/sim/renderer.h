@@ -34,9 +34,9 @@ namespace retrace {
 
 struct Lighting {
   // Compass direction of the sun in degrees, clockwise from north (+Y of the town frame); east (+X) = 90.
-  double sun_azimuth_deg = 135.0;
+  double sun_azimuth_deg = 160.0;
   // Height of the sun above the horizon in degrees (<= 0: no direct sunlight).
-  double sun_elevation_deg = 40.0;
+  double sun_elevation_deg = 55.0;
   // Irradiance of the sun on a surface facing it (relative units; reflectance x irradiance = radiance).
   double sun_irradiance = 1.6;
   // Irradiance of the sky on an upward surface (vertical ones get 75% of it).

@@ -74,6 +74,11 @@ struct Scenario {
   int num_frames = 0;
   // Seconds on the occluders' clock at the first frame.
   double time_offset = 0.0;
+  // Calibration markers: self-luminous spheres at these points of the output world frame (simulator.h), for
+  // checking projections against ground truth (e.g. in the dark: sun_elevation_deg < 0, sky_irradiance 0).
+  std::vector<Vector3d> markers;
+  double marker_radius = 0.1;
+  double marker_brightness = 0.8;
   RepeatSpec repeat;
 
   // Returns an explanation of the first invalid field, or "" when the scenario is valid.

@@ -63,7 +63,8 @@ class Reader {
 Scenario ParseNode(const YAML::Node& root, const Reader& r) {
   Scenario s;
   if (!root || root.IsNull()) return s;
-  r.CheckMap(root, "", {"seed", "frames", "frame_rate", "time_offset", "town", "camera", "vehicle", "route", "drive",
+  r.CheckMap(root, "", {"seed", "frames", "frame_rate", "time_offset", "markers", "marker_radius",
+                        "marker_brightness", "town", "camera", "vehicle", "route", "drive",
                         "lighting", "sensor", "render", "repeat"});
   r.Seed(root, "", "seed", &s.seed);
   s.town.seed = s.seed;
@@ -71,6 +72,20 @@ Scenario ParseNode(const YAML::Node& root, const Reader& r) {
   r.Integer(root, "", "frames", &s.num_frames);
   r.Number(root, "", "frame_rate", &s.frame_rate);
   r.Number(root, "", "time_offset", &s.time_offset);
+  r.Number(root, "", "marker_radius", &s.marker_radius);
+  r.Number(root, "", "marker_brightness", &s.marker_brightness);
+  if (const YAML::Node m = root["markers"]) {
+    if (!m.IsSequence()) r.Fail(m, "markers", "expected a list of [x, y, z] points");
+    for (size_t i = 0; i < m.size(); ++i) {
+      const YAML::Node p = m[i];
+      if (!p.IsSequence() || p.size() != 3) r.Fail(p, fmt::format("markers[{}]", i), "expected [x, y, z]");
+      try {
+        s.markers.emplace_back(p[0].as<double>(), p[1].as<double>(), p[2].as<double>());
+      } catch (const YAML::Exception&) {
+        r.Fail(p, fmt::format("markers[{}]", i), "expected three numbers [x, y, z]");
+      }
+    }
+  }
   if (const YAML::Node n = root["town"]) {
     r.CheckMap(n, "town", {"seed", "blocks_x", "blocks_y", "block_size_min", "block_size_max", "road_width",
                            "sidewalk_width", "sidewalk_height", "park_probability", "min_upper_floors",
@@ -241,6 +256,12 @@ std::string ScenarioToYaml(const Scenario& s) {
   line(fmt::format("frames: {}              # number of frames; 0 = drive the whole route", s.num_frames));
   line(fmt::format("frame_rate: {}         # frames per second", s.frame_rate));
   line(fmt::format("time_offset: {}         # seconds on the clock of moving pedestrians/cars at frame 0", s.time_offset));
+  std::string markers;
+  for (const auto& p : s.markers) markers += fmt::format("{}[{}, {}, {}]", markers.empty() ? "" : ", ", p.x(), p.y(), p.z());
+  line(fmt::format("markers: [{}]             # self-luminous spheres at world-frame points (x right, y down, z forward "
+                   "at the route start)", markers));
+  line(fmt::format("marker_radius: {}", s.marker_radius));
+  line(fmt::format("marker_brightness: {}", s.marker_brightness));
   line("town:                    # the built-in procedural town (X east, Y north, Z up, metres)");
   line(fmt::format("  seed: {}", s.town.seed));
   line(fmt::format("  blocks_x: {}            # blocks west-east; junctions are numbered 0..blocks_x", s.town.blocks_x));

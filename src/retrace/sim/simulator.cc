@@ -23,15 +23,29 @@ Simulator::Simulator(const Scenario& scenario) : scenario_(scenario) {
   scene_ = std::make_unique<Scene>();
   layout_ = BuildTown(scenario.town, scene_.get());
   route_ = std::make_unique<RoutePath>(ResolveRoute(scenario, layout_), scenario.drive);
-  driver_ = std::make_unique<RouteDriver>(route_.get(), scenario.drive, scenario.vehicle);
-  vehicle_ = std::make_unique<Vehicle>(scenario.vehicle, driver_->StartState());
-  const std::unique_ptr<CameraModel> camera = scenario.camera.MakeCamera();
-  renderer_ = std::make_unique<Renderer>(*camera, scenario.render);
   // World frame: a level camera on the ground at the route's start, looking along the route.
   VehicleState start;
   start.position = route_->Position(0.0);
   start.heading = route_->Heading(0.0);
   town_from_world_ = Vehicle(scenario.vehicle, start).TownFromVehicle() * Vehicle::VehicleFromCamera(0.0, 0.0, 0.0);
+  if (!scenario.markers.empty()) {
+    Material glow;
+    glow.emissive = true;
+    glow.color = Vector3f::Constant(static_cast<float>(scenario.marker_brightness));
+    const int material = scene_->AddMaterial(glow);
+    Mesh markers;
+    for (const Vector3d& p : scenario.markers) {
+      const Vector3f centre = (town_from_world_ * p).cast<float>();
+      markers.AddBlob(centre, Vector3f::Constant(static_cast<float>(scenario.marker_radius)), 3, 0.0f, 0, 1.0f,
+                      material);
+    }
+    scene_->AddStaticMesh(markers);
+    scene_->Commit();
+  }
+  driver_ = std::make_unique<RouteDriver>(route_.get(), scenario.drive, scenario.vehicle);
+  vehicle_ = std::make_unique<Vehicle>(scenario.vehicle, driver_->StartState());
+  const std::unique_ptr<CameraModel> camera = scenario.camera.MakeCamera();
+  renderer_ = std::make_unique<Renderer>(*camera, scenario.render);
   time_ = 0.0;
 }
 

@@ -1,0 +1,212 @@
+#include "retrace/sim/renderer.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "retrace/camera/equirectangular_camera.h"
+#include "retrace/camera/perspective_camera.h"
+#include "retrace/sim/scenario.h"
+#include "retrace/sim/simulator.h"
+
+namespace retrace {
+namespace {
+
+// Intensity-weighted centroid of the pixels within `radius` of `around` (background must be black).
+bool Centroid(const cv::Mat& image, const Vector2d& around, int radius, Vector2d* centroid, double* mass) {
+  double sx = 0, sy = 0, sw = 0;
+  const int cx = static_cast<int>(std::round(around.x())), cy = static_cast<int>(std::round(around.y()));
+  for (int y = cy - radius; y <= cy + radius; ++y) {
+    for (int x = cx - radius; x <= cx + radius; ++x) {
+      if (x < 0 || y < 0 || x >= image.cols || y >= image.rows) continue;
+      const double w = image.at<uint8_t>(y, x);
+      sx += w * x;
+      sy += w * y;
+      sw += w;
+    }
+  }
+  *mass = sw;
+  if (sw <= 0) return false;
+  *centroid = Vector2d(sx / sw, sy / sw);
+  return true;
+}
+
+Rigid3d SomeTownFromCam() {
+  const Matrix3d r = (Eigen::AngleAxisd(0.7, Vector3d::UnitZ()) * Eigen::AngleAxisd(-1.9, Vector3d::UnitX()) *
+                      Eigen::AngleAxisd(0.1, Vector3d::UnitY()))
+                         .toRotationMatrix();
+  return Rigid3d(r, Vector3d(12.0, -4.0, 1.6));
+}
+
+struct MarkerScene {
+  std::unique_ptr<Scene> scene;
+  std::vector<Vector3d> points;  // town frame
+};
+
+// Self-luminous discs facing the camera centre at the given camera-frame points, with an angular radius of
+// `radius_rad`, on a black sky.
+MarkerScene MakeMarkers(const Rigid3d& town_from_cam, const std::vector<Vector3d>& points_in_cam,
+                        double radius_rad) {
+  MarkerScene m;
+  m.scene = std::make_unique<Scene>();
+  Material glow;
+  glow.emissive = true;
+  glow.color = Vector3f::Constant(0.8f);
+  const int material = m.scene->AddMaterial(glow);
+  Mesh mesh;
+  for (const Vector3d& p : points_in_cam) {
+    const Vector3d x = town_from_cam * p;
+    const Vector3d towards_camera = town_from_cam.translation - x;
+    mesh.AddDisc(x.cast<float>(), towards_camera.cast<float>(), static_cast<float>(radius_rad * p.norm()), 48,
+                 material);
+    m.points.push_back(x);
+  }
+  m.scene->AddStaticMesh(mesh);
+  m.scene->set_sky(SkyType::kUniform, Vector3f::Zero());
+  m.scene->Commit();
+  return m;
+}
+
+void ExpectMarkersWhereProjected(const CameraModel& camera, const Rigid3d& town_from_cam, const MarkerScene& m,
+                                 int window, double* max_error) {
+  RenderOptions options;
+  options.antialiasing = 4;
+  Renderer renderer(camera, options);
+  SensorOptions sensor;
+  sensor.noise_sigma = 0.0;
+  const cv::Mat image = renderer.Render(*m.scene, town_from_cam, Lighting(), sensor, 0);
+  ASSERT_EQ(image.type(), CV_8UC1);
+  const Rigid3d cam_from_town = town_from_cam.Inverse();
+  *max_error = 0.0;
+  for (size_t i = 0; i < m.points.size(); ++i) {
+    Vector2d expected;
+    ASSERT_TRUE(camera.Project(cam_from_town * m.points[i], &expected));
+    ASSERT_TRUE(camera.InImage(expected, window)) << expected.transpose();
+    Vector2d centroid;
+    double mass = 0.0;
+    ASSERT_TRUE(Centroid(image, expected, window, &centroid, &mass)) << "marker " << i << " not drawn";
+    EXPECT_GT(mass, 5 * 200.0) << "marker " << i << " too faint";
+    const double error = (centroid - expected).norm();
+    EXPECT_LT(error, 0.5) << "marker " << i << " expected at " << expected.transpose() << " drawn at "
+                          << centroid.transpose();
+    *max_error = std::max(*max_error, error);
+  }
+}
+
+TEST(RendererTest, MarkersAppearWhereTheDistortedPerspectiveModelProjects) {
+  const LensDistortion distortion{-0.28, 0.09, 0.0, 0.0012, -0.0008};
+  const PerspectiveCamera camera(320, 240, 210.0, 205.0, 161.3, 118.7, 0.0, distortion);
+  const Rigid3d town_from_cam = SomeTownFromCam();
+  // Markers on a grid of pixels out to the image corners, at various depths.
+  std::vector<Vector3d> points;
+  int k = 0;
+  for (double v = 14; v < 240; v += 35) {
+    for (double u = 14; u < 320; u += 36, ++k) {
+      Vector3d bearing;
+      ASSERT_TRUE(camera.Unproject(Vector2d(u, v), &bearing));
+      points.push_back(bearing / bearing.z() * (4.0 + (k % 5) * 3.0));
+    }
+  }
+  const MarkerScene m = MakeMarkers(town_from_cam, points, 3.0 / 210.0);
+  double max_error = 0.0;
+  ExpectMarkersWhereProjected(camera, town_from_cam, m, 8, &max_error);
+  std::cout << "perspective+distortion: " << points.size() << " markers, max centroid error " << max_error
+            << " px\n";
+  // The test has teeth: the distortion moves corner markers by many pixels, so ignoring it would fail.
+  const PerspectiveCamera pinhole(320, 240, 210.0, 205.0, 161.3, 118.7);
+  double max_shift = 0.0;
+  for (const Vector3d& x : m.points) {
+    Vector2d a, b;
+    camera.Project(town_from_cam.Inverse() * x, &a);
+    pinhole.Project(town_from_cam.Inverse() * x, &b);
+    max_shift = std::max(max_shift, (a - b).norm());
+  }
+  EXPECT_GT(max_shift, 10.0);
+}
+
+TEST(RendererTest, MarkersAppearWhereThePanoramicModelProjects) {
+  const EquirectangularCamera camera(480, 240);
+  const Rigid3d town_from_cam = SomeTownFromCam();
+  std::vector<Vector3d> points;
+  int k = 0;
+  for (double lat = -60; lat <= 60; lat += 20) {
+    for (double lon = -165; lon <= 165; lon += 30, ++k) {
+      const double la = lat * M_PI / 180, lo = lon * M_PI / 180;
+      // Longitude around the camera y axis from +z towards +x, latitude towards +y (down).
+      const Vector3d bearing(std::cos(la) * std::sin(lo), std::sin(la), std::cos(la) * std::cos(lo));
+      points.push_back(bearing * (3.0 + (k % 4) * 4.0));
+    }
+  }
+  const MarkerScene m = MakeMarkers(town_from_cam, points, 2.5 / camera.FocalLength());
+  double max_error = 0.0;
+  ExpectMarkersWhereProjected(camera, town_from_cam, m, 7, &max_error);
+  std::cout << "equirectangular: " << points.size() << " markers, max centroid error " << max_error << " px\n";
+}
+
+Scenario SmallTown() {
+  Scenario s;
+  s.town.blocks_x = 2;
+  s.town.blocks_y = 2;
+  s.camera.width = 160;
+  s.camera.height = 120;
+  s.route.segments = 3;
+  s.num_frames = 3;
+  return s;
+}
+
+TEST(RendererTest, SameScenarioAndSeedGiveByteIdenticalImages) {
+  Scenario a = SmallTown();
+  a.sensor.noise_sigma = 2.0;
+  Scenario b = a;
+  b.render.num_threads = 1;  // thread count must not matter either
+  Simulator sim_a(a), sim_b(b);
+  SimFrame fa, fb;
+  int frames = 0;
+  while (sim_a.NextFrame(&fa)) {
+    ASSERT_TRUE(sim_b.NextFrame(&fb));
+    ASSERT_EQ(fa.image.size(), fb.image.size());
+    EXPECT_EQ(cv::norm(fa.image, fb.image, cv::NORM_L1), 0.0) << "frame " << frames;
+    ++frames;
+  }
+  EXPECT_EQ(frames, 3);
+  // A different seed gives a different town.
+  Scenario c = a;
+  c.seed = c.town.seed = 99;
+  Simulator sim_c(c);
+  SimFrame fc;
+  ASSERT_TRUE(sim_c.NextFrame(&fc));
+  Simulator sim_a2(a);
+  ASSERT_TRUE(sim_a2.NextFrame(&fa));
+  EXPECT_GT(cv::norm(fa.image, fc.image, cv::NORM_L1), 0.0);
+}
+
+TEST(RendererTest, TexturedTownHasContrastAndShadows) {
+  Scenario s = SmallTown();
+  s.sensor.noise_sigma = 0.0;
+  Simulator sim(s);
+  SimFrame f;
+  ASSERT_TRUE(sim.NextFrame(&f));
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(f.image, mean, stddev);
+  EXPECT_GT(stddev[0], 25.0);
+  EXPECT_GT(mean[0], 60.0);
+  EXPECT_LT(mean[0], 200.0);
+  // Without the sun nothing gets brighter, and the sunlit part (a good share of the view) gets darker.
+  Scenario dark = s;
+  dark.lighting.sun_elevation_deg = -5.0;
+  Simulator sim_dark(dark);
+  SimFrame g;
+  ASSERT_TRUE(sim_dark.NextFrame(&g));
+  cv::Mat brighter, darker, lift;
+  cv::subtract(g.image, f.image, lift);
+  cv::compare(lift, 3, brighter, cv::CMP_GT);  // (edge pixels may be anti-aliased differently by 1-2 levels)
+  cv::Mat diff;
+  cv::subtract(f.image, g.image, diff);
+  cv::compare(diff, 20, darker, cv::CMP_GT);
+  EXPECT_LE(cv::countNonZero(brighter), static_cast<int>(f.image.total() / 1000));
+  EXPECT_GT(cv::countNonZero(darker), static_cast<int>(0.05 * f.image.total()));
+}
+
+}  // namespace
+}  // namespace retrace
