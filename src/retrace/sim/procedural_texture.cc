@@ -141,23 +141,52 @@ double SimRandom::Normal() {
   return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
 }
 
+namespace {
+
+// The lattice of one periodic noise (period_x x period_y hashed values), cached per thread: texture generation
+// evaluates the same few lattices millions of times.
+const std::vector<float>& Lattice(int period_x, int period_y, uint64_t seed) {
+  struct Entry {
+    int px = 0, py = 0;
+    uint64_t seed = 0;
+    std::vector<float> values;
+  };
+  thread_local std::vector<Entry> cache;
+  for (const Entry& e : cache) {
+    if (e.px == period_x && e.py == period_y && e.seed == seed) return e.values;
+  }
+  if (cache.size() >= 16) cache.erase(cache.begin());
+  Entry e;
+  e.px = period_x;
+  e.py = period_y;
+  e.seed = seed;
+  e.values.resize(static_cast<size_t>(period_x) * period_y);
+  for (int iy = 0; iy < period_y; ++iy) {
+    for (int ix = 0; ix < period_x; ++ix) {
+      e.values[static_cast<size_t>(iy) * period_x + ix] =
+          static_cast<float>(HashToUnit(HashCombine(seed, static_cast<uint64_t>(iy) * 1000003ULL + ix)));
+    }
+  }
+  cache.push_back(std::move(e));
+  return cache.back().values;
+}
+
+}  // namespace
+
 float PeriodicValueNoise(float x, float y, int period_x, int period_y, uint64_t seed) {
+  const std::vector<float>& lattice = Lattice(period_x, period_y, seed);
   const float fx = std::floor(x);
   const float fy = std::floor(y);
   const float tx = x - fx;
   const float ty = y - fy;
   const float sx = tx * tx * (3.0f - 2.0f * tx);  // smoothstep interpolation
   const float sy = ty * ty * (3.0f - 2.0f * ty);
-  auto lattice = [&](long ix, long iy) {
-    ix %= period_x;
-    iy %= period_y;
-    if (ix < 0) ix += period_x;
-    if (iy < 0) iy += period_y;
-    return static_cast<float>(HashToUnit(HashCombine(seed, static_cast<uint64_t>(iy) * 1000003ULL + ix)));
-  };
-  const long ix = static_cast<long>(fx);
-  const long iy = static_cast<long>(fy);
-  const float a = lattice(ix, iy), b = lattice(ix + 1, iy), c = lattice(ix, iy + 1), d = lattice(ix + 1, iy + 1);
+  long ix = static_cast<long>(fx) % period_x, iy = static_cast<long>(fy) % period_y;
+  if (ix < 0) ix += period_x;
+  if (iy < 0) iy += period_y;
+  const long ix1 = ix + 1 == period_x ? 0 : ix + 1, iy1 = iy + 1 == period_y ? 0 : iy + 1;
+  const float a = lattice[iy * period_x + ix], b = lattice[iy * period_x + ix1];
+  const float c = lattice[iy1 * period_x + ix], d = lattice[iy1 * period_x + ix1];
   return (a * (1 - sx) + b * sx) * (1 - sy) + (c * (1 - sx) + d * sx) * sy;
 }
 

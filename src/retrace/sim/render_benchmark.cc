@@ -18,6 +18,7 @@ void BM_RenderTown320x240(benchmark::State& state) {
   scenario.render.num_threads = static_cast<int>(state.range(0));
   auto sim = std::make_unique<Simulator>(scenario);
   SimFrame frame;
+  size_t supersampled = 0;
   for (auto _ : state) {
     if (!sim->NextFrame(&frame)) {
       state.PauseTiming();
@@ -26,7 +27,9 @@ void BM_RenderTown320x240(benchmark::State& state) {
       sim->NextFrame(&frame);
     }
     benchmark::DoNotOptimize(frame.image.data);
+    supersampled += sim->last_supersampled_pixels();
   }
+  state.counters["aa_pixels"] = static_cast<double>(supersampled) / std::max<int64_t>(1, state.iterations());
   state.counters["fps"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_RenderTown320x240)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(3.0);

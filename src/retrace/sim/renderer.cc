@@ -89,6 +89,7 @@ struct Renderer::Frame {
   Vector3f origin;
   Vector3f sun;
   bool sun_up;
+  bool gray;  // grey output: textures are sampled on their luminance only
   float sun_irradiance;
   float sky_irradiance;
   int width, height, tiles_x, tiles_y;
@@ -245,18 +246,24 @@ void Renderer::TraceBatch(const Frame& frame, const Vector3f* directions, const 
       const Vector3f rel = p_obj - s.p0;
       const float u = s.uv0.x() + s.grad_u.dot(rel);
       const float v = s.uv0.y() + s.grad_v.dot(rel);
-      Vector3f tex;
+      Vector2f axis_a = Vector2f::Zero(), axis_b = Vector2f::Zero();
       if (options_.filter_textures) {
         // Ray differentials (Igehy 1999): dP = t (dD - (dD.n)/(D.n) D), in the object frame.
         const Vector3f n_obj = town_from_object ? Vector3f(town_from_object->rotation.cast<float>().transpose() * n) : n;
         const Vector3f dpx = t * (dx_obj - (dx_obj.dot(n_obj) / d_dot_n) * d_obj);
         const Vector3f dpy = t * (dy_obj - (dy_obj.dot(n_obj) / d_dot_n) * d_obj);
-        tex = texture.SampleFiltered(u, v, Vector2f(s.grad_u.dot(dpx), s.grad_v.dot(dpx)),
-                                     Vector2f(s.grad_u.dot(dpy), s.grad_v.dot(dpy)));
-      } else {
-        tex = texture.SampleTrilinear(u, v, 0.0f);
+        axis_a = Vector2f(s.grad_u.dot(dpx), s.grad_v.dot(dpx));
+        axis_b = Vector2f(s.grad_u.dot(dpy), s.grad_v.dot(dpy));
       }
-      a = a.cwiseProduct(tex);
+      if (frame.gray) {
+        // Luminance only: lum(tint * texture) ~ lum(tint) * lum(texture) (exact for grey tints).
+        const float lum = 0.2126f * a.x() + 0.7152f * a.y() + 0.0722f * a.z();
+        a = Vector3f::Constant(lum * (options_.filter_textures ? texture.SampleFilteredGray(u, v, axis_a, axis_b)
+                                                               : texture.SampleTrilinearGray(u, v, 0.0f)));
+      } else {
+        a = a.cwiseProduct(options_.filter_textures ? texture.SampleFiltered(u, v, axis_a, axis_b)
+                                                    : texture.SampleTrilinear(u, v, 0.0f));
+      }
     }
     albedo[i] = a;
     ambient[i] = frame.sky_irradiance * (0.75f + 0.25f * n.z());
@@ -367,6 +374,7 @@ cv::Mat Renderer::Render(const Scene& scene, const Rigid3d& town_from_cam, const
   frame.origin = town_from_cam.translation.cast<float>();
   frame.sun = lighting.SunDirection().cast<float>();
   frame.sun_up = lighting.sun_elevation_deg > 0.0;
+  frame.gray = !sensor.color;
   frame.sun_irradiance = static_cast<float>(lighting.sun_irradiance);
   frame.sky_irradiance = static_cast<float>(lighting.sky_irradiance);
   frame.width = camera_->width();

@@ -46,6 +46,8 @@ class Simulator {
   const Rigid3d& town_from_world() const { return town_from_world_; }
   const VehicleState& vehicle_state() const { return vehicle_->state(); }
   double time() const { return time_; }
+  // Pixels re-rendered with sub-samples (anti-aliasing of edges) in the last frame.
+  size_t last_supersampled_pixels() const { return renderer_->last_supersampled_pixels(); }
 
   // Autopilot: renders the current view into `frame`, then drives one frame period along the route. Returns false
   // (and leaves `frame` untouched) when the route is finished or the scenario's frame count is reached.

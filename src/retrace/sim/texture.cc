@@ -29,6 +29,10 @@ Texture::Texture(const cv::Mat& image) {
         level.texels[static_cast<size_t>(y) * level.width + x] = Vector3f(row[x][0], row[x][1], row[x][2]);
       }
     }
+    level.gray.resize(level.texels.size());
+    for (size_t i = 0; i < level.texels.size(); ++i) {
+      level.gray[i] = 0.2126f * level.texels[i].x() + 0.7152f * level.texels[i].y() + 0.0722f * level.texels[i].z();
+    }
     levels_.push_back(std::move(level));
     if (current.cols == 1 && current.rows == 1) break;
     cv::Mat next;
@@ -38,61 +42,88 @@ Texture::Texture(const cv::Mat& image) {
   }
 }
 
-Vector3f Texture::SampleBilinear(const Level& level, float u, float v) const {
-  // Texel centres at (i + 0.5) / width; the texture repeats (wrap by the fractional part, no integer division).
-  const float x = (u - std::floor(u)) * level.width - 0.5f;
-  const float y = (v - std::floor(v)) * level.height - 0.5f;
-  const float fx = std::floor(x);
-  const float fy = std::floor(y);
-  const float ax = x - fx;
-  const float ay = y - fy;
-  int x0 = static_cast<int>(fx);
-  int y0 = static_cast<int>(fy);
-  if (x0 < 0) x0 += level.width;
-  if (y0 < 0) y0 += level.height;
-  if (x0 >= level.width) x0 -= level.width;
-  if (y0 >= level.height) y0 -= level.height;
-  const int x1 = x0 + 1 == level.width ? 0 : x0 + 1;
-  const int y1 = y0 + 1 == level.height ? 0 : y0 + 1;
-  const Vector3f* r0 = level.texels.data() + static_cast<size_t>(y0) * level.width;
-  const Vector3f* r1 = level.texels.data() + static_cast<size_t>(y1) * level.width;
+namespace {
+
+// Bilinear lookup with wrap-around; texel centres at (i + 0.5) / width (no integer division on the hot path).
+// Fractional part in [0, 1) without std::floor (a library call on baseline x86-64); |x| < 2^31.
+inline float Fraction(float x) {
+  const float f = x - static_cast<float>(static_cast<int>(x));
+  return f < 0.0f ? f + 1.0f : f;
+}
+
+template <typename T>
+T Bilinear(const std::vector<T>& texels, int width, int height, float u, float v) {
+  if (!(std::abs(u) < 1e9f) || !(std::abs(v) < 1e9f)) return texels[0];
+  const float x = Fraction(u) * width - 0.5f + 1.0f;  // in [0.5, width + 0.5): truncation = floor
+  const float y = Fraction(v) * height - 0.5f + 1.0f;
+  const int xi = static_cast<int>(x);
+  const int yi = static_cast<int>(y);
+  const float ax = x - xi;
+  const float ay = y - yi;
+  int x0 = xi - 1, y0 = yi - 1;
+  if (x0 < 0) x0 += width;
+  if (y0 < 0) y0 += height;
+  if (x0 >= width) x0 -= width;
+  if (y0 >= height) y0 -= height;
+  const int x1 = x0 + 1 == width ? 0 : x0 + 1;
+  const int y1 = y0 + 1 == height ? 0 : y0 + 1;
+  const T* r0 = texels.data() + static_cast<size_t>(y0) * width;
+  const T* r1 = texels.data() + static_cast<size_t>(y1) * width;
   return (1.0f - ay) * ((1.0f - ax) * r0[x0] + ax * r0[x1]) + ay * ((1.0f - ax) * r1[x0] + ax * r1[x1]);
 }
 
-Vector3f Texture::SampleTrilinear(float u, float v, float level) const {
-  if (!std::isfinite(u) || !std::isfinite(v)) return Mean();
+}  // namespace
+
+template <typename T>
+T Texture::Trilinear(const std::vector<T> Level::*channel, float u, float v, float level) const {
+  if (!std::isfinite(u) || !std::isfinite(v)) level = 1e9f;
   const int last = num_levels() - 1;
-  if (level <= 0.0f) return SampleBilinear(levels_[0], u, v);
-  if (level >= last) return levels_[last].texels[0];
+  if (level <= 0.0f) return Bilinear(levels_[0].*channel, levels_[0].width, levels_[0].height, u, v);
+  if (level >= last) return (levels_[last].*channel)[0];
   const int l0 = static_cast<int>(level);
   const float a = level - l0;
-  const Vector3f c0 = SampleBilinear(levels_[l0], u, v);
+  const Level& a_level = levels_[l0];
+  const T c0 = Bilinear(a_level.*channel, a_level.width, a_level.height, u, v);
   if (a < 1e-3f) return c0;
-  return (1.0f - a) * c0 + a * SampleBilinear(levels_[l0 + 1], u, v);
+  const Level& b_level = levels_[l0 + 1];
+  return (1.0f - a) * c0 + a * Bilinear(b_level.*channel, b_level.width, b_level.height, u, v);
 }
 
-Vector3f Texture::SampleFiltered(float u, float v, const Vector2f& axis_a, const Vector2f& axis_b) const {
+template <typename T>
+T Texture::Filtered(const std::vector<T> Level::*channel, float u, float v, const Vector2f& axis_a,
+                    const Vector2f& axis_b) const {
   const float w = static_cast<float>(width());
   const float h = static_cast<float>(height());
   // Footprint axes in texels of level 0.
-  const Vector2f a(axis_a.x() * w, axis_a.y() * h);
-  const Vector2f b(axis_b.x() * w, axis_b.y() * h);
-  const float la = a.norm();
-  const float lb = b.norm();
+  const float la = std::sqrt(axis_a.x() * axis_a.x() * w * w + axis_a.y() * axis_a.y() * h * h);
+  const float lb = std::sqrt(axis_b.x() * axis_b.x() * w * w + axis_b.y() * axis_b.y() * h * h);
   const Vector2f& major_axis = la >= lb ? axis_a : axis_b;
   const float major = std::max(la, lb);
   const float minor = std::max(std::min(la, lb), 1e-6f);
-  if (major <= 1.0f) return SampleTrilinear(u, v, 0.0f);
+  if (major <= 1.0f) return Trilinear(channel, u, v, 0.0f);
   const int taps = std::min(kMaxAnisotropy, static_cast<int>(std::ceil(major / minor)));
   // The level of detail covers what the taps do not: the footprint length per tap.
   const float level = std::log2(std::max(1.0f, major / taps));
-  if (taps <= 1) return SampleTrilinear(u, v, level);
-  Vector3f sum = Vector3f::Zero();
-  for (int i = 0; i < taps; ++i) {
+  if (taps <= 1) return Trilinear(channel, u, v, level);
+  T sum = Trilinear(channel, u + (0.5f / taps - 0.5f) * major_axis.x(), v + (0.5f / taps - 0.5f) * major_axis.y(),
+                    level);
+  for (int i = 1; i < taps; ++i) {
     const float s = (i + 0.5f) / taps - 0.5f;
-    sum += SampleTrilinear(u + s * major_axis.x(), v + s * major_axis.y(), level);
+    sum += Trilinear(channel, u + s * major_axis.x(), v + s * major_axis.y(), level);
   }
-  return sum / static_cast<float>(taps);
+  return sum * (1.0f / taps);
+}
+
+Vector3f Texture::SampleTrilinear(float u, float v, float level) const { return Trilinear(&Level::texels, u, v, level); }
+
+Vector3f Texture::SampleFiltered(float u, float v, const Vector2f& axis_a, const Vector2f& axis_b) const {
+  return Filtered(&Level::texels, u, v, axis_a, axis_b);
+}
+
+float Texture::SampleTrilinearGray(float u, float v, float level) const { return Trilinear(&Level::gray, u, v, level); }
+
+float Texture::SampleFilteredGray(float u, float v, const Vector2f& axis_a, const Vector2f& axis_b) const {
+  return Filtered(&Level::gray, u, v, axis_a, axis_b);
 }
 
 Vector3f Texture::Mean() const { return levels_.empty() ? Vector3f(0.5f, 0.5f, 0.5f) : levels_.back().texels[0]; }

@@ -40,6 +40,10 @@ class Texture {
   // across the pixel along two directions). Without filtering pass zero axes: level 0, bilinear.
   Vector3f SampleFiltered(float u, float v, const Vector2f& axis_a, const Vector2f& axis_b) const;
 
+  // The same lookups on the luminance (0.2126 R + 0.7152 G + 0.0722 B) only: a third of the work, for grey images.
+  float SampleTrilinearGray(float u, float v, float level) const;
+  float SampleFilteredGray(float u, float v, const Vector2f& axis_a, const Vector2f& axis_b) const;
+
   // Average colour (the top level of the pyramid).
   Vector3f Mean() const;
 
@@ -48,8 +52,13 @@ class Texture {
     int width = 0;
     int height = 0;
     std::vector<Vector3f> texels;  // row-major
+    std::vector<float> gray;       // luminance of `texels`
   };
-  Vector3f SampleBilinear(const Level& level, float u, float v) const;
+  template <typename T>
+  T Trilinear(const std::vector<T> Level::*channel, float u, float v, float level) const;
+  template <typename T>
+  T Filtered(const std::vector<T> Level::*channel, float u, float v, const Vector2f& axis_a,
+             const Vector2f& axis_b) const;
 
   std::vector<Level> levels_;
 };
