@@ -14,6 +14,8 @@ namespace {
 // The table of subcommands, in the order `retrace --help` lists them.
 constexpr void (*kCommands[])(CLI::App&) = {
     &retrace::RegisterVersionCommand,
+    &retrace::RegisterSequenceInfoCommand,
+    &retrace::RegisterPerturbCommand,
     &retrace::RegisterSimCommand,
 };
 

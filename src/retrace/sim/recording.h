@@ -2,6 +2,7 @@
 
 // Recording a simulated drive to disk in the KITTI odometry layout, so every other tool reads simulated and real
 // sequences the same way:
+// (written by dataset/KittiSequenceWriter):
 //   DIR/image_0/000000.png ...   the frames (grey, or colour when sensor.color)
 //   DIR/times.txt                one timestamp (s) per line
 //   DIR/poses.txt                ground truth: world_from_cam as 12 numbers (3x4 row-major) per line
@@ -41,13 +42,6 @@ struct RecordSummary {
 RecordSummary RecordSequence(Simulator* simulator, const std::filesystem::path& out_dir,
                              const RecordOptions& options);
 
-// A grid of thumbnails (`columns` per row, each `thumb_width` pixels wide) with a label on each.
-cv::Mat SimContactSheet(const std::vector<cv::Mat>& images, const std::vector<std::string>& labels, int columns,
-                        int thumb_width);
-
-// KITTI text formats.
-std::string KittiPoseLine(const Rigid3d& world_from_cam);
-std::string KittiCalibText(const CameraModel& camera);
 // A small YAML description of the camera model (model, size, intrinsics, distortion).
 std::string CameraYaml(const CameraModel& camera);
 

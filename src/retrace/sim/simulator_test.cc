@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "retrace/dataset/ground_truth.h"
 #include "retrace/sim/recording.h"
 #include "retrace/sim/scenario_io.h"
 #include "retrace/util/error.h"
@@ -23,21 +24,6 @@ Scenario SmallTown() {
   s.camera.height = 120;
   s.route.segments = 3;
   return s;
-}
-
-std::vector<Rigid3d> ReadPoses(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  std::vector<Rigid3d> poses;
-  std::string line;
-  while (std::getline(in, line)) {
-    std::istringstream s(line);
-    Matrix34d m;
-    for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 4; ++c) s >> m(r, c);
-    }
-    poses.emplace_back(m.leftCols<3>(), m.col(3));
-  }
-  return poses;
 }
 
 Matrix34d ReadP0(const std::filesystem::path& path) {
@@ -74,7 +60,8 @@ TEST(SimulatorTest, WrittenPosesAndCalibrationAgreeWithTheRenderedViews) {
   const RecordSummary summary = RecordSequence(&sim, dir, options);
   ASSERT_EQ(summary.frames, 8);
 
-  const std::vector<Rigid3d> poses = ReadPoses(dir / "poses.txt");
+  std::vector<Rigid3d> poses;
+  for (const TimedPose& p : ReadKittiPoses(dir / "poses.txt", dir / "times.txt")) poses.push_back(p.world_from_cam);
   ASSERT_EQ(poses.size(), 8u);
   const Matrix34d p0 = ReadP0(dir / "calib.txt");
   // The first pose is near identity: the camera height above the ground origin and its tilt.

@@ -46,7 +46,9 @@ void ProgressBar::Draw(bool force) {
   } else {
     const int decile = total_ > 0 ? static_cast<int>(10.0 * done_ / total_) : 0;
     if (!force && decile == last_decile_) return;
+    if (force && done_ == last_printed_done_) return;  // the final line was printed already
     last_decile_ = decile;
+    last_printed_done_ = done_;
     std::fprintf(stderr, "%s: %zu/%zu (%.1f/s) %s\n", label_.c_str(), done_, total_, rate, status_.c_str());
   }
   std::fflush(stderr);

@@ -30,6 +30,7 @@ class ProgressBar {
   bool interactive_;
   bool finished_ = false;
   int last_decile_ = -1;
+  size_t last_printed_done_ = static_cast<size_t>(-1);
   std::string status_;
   std::chrono::steady_clock::time_point start_;
   std::chrono::steady_clock::time_point last_draw_;

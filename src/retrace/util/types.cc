@@ -6,9 +6,9 @@
 namespace retrace {
 
 double RotationErrorDeg(const Matrix3d& a, const Matrix3d& b) {
-  const Matrix3d delta = a.transpose() * b;
-  const double cos_angle = std::clamp((delta.trace() - 1.0) / 2.0, -1.0, 1.0);
-  return std::acos(cos_angle) * 180.0 / M_PI;
+  // Through the quaternion, which stays accurate for tiny angles where acos((trace - 1) / 2) does not.
+  const Eigen::Quaterniond delta(a.transpose() * b);
+  return 2.0 * std::atan2(delta.vec().norm(), std::abs(delta.w())) * 180.0 / M_PI;
 }
 
 double AngleBetweenDeg(const Vector3d& a, const Vector3d& b) {

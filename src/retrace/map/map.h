@@ -1,0 +1,99 @@
+#pragma once
+
+// The hybrid topological-geometric map (Segvic 2009 §3.2, design §1).
+//
+// Nodes are key-images. Each keeps its feature map: the 2D positions of point features in the key-image, indexed by
+// globally unique feature ids, with each feature's reference appearance (a small patch used by the tracker).
+// Arcs connect neighbouring nodes and carry the two-view geometry W_k of their two key-images: the relative motion
+// (R, t) with t of unit length, the 3D points of the features seen in both nodes (the set M_k) in the unit scale of
+// that arc, and the geometry's quality σ_p. Relative scales between the geometries of consecutive arcs are stored
+// at their common node. No global metric consistency is kept: every arc has its own scale.
+//
+// The paper's graphs are linear or circular; this structure allows any graph (several routes, junctions, loops).
+
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "retrace/util/types.h"
+
+namespace retrace {
+
+// A feature as seen in one key-image.
+struct FeatureObservation {
+  feature_t feature_id = kInvalidFeatureId;
+  Vector2d position = Vector2d::Zero();  // pixel position in the key-image
+  cv::Mat patch;                         // reference appearance, 8-bit gray (e.g. 15x15), may be empty
+};
+
+struct MapNode {
+  node_t id = kInvalidNodeId;
+  int64_t source_frame = -1;  // index of the key-image in the teach sequence
+  std::string image_name;     // file name of the key-image in the teach sequence
+  double timestamp = 0.0;
+  cv::Mat image;  // the key-image itself (8-bit gray); may be left unloaded
+  std::vector<FeatureObservation> features;
+};
+
+// A feature of an arc's set M_k with its 3D reconstruction in the `from` key-image's camera frame.
+struct ArcPoint {
+  feature_t feature_id = kInvalidFeatureId;
+  Vector3d point_in_from = Vector3d::Zero();
+};
+
+struct MapArc {
+  arc_t id = kInvalidArcId;
+  node_t from = kInvalidNodeId;
+  node_t to = kInvalidNodeId;
+  Rigid3d to_from_from;  // x_to = R x_from + t, |t| = 1 (the arc's unit of length)
+  double sigma_p = 0.0;  // conservative reprojection error bound σ_p of W_k (Segvic 2009, eq. (6)), pixels
+  std::vector<ArcPoint> points;
+  std::string kind = "tracking";  // how the arc was made: tracking | matching | gap | loop | join
+
+  size_t num_features() const { return points.size(); }
+};
+
+// Relative scale at a node between the geometries of the arc ending there and the arc starting there:
+// a length expressed in units of `arc_out` is multiplied by `scale` to express it in units of `arc_in`.
+struct NodeScale {
+  node_t node = kInvalidNodeId;
+  arc_t arc_in = kInvalidArcId;
+  arc_t arc_out = kInvalidArcId;
+  double scale = 1.0;
+};
+
+class Map {
+ public:
+  // Adds a node and returns its id (assigned here when node.id is invalid).
+  node_t AddNode(MapNode node);
+  arc_t AddArc(MapArc arc);
+  void AddScale(const NodeScale& scale);
+
+  const std::vector<MapNode>& nodes() const { return nodes_; }
+  const std::vector<MapArc>& arcs() const { return arcs_; }
+  const std::vector<NodeScale>& scales() const { return scales_; }
+  MapNode* MutableNode(node_t id);
+  MapArc* MutableArc(arc_t id);
+
+  const MapNode* FindNode(node_t id) const;
+  const MapArc* FindArc(arc_t id) const;
+  // Arcs leaving / entering a node, in insertion order.
+  std::vector<const MapArc*> ArcsFrom(node_t node) const;
+  std::vector<const MapArc*> ArcsTo(node_t node) const;
+  std::optional<double> ScaleAt(node_t node, arc_t arc_in, arc_t arc_out) const;
+
+  // The largest feature id used so far (kInvalidFeatureId when there is none).
+  feature_t MaxFeatureId() const;
+
+ private:
+  std::vector<MapNode> nodes_;
+  std::vector<MapArc> arcs_;
+  std::vector<NodeScale> scales_;
+  std::unordered_map<node_t, size_t> node_index_;
+  std::unordered_map<arc_t, size_t> arc_index_;
+};
+
+}  // namespace retrace

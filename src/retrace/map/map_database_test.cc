@@ -1,0 +1,210 @@
+#include "retrace/map/map_database.h"
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <fstream>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "retrace/util/error.h"
+#include "retrace/util/testing.h"
+
+namespace retrace {
+namespace {
+
+cv::Mat RandomImage(int rows, int cols, int seed) {
+  cv::Mat image(rows, cols, CV_8UC1);
+  cv::RNG rng(seed);
+  rng.fill(image, cv::RNG::UNIFORM, 0, 256);
+  return image;
+}
+
+MapNode MakeNode(node_t id, int num_features) {
+  MapNode node;
+  node.id = id;
+  node.source_frame = 10 * id;
+  node.image_name = "frame_" + std::to_string(id) + ".png";
+  node.timestamp = 0.1 * id;
+  node.image = RandomImage(48, 64, static_cast<int>(id));
+  for (int i = 0; i < num_features; ++i) {
+    FeatureObservation f;
+    f.feature_id = 1000 * id + i;
+    f.position = Vector2d(1.5 * i, 2.25 * i + 0.125);
+    f.patch = RandomImage(15, 15, static_cast<int>(100 * id + i));
+    node.features.push_back(f);
+  }
+  return node;
+}
+
+MapArc MakeArc(arc_t id, node_t from, node_t to, int num_points) {
+  MapArc arc;
+  arc.id = id;
+  arc.from = from;
+  arc.to = to;
+  arc.to_from_from.rotation = Eigen::AngleAxisd(0.1 * (id + 1), Vector3d(0.1, 1.0, 0.2).normalized()).toRotationMatrix();
+  arc.to_from_from.translation = Vector3d(0.2, -0.1, 1.0).normalized();
+  arc.sigma_p = 1.25 + id;
+  for (int i = 0; i < num_points; ++i) arc.points.push_back({1000 * from + i, Vector3d(i, -0.5 * i, 3.0 + i)});
+  return arc;
+}
+
+TEST(MapDatabase, WriteReadRoundTrip) {
+  const auto dir = testing::MakeTempDir("map_roundtrip");
+  const auto path = dir / "route.db";
+  MapDatabaseOptions options;
+  options.image_format = ".png";  // lossless, so images compare exactly
+  {
+    auto db = MapDatabase::Create(path, options);
+    db->SetMetadata("source", "kitti07");
+    db->WriteCamera("perspective", 64, 48, "camera_model: perspective\n");
+    db->WriteNode(MakeNode(0, 5));
+    db->WriteNode(MakeNode(1, 7));
+    db->WriteNode(MakeNode(2, 3));
+    db->WriteArc(MakeArc(0, 0, 1, 4));
+    db->WriteArc(MakeArc(1, 1, 2, 2));
+    db->WriteScale({1, 0, 1, 0.75});
+  }
+  auto db = MapDatabase::Open(path);
+  EXPECT_EQ(db->Metadata("source").value_or(""), "kitti07");
+  EXPECT_EQ(db->ReadCameraYaml().value_or(""), "camera_model: perspective\n");
+  const Map map = db->ReadMap();
+  ASSERT_EQ(map.nodes().size(), 3u);
+  ASSERT_EQ(map.arcs().size(), 2u);
+  for (const MapNode& node : map.nodes()) {
+    const MapNode expected = MakeNode(node.id, static_cast<int>(node.features.size()));
+    EXPECT_EQ(node.source_frame, expected.source_frame);
+    EXPECT_EQ(node.image_name, expected.image_name);
+    EXPECT_DOUBLE_EQ(node.timestamp, expected.timestamp);
+    EXPECT_EQ(cv::norm(node.image, expected.image, cv::NORM_INF), 0.0);
+    for (size_t i = 0; i < node.features.size(); ++i) {
+      EXPECT_EQ(node.features[i].feature_id, expected.features[i].feature_id);
+      EXPECT_EQ(node.features[i].position, expected.features[i].position);
+      EXPECT_EQ(cv::norm(node.features[i].patch, expected.features[i].patch, cv::NORM_INF), 0.0);
+    }
+  }
+  EXPECT_EQ(map.FindNode(1)->features.size(), 7u);
+  const MapArc expected = MakeArc(1, 1, 2, 2);
+  const MapArc* arc = map.FindArc(1);
+  ASSERT_NE(arc, nullptr);
+  EXPECT_EQ(arc->from, 1);
+  EXPECT_EQ(arc->to, 2);
+  EXPECT_TRUE(arc->to_from_from.rotation.isApprox(expected.to_from_from.rotation, 1e-15));
+  EXPECT_TRUE(arc->to_from_from.translation.isApprox(expected.to_from_from.translation, 1e-15));
+  EXPECT_DOUBLE_EQ(arc->sigma_p, expected.sigma_p);
+  ASSERT_EQ(arc->points.size(), 2u);
+  EXPECT_EQ(arc->points[1].point_in_from, expected.points[1].point_in_from);
+  EXPECT_DOUBLE_EQ(map.ScaleAt(1, 0, 1).value_or(0.0), 0.75);
+  EXPECT_EQ(map.ArcsFrom(1).size(), 1u);
+  EXPECT_EQ(map.ArcsTo(1).size(), 1u);
+  EXPECT_EQ(map.MaxFeatureId(), 2002);  // node 2 has features 2000..2002
+}
+
+TEST(MapDatabase, LossyImagesAreSmallerAndClose) {
+  const auto dir = testing::MakeTempDir("map_jpg");
+  cv::Mat smooth(120, 160, CV_8UC1);
+  for (int y = 0; y < smooth.rows; ++y)
+    for (int x = 0; x < smooth.cols; ++x) smooth.at<uint8_t>(y, x) = static_cast<uint8_t>(x + y);
+  MapNode node = MakeNode(0, 0);
+  node.image = smooth;
+  {
+    auto db = MapDatabase::Create(dir / "route.db");  // default: JPEG
+    db->WriteNode(node);
+    EXPECT_LT(db->ImageBytes(), static_cast<int64_t>(smooth.total()) / 4);
+  }
+  const Map map = MapDatabase::Open(dir / "route.db")->ReadMap();
+  EXPECT_LT(cv::norm(map.nodes()[0].image, smooth, cv::NORM_L1) / smooth.total(), 1.0);  // mean error, grey levels
+}
+
+// Expects `f` to throw InputError whose message contains the path and `problem`.
+template <typename F>
+void ExpectInputError(F&& f, const std::filesystem::path& path, const std::string& problem) {
+  try {
+    f();
+    ADD_FAILURE() << "no error for " << path;
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find(path.string()), std::string::npos) << message;
+    EXPECT_NE(message.find(problem), std::string::npos) << message;
+    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+  }
+}
+
+TEST(MapDatabase, ForeignAndBrokenFilesGiveClearErrors) {
+  const auto dir = testing::MakeTempDir("map_foreign");
+  ExpectInputError([&] { MapDatabase::Open(dir / "missing.db"); }, dir / "missing.db", "no such map file");
+
+  std::ofstream(dir / "text.db") << "this is not a database\n";
+  ExpectInputError([&] { MapDatabase::Open(dir / "text.db"); }, dir / "text.db", "not a retrace map");
+
+  std::ofstream(dir / "empty.db").close();
+  ExpectInputError([&] { MapDatabase::Open(dir / "empty.db"); }, dir / "empty.db", "empty file");
+
+  {
+    SqliteDatabase other(dir / "other.db", SqliteDatabase::Mode::kCreate);
+    other.Execute("CREATE TABLE things (id INTEGER PRIMARY KEY);");
+  }
+  ExpectInputError([&] { MapDatabase::Open(dir / "other.db"); }, dir / "other.db", "another application");
+
+  MapDatabase::Create(dir / "newer.db").reset();
+  {
+    SqliteDatabase raw(dir / "newer.db", SqliteDatabase::Mode::kReadWrite);
+    raw.Execute("PRAGMA user_version=99;");
+  }
+  ExpectInputError([&] { MapDatabase::Open(dir / "newer.db"); }, dir / "newer.db", "newer");
+
+  MapDatabase::Create(dir / "exists.db").reset();
+  ExpectInputError([&] { MapDatabase::Create(dir / "exists.db"); }, dir / "exists.db", "exists");
+  EXPECT_NO_THROW(MapDatabase::Create(dir / "exists.db", {}, /*overwrite=*/true));
+
+  // A truncated map (a crash of the file system, a partial copy) is reported, never read as garbage.
+  {
+    auto db = MapDatabase::Create(dir / "truncated.db");
+    for (int i = 0; i < 20; ++i) db->WriteNode(MakeNode(i, 50));
+  }
+  std::filesystem::resize_file(dir / "truncated.db", std::filesystem::file_size(dir / "truncated.db") / 2);
+  ExpectInputError([&] { MapDatabase::Open(dir / "truncated.db")->ReadMap(); }, dir / "truncated.db",
+                   "not a retrace map");
+}
+
+TEST(MapDatabase, ReadOnlyMapRefusesWrites) {
+  const auto dir = testing::MakeTempDir("map_readonly");
+  MapDatabase::Create(dir / "route.db").reset();
+  auto db = MapDatabase::Open(dir / "route.db", /*writable=*/false);
+  ExpectInputError([&] { db->WriteNode(MakeNode(0, 1)); }, dir / "route.db", "read-only");
+}
+
+TEST(MapDatabase, KilledWriterLeavesEveryCommittedKeyImage) {
+  const auto dir = testing::MakeTempDir("map_kill");
+  const auto path = dir / "route.db";
+  constexpr int kCommitted = 7;
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    // The child writes key-images the way teach does (node + arc in one transaction) and is killed in the middle
+    // of the next transaction, without any chance to clean up.
+    auto db = MapDatabase::Create(path);
+    for (int i = 0; i < kCommitted; ++i) {
+      auto transaction = db->BeginTransaction();
+      db->WriteNode(MakeNode(i, 40));
+      if (i > 0) db->WriteArc(MakeArc(i - 1, i - 1, i, 20));
+      transaction->Commit();
+    }
+    auto transaction = db->BeginTransaction();
+    db->WriteNode(MakeNode(kCommitted, 40));
+    kill(getpid(), SIGKILL);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFSIGNALED(status));
+  auto db = MapDatabase::Open(path);
+  const Map map = db->ReadMap();
+  EXPECT_EQ(map.nodes().size(), static_cast<size_t>(kCommitted));
+  EXPECT_EQ(map.arcs().size(), static_cast<size_t>(kCommitted - 1));
+  EXPECT_EQ(map.nodes().back().features.size(), 40u);
+}
+
+}  // namespace
+}  // namespace retrace

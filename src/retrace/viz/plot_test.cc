@@ -1,0 +1,60 @@
+#include "retrace/viz/plot.h"
+
+#include <gtest/gtest.h>
+
+namespace retrace {
+namespace {
+
+TEST(NiceTicks, KnownRanges) {
+  EXPECT_EQ(NiceTicks(0.0, 10.0, 5), (std::vector<double>{0, 2, 4, 6, 8, 10}));
+  EXPECT_EQ(NiceTicks(0.0, 1.0, 4), (std::vector<double>{0, 0.5, 1.0}));
+  const std::vector<double> ticks = NiceTicks(-3.2, 47.0, 6);
+  ASSERT_FALSE(ticks.empty());
+  EXPECT_DOUBLE_EQ(ticks.front(), 0.0);
+  EXPECT_DOUBLE_EQ(ticks.back(), 40.0);
+  EXPECT_EQ(NiceTicks(5.0, 5.0).size(), 1u);  // degenerate range: no loop, one tick
+}
+
+// Counts pixels of exactly `color` in the image.
+int CountColor(const cv::Mat& image, const cv::Scalar& color) {
+  cv::Mat mask;
+  cv::inRange(image, color, color, mask);
+  return cv::countNonZero(mask);
+}
+
+TEST(RenderPlot, BarsAreDrawnWithHeightsInProportion) {
+  PlotSeries bars;
+  bars.x = {0, 1};
+  bars.y = {10, 20};
+  bars.style = PlotSeries::Style::kBars;
+  bars.color = cv::Scalar(0, 200, 0);
+  PlotOptions options;
+  options.y_min = 0;
+  options.y_max = 20;
+  const cv::Mat image = RenderPlot({bars}, options);
+  ASSERT_EQ(image.size(), cv::Size(options.width, options.height));
+  // Column heights of the bar colour in the left and right half of the plot: the second bar is twice the first.
+  int left = 0, right = 0;
+  for (int x = 0; x < image.cols; ++x) {
+    const int height = CountColor(image.col(x), bars.color);
+    if (x < image.cols / 2) {
+      left = std::max(left, height);
+    } else {
+      right = std::max(right, height);
+    }
+  }
+  ASSERT_GT(left, 50);
+  EXPECT_NEAR(static_cast<double>(right) / left, 2.0, 0.05);
+}
+
+TEST(RenderPlot, HandlesEmptyAndNonFiniteData) {
+  PlotSeries empty;
+  PlotSeries bad;
+  bad.x = {0.0, 1.0, 2.0};
+  bad.y = {1.0, std::nan(""), 3.0};
+  const cv::Mat image = RenderPlot({empty, bad}, PlotOptions());
+  EXPECT_FALSE(image.empty());
+}
+
+}  // namespace
+}  // namespace retrace
