@@ -184,7 +184,7 @@ void Renderer::TraceBatch(const Frame& frame, const Vector3f* directions, const 
       }
       // Procedural sky: horizon-to-zenith gradient, clouds on a plane above, sun glow and disc.
       const float up = dir.z();
-      const float brightness = frame.sky_irradiance / 0.55f;
+      const float brightness = frame.sky_irradiance / 0.5f;
       const Vector3f horizon(0.78f, 0.82f, 0.88f), zenith(0.28f, 0.42f, 0.72f);
       const float t = std::sqrt(std::max(0.0f, up));
       Vector3f c = up < 0.0f ? Vector3f(0.5f, 0.5f, 0.5f) : Vector3f(horizon * (1.0f - t) + zenith * t);
@@ -205,7 +205,7 @@ void Renderer::TraceBatch(const Frame& frame, const Vector3f* directions, const 
         const float cosine = dir.dot(frame.sun);
         if (cosine > 0.0f) {
           const float glow = 0.35f * std::pow(cosine, 48.0f) + (cosine > 0.99996f ? 6.0f : 0.0f);
-          c += glow * Vector3f(1.0f, 0.95f, 0.85f) * (frame.sun_irradiance / 1.6f);
+          c += glow * Vector3f(1.0f, 0.95f, 0.85f) * (frame.sun_irradiance / 1.5f);
         }
       }
       colors[i] = c;

@@ -38,9 +38,9 @@ struct Lighting {
   // Height of the sun above the horizon in degrees (<= 0: no direct sunlight).
   double sun_elevation_deg = 55.0;
   // Irradiance of the sun on a surface facing it (relative units; reflectance x irradiance = radiance).
-  double sun_irradiance = 1.6;
+  double sun_irradiance = 1.5;
   // Irradiance of the sky on an upward surface (vertical ones get 75% of it).
-  double sky_irradiance = 0.55;
+  double sky_irradiance = 0.5;
 
   // Unit vector towards the sun in the town frame (X east, Y north, Z up).
   Vector3d SunDirection() const;
@@ -49,7 +49,7 @@ struct Lighting {
 
 struct SensorOptions {
   // Multiplies the scene radiance before the response curve (exposure time x aperture).
-  double exposure = 1.0;
+  double exposure = 0.75;
   // Multiplies the signal after exposure (analogue gain; noise is added after it).
   double gain = 1.0;
   // Standard deviation of Gaussian noise added to the 8-bit values (grey levels).

@@ -50,8 +50,8 @@ struct RouteSpec {
 
 // Overrides for the repeat recording of a route.
 struct RepeatSpec {
-  Lighting lighting{250.0, 25.0, 1.3, 0.6};
-  double exposure = 1.15;
+  Lighting lighting{250.0, 25.0, 1.2, 0.6};
+  double exposure = 0.9;
   double lateral_offset = 1.0;     // metres right of the route (teach drives at the scenario's offset)
   double wobble_amplitude = 0.25;  // metres
   double time_offset = 37.0;       // seconds added to the clock of the moving occluders
