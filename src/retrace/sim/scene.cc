@@ -312,6 +312,9 @@ void Scene::UpdateTopLevel(double time) {
     rtcCommitGeometry(object.instance);
   }
   rtcCommitScene(scene_);
+  RTCBounds bounds;
+  rtcGetSceneBounds(scene_, &bounds);
+  top_ = bounds.upper_z + 0.01f;
 }
 
 void Scene::Commit() {

@@ -12,6 +12,7 @@
 // space for filtering.
 
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -128,6 +129,8 @@ class Scene {
   const Vector3f& sky_color() const { return sky_color_; }
 
   RTCScene embree_scene() const { return scene_; }
+  // Highest point of all geometry (town frame Z): rays towards the sun need not go further up.
+  float top() const { return top_; }
   const std::vector<Texture>& textures() const { return textures_; }
   const std::vector<Material>& materials() const { return materials_; }
   size_t num_static_triangles() const;
@@ -169,6 +172,7 @@ class Scene {
   Vector3f sky_color_ = Vector3f::Zero();
   Texture clouds_;
   double time_ = 0.0;
+  float top_ = std::numeric_limits<float>::infinity();
   bool committed_ = false;
   Rigid3d identity_;
 };

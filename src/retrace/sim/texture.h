@@ -11,6 +11,7 @@
 //
 // Texture coordinates (u, v) are in texture widths/heights: u = 1 is the right border, and the texture repeats.
 
+#include <cstdint>
 #include <vector>
 
 #include <Eigen/Core>
@@ -52,12 +53,12 @@ class Texture {
     int width = 0;
     int height = 0;
     std::vector<Vector3f> texels;  // row-major
-    std::vector<float> gray;       // luminance of `texels`
+    std::vector<uint8_t> gray;     // luminance of `texels`, x 255 (compact: grey rendering is memory bound)
   };
-  template <typename T>
-  T Trilinear(const std::vector<T> Level::*channel, float u, float v, float level) const;
-  template <typename T>
-  T Filtered(const std::vector<T> Level::*channel, float u, float v, const Vector2f& axis_a,
+  template <typename T, typename S>
+  T Trilinear(const std::vector<S> Level::*channel, float u, float v, float level) const;
+  template <typename T, typename S>
+  T Filtered(const std::vector<S> Level::*channel, float u, float v, const Vector2f& axis_a,
              const Vector2f& axis_b) const;
 
   std::vector<Level> levels_;
