@@ -32,6 +32,8 @@ std::string Scenario::Validate() const {
   if (!town.Check()) return "town: invalid town parameters";
   if (!camera.Check()) return "camera: invalid camera (model must be perspective or equirectangular, size >= 8)";
   if (!vehicle.Check()) return "vehicle: invalid vehicle parameters";
+  if (!scene_file.empty() && route.type != "waypoints") return "route: a scene file needs route type waypoints";
+  if (!(scene_scale > 0.0)) return "scene_scale must be > 0";
   if (!route.Check()) return "route: invalid route (type auto/loop/waypoints with enough points)";
   if (route.type == "loop" && (route.loop_i1 > town.blocks_x || route.loop_j1 > town.blocks_y)) {
     return "route: loop exceeds the town's junction grid";

@@ -62,6 +62,11 @@ struct Scenario {
   // given explicitly in the file).
   uint64_t seed = 1;
   TownOptions town;
+  // A scene file of the user's (glTF, OBJ, ... via Assimp) instead of the built-in town; empty = the town. Needs
+  // route.type "waypoints" (in the file's ground plane, metres after scaling).
+  std::string scene_file;
+  double scene_scale = 1.0;  // metres per file unit
+  bool scene_y_up = true;    // the file's up axis is Y (glTF convention) rather than Z
   CameraSpec camera;
   VehicleOptions vehicle;
   RouteSpec route;

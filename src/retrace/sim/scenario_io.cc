@@ -63,7 +63,7 @@ class Reader {
 Scenario ParseNode(const YAML::Node& root, const Reader& r) {
   Scenario s;
   if (!root || root.IsNull()) return s;
-  r.CheckMap(root, "", {"seed", "frames", "frame_rate", "time_offset", "markers", "marker_radius",
+  r.CheckMap(root, "", {"seed", "frames", "scene_file", "scene_scale", "scene_y_up", "frame_rate", "time_offset", "markers", "marker_radius",
                         "marker_brightness", "town", "camera", "vehicle", "route", "drive",
                         "lighting", "sensor", "render", "repeat"});
   r.Seed(root, "", "seed", &s.seed);
@@ -72,6 +72,9 @@ Scenario ParseNode(const YAML::Node& root, const Reader& r) {
   r.Integer(root, "", "frames", &s.num_frames);
   r.Number(root, "", "frame_rate", &s.frame_rate);
   r.Number(root, "", "time_offset", &s.time_offset);
+  r.String(root, "", "scene_file", &s.scene_file);
+  r.Number(root, "", "scene_scale", &s.scene_scale);
+  r.Bool(root, "", "scene_y_up", &s.scene_y_up);
   r.Number(root, "", "marker_radius", &s.marker_radius);
   r.Number(root, "", "marker_brightness", &s.marker_brightness);
   if (const YAML::Node m = root["markers"]) {
@@ -243,7 +246,14 @@ Scenario ReadScenario(const std::filesystem::path& path) {
   if (!in) throw InputError(path.string(), "cannot open the scenario file");
   std::stringstream buffer;
   buffer << in.rdbuf();
-  return ParseScenario(buffer.str(), path.string());
+  Scenario scenario = ParseScenario(buffer.str(), path.string());
+  // Files named in the scenario are relative to the scenario file.
+  auto resolve = [&](std::string* file) {
+    if (!file->empty() && std::filesystem::path(*file).is_relative()) *file = (path.parent_path() / *file).string();
+  };
+  resolve(&scenario.scene_file);
+  resolve(&scenario.town.photo_folder);
+  return scenario;
 }
 
 std::string ScenarioToYaml(const Scenario& s) {
@@ -256,6 +266,10 @@ std::string ScenarioToYaml(const Scenario& s) {
   line(fmt::format("frames: {}              # number of frames; 0 = drive the whole route", s.num_frames));
   line(fmt::format("frame_rate: {}         # frames per second", s.frame_rate));
   line(fmt::format("time_offset: {}         # seconds on the clock of moving pedestrians/cars at frame 0", s.time_offset));
+  line(fmt::format("scene_file: \"{}\"          # your scene (glTF/OBJ/...); \"\" = the built-in town below. Needs "
+                   "route type waypoints", s.scene_file));
+  line(fmt::format("scene_scale: {}           # metres per scene-file unit", s.scene_scale));
+  line(fmt::format("scene_y_up: {}         # the scene file's up axis is Y (glTF) rather than Z", s.scene_y_up ? "true" : "false"));
   std::string markers;
   for (const auto& p : s.markers) markers += fmt::format("{}[{}, {}, {}]", markers.empty() ? "" : ", ", p.x(), p.y(), p.z());
   line(fmt::format("markers: [{}]             # self-luminous spheres at world-frame points (x right, y down, z forward "

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "retrace/sim/procedural_texture.h"
+#include "retrace/sim/scene_file.h"
 
 namespace retrace {
 
@@ -21,7 +22,16 @@ std::vector<Vector2d> ResolveRoute(const Scenario& scenario, const TownLayout& l
 
 Simulator::Simulator(const Scenario& scenario) : scenario_(scenario) {
   scene_ = std::make_unique<Scene>();
-  layout_ = BuildTown(scenario.town, scene_.get());
+  if (scenario.scene_file.empty()) {
+    layout_ = BuildTown(scenario.town, scene_.get());
+  } else {
+    SceneFileOptions options;
+    options.scale = scenario.scene_scale;
+    options.y_up = scenario.scene_y_up;
+    LoadSceneFile(scenario.scene_file, options, scene_.get());
+    scene_->set_sky(SkyType::kProcedural);
+    scene_->Commit();
+  }
   route_ = std::make_unique<RoutePath>(ResolveRoute(scenario, layout_), scenario.drive);
   // World frame: a level camera on the ground at the route's start, looking along the route.
   VehicleState start;
