@@ -426,7 +426,7 @@ cv::Mat Renderer::Render(const Scene& scene, const Rigid3d& town_from_cam, const
       const uint64_t h = HashCombine(noise_seed, i);
       auto quantize = [&](float linear, uint64_t hash) {
         const float value = response(linear) + (sigma > 0.0f ? sigma * HashGaussian(hash) : 0.0f);
-        return static_cast<uint8_t>(std::min(255.0f, std::max(0.0f, std::round(value))));
+        return static_cast<uint8_t>(std::min(255.0f, std::max(0.0f, value)) + 0.5f);
       };
       if (sensor.color) {
         row[3 * x + 0] = quantize(c.z(), HashMix(h + 2));
