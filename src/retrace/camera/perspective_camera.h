@@ -9,18 +9,10 @@
 // fitted inverse polynomial and polishes it with Gauss-Newton steps on the forward model, so both directions agree
 // to far below 0.01 px inside the image.
 
-#include <array>
-
 #include "retrace/camera/camera_model.h"
+#include "retrace/camera/lens_distortion.h"
 
 namespace retrace {
-
-struct LensDistortion {
-  double k1 = 0.0, k2 = 0.0, k3 = 0.0;  // radial
-  double p1 = 0.0, p2 = 0.0;            // tangential
-
-  bool IsZero() const { return k1 == 0 && k2 == 0 && k3 == 0 && p1 == 0 && p2 == 0; }
-};
 
 class PerspectiveCamera : public CameraModel {
  public:
@@ -42,7 +34,8 @@ class PerspectiveCamera : public CameraModel {
   Vector2d NormalizedToPixel(const Vector2d& normalized) const;
   Vector2d PixelToNormalized(const Vector2d& pixel) const;
 
-  // Lens distortion on normalized coordinates: Distort maps ideal to distorted, Undistort is its inverse.
+  // Lens distortion on normalized coordinates: Distort maps ideal to distorted, Undistort is its inverse (the last
+  // Gauss-Newton iterate where the model is not invertible; Unproject() returns false there).
   Vector2d Distort(const Vector2d& ideal) const;
   Vector2d Undistort(const Vector2d& distorted) const;
 
@@ -67,7 +60,7 @@ class PerspectiveCamera : public CameraModel {
 
   double fx_, fy_, cx_, cy_, skew_;
   LensDistortion distortion_;
-  std::array<double, 3> inverse_radial_{0.0, 0.0, 0.0};
+  InverseRadialPolynomial inverse_radial_{0.0, 0.0, 0.0};
 };
 
 }  // namespace retrace

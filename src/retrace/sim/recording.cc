@@ -7,6 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "retrace/camera/camera_io.h"
 #include "retrace/camera/perspective_camera.h"
 #include "retrace/dataset/kitti_writer.h"
 #include "retrace/image/image_utils.h"
@@ -25,24 +26,11 @@ void WriteText(const std::filesystem::path& path, const std::string& text) {
 
 }  // namespace
 
-std::string CameraYaml(const CameraModel& camera) {
-  std::string y = fmt::format("model: {}\nwidth: {}\nheight: {}\n", camera.model_name(), camera.width(),
-                              camera.height());
-  if (const auto* p = dynamic_cast<const PerspectiveCamera*>(&camera)) {
-    const LensDistortion& d = p->distortion();
-    y += fmt::format("fx: {:.12g}\nfy: {:.12g}\ncx: {:.12g}\ncy: {:.12g}\nskew: {:.12g}\n", p->fx(), p->fy(), p->cx(),
-                     p->cy(), p->skew());
-    y += fmt::format("distortion: {{k1: {:.12g}, k2: {:.12g}, p1: {:.12g}, p2: {:.12g}, k3: {:.12g}}}\n", d.k1, d.k2,
-                     d.p1, d.p2, d.k3);
-  }
-  return y;
-}
-
 RecordSummary RecordSequence(Simulator* sim, const std::filesystem::path& out_dir, const RecordOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   KittiSequenceWriter writer(out_dir);
   WriteText(out_dir / "scenario.yaml", ScenarioToYaml(sim->scenario()));
-  WriteText(out_dir / "camera.yaml", CameraYaml(sim->camera()));
+  WriteCameraFile(sim->camera(), out_dir / "camera.yaml");
   if (const auto* perspective = dynamic_cast<const PerspectiveCamera*>(&sim->camera())) {
     Matrix34d p0 = Matrix34d::Zero();
     p0.leftCols<3>() = perspective->K();

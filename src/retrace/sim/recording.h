@@ -7,7 +7,7 @@
 //   DIR/times.txt                one timestamp (s) per line
 //   DIR/poses.txt                ground truth: world_from_cam as 12 numbers (3x4 row-major) per line
 //   DIR/calib.txt                "P0: ..." projection matrix K [I | 0] (perspective cameras)
-//   DIR/camera.yaml              the full camera model (distortion, panoramas)
+//   DIR/camera.yaml              the full camera model (camera/camera_io.h WriteCameraFile: distortion, panoramas)
 //   DIR/scenario.yaml            the effective scenario (after the variant's overrides), to reproduce the run
 // The world frame is the simulator's (simulator.h): a level camera on the ground at the route's start.
 
@@ -41,8 +41,5 @@ struct RecordSummary {
 // into `out_dir` (created if needed). Throws InputError when the folder cannot be written.
 RecordSummary RecordSequence(Simulator* simulator, const std::filesystem::path& out_dir,
                              const RecordOptions& options);
-
-// A small YAML description of the camera model (model, size, intrinsics, distortion).
-std::string CameraYaml(const CameraModel& camera);
 
 }  // namespace retrace

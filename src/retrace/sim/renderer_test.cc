@@ -8,6 +8,7 @@
 
 #include "retrace/camera/equirectangular_camera.h"
 #include "retrace/camera/perspective_camera.h"
+#include "retrace/camera/unified_camera.h"
 #include "retrace/sim/scenario.h"
 #include "retrace/sim/simulator.h"
 
@@ -143,6 +144,27 @@ TEST(RendererTest, MarkersAppearWhereThePanoramicModelProjects) {
   double max_error = 0.0;
   ExpectMarkersWhereProjected(camera, town_from_cam, m, 7, &max_error);
   std::cout << "equirectangular: " << points.size() << " markers, max centroid error " << max_error << " px\n";
+}
+
+TEST(RendererTest, MarkersAppearWhereTheFisheyeUnifiedModelProjects) {
+  // A 190 degree fisheye (Mei's unified model with xi = 1.2) with distortion: rays behind the image plane too.
+  const UnifiedCamera camera(320, 320, 1.2, 150.0, 150.0, 159.5, 160.2, 0.0, LensDistortion{-0.05, 0.01, 0.0, 0.0, 0.0});
+  const Rigid3d town_from_cam = SomeTownFromCam();
+  std::vector<Vector3d> points;
+  int k = 0;
+  for (double v = 20; v < 310; v += 32) {
+    for (double u = 20; u < 310; u += 32, ++k) {
+      if ((Vector2d(u, v) - Vector2d(159.5, 160.2)).norm() > 150.0) continue;
+      Vector3d bearing;
+      if (!camera.Unproject(Vector2d(u, v), &bearing)) continue;
+      points.push_back(bearing * (3.0 + (k % 4) * 3.0));
+    }
+  }
+  ASSERT_GT(points.size(), 40u);
+  const MarkerScene m = MakeMarkers(town_from_cam, points, 2.5 / camera.FocalLength());
+  double max_error = 0.0;
+  ExpectMarkersWhereProjected(camera, town_from_cam, m, 8, &max_error);
+  std::cout << "unified fisheye: " << points.size() << " markers, max centroid error " << max_error << " px\n";
 }
 
 Scenario SmallTown() {

@@ -3,21 +3,32 @@
 #include <cmath>
 
 #include "retrace/camera/equirectangular_camera.h"
+#include "retrace/camera/unified_camera.h"
 
 namespace retrace {
 
 bool CameraSpec::Check() const {
   if (width < 8 || height < 8 || width > 8192 || height > 8192) return false;
   if (model == "perspective") return (fx > 0.0 || (hfov_deg > 1.0 && hfov_deg < 179.0)) && fy >= 0.0;
+  if (model == "unified") {
+    const double half = 0.5 * hfov_deg * M_PI / 180.0;
+    return xi >= 0.0 && (fx > 0.0 || (hfov_deg > 1.0 && std::cos(half) + xi > 0.05));
+  }
   return model == "equirectangular";
 }
 
 std::unique_ptr<CameraModel> CameraSpec::MakeCamera() const {
   if (model == "equirectangular") return std::make_unique<EquirectangularCamera>(width, height);
-  const double f = fx > 0.0 ? fx : 0.5 * width / std::tan(0.5 * hfov_deg * M_PI / 180.0);
-  const double f_y = fy > 0.0 ? fy : f;
   const double c_x = cx >= 0.0 ? cx : 0.5 * (width - 1);
   const double c_y = cy >= 0.0 ? cy : 0.5 * (height - 1);
+  if (model == "unified") {
+    // A ray at angle theta from the axis lands at radius f sin(theta) / (cos(theta) + xi) (Mei 2007).
+    const double half = 0.5 * hfov_deg * M_PI / 180.0;
+    const double f = fx > 0.0 ? fx : 0.5 * width * (std::cos(half) + xi) / std::sin(half);
+    return std::make_unique<UnifiedCamera>(width, height, xi, f, fy > 0.0 ? fy : f, c_x, c_y, 0.0, distortion);
+  }
+  const double f = fx > 0.0 ? fx : 0.5 * width / std::tan(0.5 * hfov_deg * M_PI / 180.0);
+  const double f_y = fy > 0.0 ? fy : f;
   return std::make_unique<PerspectiveCamera>(width, height, f, f_y, c_x, c_y, 0.0, distortion);
 }
 
@@ -30,7 +41,7 @@ bool RouteSpec::Check() const {
 
 std::string Scenario::Validate() const {
   if (!town.Check()) return "town: invalid town parameters";
-  if (!camera.Check()) return "camera: invalid camera (model must be perspective or equirectangular, size >= 8)";
+  if (!camera.Check()) return "camera: invalid camera (model must be perspective, unified or equirectangular, size >= 8)";
   if (!vehicle.Check()) return "vehicle: invalid vehicle parameters";
   if (!scene_file.empty() && route.type != "waypoints") return "route: a scene file needs route type waypoints";
   if (!(scene_scale > 0.0)) return "scene_scale must be > 0";

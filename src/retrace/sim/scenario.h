@@ -22,12 +22,15 @@
 namespace retrace {
 
 struct CameraSpec {
-  // "perspective" (pinhole + radial-tangential distortion) or "equirectangular" (360 x 180 degree panorama).
+  // "perspective" (pinhole + radial-tangential distortion), "unified" (fisheye / catadioptric omnidirectional,
+  // Mei 2007, with xi) or "equirectangular" (360 x 180 degree panorama).
   std::string model = "perspective";
   int width = 320;
   int height = 240;
-  // Horizontal field of view (degrees) that sets fx = fy when `fx` is 0 (perspective only).
+  // Horizontal field of view (degrees) that sets fx = fy when `fx` is 0 (perspective < 180, unified any).
   double hfov_deg = 80.0;
+  // Mirror / fisheye parameter of the unified model (0 = perspective, 1 = parabolic mirror / ~180+ degree fisheye).
+  double xi = 1.0;
   // Intrinsics in pixels (perspective); fx = 0 means "from hfov_deg", cx/cy < 0 mean the image centre.
   double fx = 0.0, fy = 0.0, cx = -1.0, cy = -1.0;
   LensDistortion distortion;

@@ -113,15 +113,16 @@ Scenario ParseNode(const YAML::Node& root, const Reader& r) {
     r.String(n, "town", "photo_folder", &t.photo_folder);
   }
   if (const YAML::Node n = root["camera"]) {
-    r.CheckMap(n, "camera", {"model", "width", "height", "hfov_deg", "fx", "fy", "cx", "cy", "distortion"});
+    r.CheckMap(n, "camera", {"model", "width", "height", "hfov_deg", "xi", "fx", "fy", "cx", "cy", "distortion"});
     CameraSpec& c = s.camera;
     r.String(n, "camera", "model", &c.model);
-    if (c.model != "perspective" && c.model != "equirectangular") {
-      r.Fail(n["model"], "camera.model", "expected perspective or equirectangular, got '" + c.model + "'");
+    if (c.model != "perspective" && c.model != "unified" && c.model != "equirectangular") {
+      r.Fail(n["model"], "camera.model", "expected perspective, unified or equirectangular, got '" + c.model + "'");
     }
     r.Integer(n, "camera", "width", &c.width);
     r.Integer(n, "camera", "height", &c.height);
     r.Number(n, "camera", "hfov_deg", &c.hfov_deg);
+    r.Number(n, "camera", "xi", &c.xi);
     r.Number(n, "camera", "fx", &c.fx);
     r.Number(n, "camera", "fy", &c.fy);
     r.Number(n, "camera", "cx", &c.cx);
@@ -296,11 +297,14 @@ std::string ScenarioToYaml(const Scenario& s) {
   line(fmt::format("  photo_folder: \"{}\"      # folder of your photos (.jpg/.png) for the facades; \"\" = procedural",
                    s.town.photo_folder));
   line("camera:");
-  line(fmt::format("  model: {}     # perspective (with distortion) or equirectangular (360 degree panorama)",
+  line(fmt::format("  model: {}     # perspective (with distortion), unified (fisheye/omnidirectional) or "
+                   "equirectangular (360 degree panorama)",
                    s.camera.model));
   line(fmt::format("  width: {}", s.camera.width));
   line(fmt::format("  height: {}", s.camera.height));
   line(fmt::format("  hfov_deg: {}           # horizontal field of view; sets fx = fy when fx is 0", s.camera.hfov_deg));
+  line(fmt::format("  xi: {}                  # unified model: 0 = pinhole, 1 = parabolic mirror / wide fisheye",
+                   s.camera.xi));
   line(fmt::format("  fx: {}                  # pixels; 0 = from hfov_deg", s.camera.fx));
   line(fmt::format("  fy: {}", s.camera.fy));
   line(fmt::format("  cx: {}                 # pixels; negative = image centre", s.camera.cx));
