@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <atomic>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
 #include <cmath>
 #include <functional>
 #include <thread>
@@ -15,21 +18,40 @@ constexpr int kTileSize = 16;
 constexpr int kBatchSize = 256;
 constexpr float kInfinity = std::numeric_limits<float>::infinity();
 
-// Runs fn(i) for i in [0, n) on `threads` threads (work stealing by an atomic counter).
+// Runs fn(i) for i in [0, n) on `threads` threads (work stealing by an atomic counter). The caller works too and
+// returns as soon as every item is done: it never waits for a helper thread that the OS has not scheduled yet (on
+// a busy machine that wait would cost more than the work). Late helpers find no work left and exit; they only touch
+// the shared state they own a reference to.
 void ParallelFor(int n, int threads, const std::function<void(int)>& fn) {
   threads = std::max(1, std::min(threads, n));
   if (threads == 1) {
     for (int i = 0; i < n; ++i) fn(i);
     return;
   }
-  std::atomic<int> next{0};
-  auto worker = [&]() {
-    for (int i = next++; i < n; i = next++) fn(i);
+  struct State {
+    std::atomic<int> next{0};
+    std::atomic<int> done{0};
+    int n = 0;
+    std::function<void(int)> fn;
+    std::mutex mutex;
+    std::condition_variable finished;
   };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
-  worker();
-  for (auto& thread : pool) thread.join();
+  auto state = std::make_shared<State>();
+  state->n = n;
+  state->fn = fn;
+  auto work = [](State& s) {
+    for (int i = s.next++; i < s.n; i = s.next++) {
+      s.fn(i);
+      if (++s.done == s.n) {
+        std::lock_guard<std::mutex> lock(s.mutex);
+        s.finished.notify_all();
+      }
+    }
+  };
+  for (int t = 1; t < threads; ++t) std::thread([state, work]() { work(*state); }).detach();
+  work(*state);
+  std::unique_lock<std::mutex> lock(state->mutex);
+  state->finished.wait(lock, [&]() { return state->done.load() == n; });
 }
 
 // 8-bit value of linear intensity v in [0, 1] through the gamma 1/2.2 response, tabulated.
