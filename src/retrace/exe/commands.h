@@ -13,6 +13,7 @@ void RegisterSequenceInfoCommand(CLI::App& app);
 void RegisterPerturbCommand(CLI::App& app);
 void RegisterCalibrateCommand(CLI::App& app);
 void RegisterCameraInfoCommand(CLI::App& app);
+void RegisterTwoViewCommand(CLI::App& app);
 void RegisterSimCommand(CLI::App& app);
 
 }  // namespace retrace

@@ -18,6 +18,7 @@ constexpr void (*kCommands[])(CLI::App&) = {
     &retrace::RegisterPerturbCommand,
     &retrace::RegisterCalibrateCommand,
     &retrace::RegisterCameraInfoCommand,
+    &retrace::RegisterTwoViewCommand,
     &retrace::RegisterSimCommand,
 };
 

@@ -1,0 +1,293 @@
+#pragma once
+
+// Reference-aligned differential point-feature tracker (Segvic 2009, §4.2; design.md §4.1).
+//
+// Integrating frame-to-frame motion drifts, so every feature keeps its REFERENCE appearance T (a window of
+// `window_size` x `window_size` pixels, 15x15 by default, cut from the image where the feature was
+// (re)defined) and is aligned to it in each new image I with a warp of translation d, isotropic scale s and
+// affine contrast (gain alpha, bias beta):
+//
+//     minimise over (d, s, alpha, beta)   sum_u [ alpha * I(s * u + d) + beta - T(u) ]^2,          (1)
+//
+// u running over the integer offsets of the window around the reference position (Segvic 2009, §4.2:
+// "translation, isotropic scaling, and affine contrast compensation"). The minimisation is Gauss-Newton,
+// coarse to fine on the pre-smoothed ImagePyramid (the reference window is cut at every level, so a 15x15
+// window at level 2 of a 3-level pyramid spans 60x60 input pixels and displacements well over 10 px
+// converge).
+//
+// Implementation: inverse compositional with the contrast moved to the template side (Baker & Matthews,
+// "Lucas- Kanade 20 years on", simultaneous inverse compositional with linear appearance): we fit I(s u + d)
+// ~ lambda * T(W(u; dp)) + delta with lambda = 1/alpha, delta = -beta/alpha. The Jacobian rows J0(u) = [Tx,
+// Ty, u.grad T, T, 1] depend only on the reference, so the 5x5 Gauss-Newton matrix H0 = sum J0^T J0 and its
+// inverse are computed once per reference and level; with J = J0 diag(lambda, lambda, lambda, 1, 1) the step
+// is diag(1/lambda, 1/lambda, 1/lambda, 1, 1) H0^-1 sum J0^T e (the template is stored zero-mean so that the
+// two contrast columns are orthogonal). An iteration therefore costs one interpolated sample and six
+// multiply-adds per window pixel, and no allocation. Geometric steps are composed inversely: (s, d) <- (s /
+// (1 + ds), d - s dd / (1 + ds)); contrast steps are additive.
+//
+// Choices that matter for accuracy and robustness (each an option, measured in feature_tracker_test.cc):
+//  - the contrast starts from the first two moments of the window (robust to gain 0.6..1.5 and bias +-30);
+//  - coarse levels estimate translation and contrast only, the scale is estimated at level 0;
+//  - level 0 samples the image with cubic (Keys) interpolation: bilinear sampling blurs by an amount that
+//  depends
+//    on the sub-pixel phase, which biases scale and position by several hundredths of a pixel;
+//  - the FeatureTracker uses a weak prior on the scale change per frame (std 2 %), so windows whose scale is
+//  badly
+//    determined do not trade scale against position;
+//  - alignment gives up early when the residual at level 0 stays far above R.
+// Known limit: the pre-smoothing is fixed in pixels, so once the scale differs from 1 the two images are
+// blurred differently; with scale 0.8 or 1.25 this biases the scale by 1-3 % on a minority of windows.
+
+// RESIDUAL. The reported residual is the RMS over the window of the compensated error in (1),
+//     r = sqrt( (1/N) sum_u [alpha I(s u + d) + beta - T(u)]^2 ),
+// measured at level 0 after convergence, in grey levels of the pre-smoothed REFERENCE (input images are
+// 0..255). A track is rejected when r exceeds `max_residual` (R; the paper uses R = 6 at 320x240 with its
+// smoothing; with the default pre-smoothing sigma = 0.5 px, accepted tracks on KITTI 07 have a median r
+// of 2.9 grey levels), when the RMS of the worst 3x3 block of the window exceeds `max_block_residual` (a
+// partial occluder), or when the optimisation fails (not converged, window leaves the image, scale or gain
+// out of range, flat reference).
+//
+// All positions are level-0 pixels of the images given (centre of the top-left pixel = (0, 0)); no camera
+// model is involved, so any camera works.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "retrace/feature/image_pyramid.h"
+#include "retrace/util/types.h"
+
+namespace retrace {
+
+struct AlignmentOptions {
+  // Side of the square reference window in pixels (odd). Segvic 2009, §6.3: 15x15.
+  int window_size = 15;
+  // Gauss-Newton iterations allowed at each coarse level.
+  int max_iterations_coarse = 8;
+  // Gauss-Newton iterations allowed at level 0; not converging within them rejects the track.
+  int max_iterations_fine = 15;
+  // Convergence: largest displacement of a window corner caused by the last step, in pixels of the level.
+  double convergence_epsilon = 0.01;
+  // R: largest accepted RMS residual (grey levels of the pre-smoothed reference, after gain/bias
+  // compensation). Segvic 2009, §5.1.1 uses R = 6 at its smoothing.
+  double max_residual = 6.0;
+  // Largest accepted RMS residual of the worst of the 3x3 blocks of the window (same units): a partial
+  // occluder raises one block far above the window's RMS. 2 R by default: on KITTI 07 (full resolution) 99 %
+  // of accepted tracks stay below 11.
+  double max_block_residual = 12.0;
+  // Accepted range of the scale s of the current appearance relative to the reference.
+  double min_scale = 0.5;
+  double max_scale = 2.0;
+  // Accepted range of the gain alpha (multiplies the current image to match the reference).
+  double min_gain = 0.25;
+  double max_gain = 4.0;
+  // Initialise gain and bias from the mean and standard deviation of the window at the coarsest level instead
+  // of from the initial warp (robust to large contrast changes, e.g. between teach and repeat).
+  bool contrast_from_moments = true;
+  // Estimate the scale at level 0 only (translation and contrast on the coarser levels): more robust far from
+  // the solution; the scale changes between frames are small.
+  bool coarse_translation_only = true;
+  // Sample the image with cubic (Keys) instead of bilinear interpolation at level 0: removes the
+  // sub-pixel-phase dependent blur of bilinear sampling that biases scale and position by a few hundredths of
+  // a pixel.
+  bool cubic_interpolation = true;
+  // If > 0: Gaussian prior on log(scale / initial scale) with this standard deviation, weighed against the
+  // squared residuals as if their noise were 1 grey level per pixel. Windows whose scale is weakly determined
+  // (the scale then trades off against the position) keep their initial scale instead of wandering; strongly
+  // textured windows are hardly affected. 0 = no prior (pure least squares).
+  double scale_prior_sigma = 0.0;
+
+  bool Check() const;
+};
+
+// Why an alignment ended. Everything except kTracked rejects the track.
+enum class TrackStatus : uint8_t {
+  kTracked = 0,        // converged with residual <= R
+  kResidualTooLarge,   // converged but the appearance differs from the reference (occlusion, wrong match)
+  kNotConverged,       // no convergence within the iterations of level 0
+  kOutOfImage,         // the window left the image at level 0
+  kScaleOutOfRange,    // s left [min_scale, max_scale]
+  kGainOutOfRange,     // alpha left [min_gain, max_gain]
+  kFarFromPrediction,  // RefinePrediction only: converged too far from the prediction or its scale
+  kDegenerate,         // flat reference window or singular normal equations
+};
+std::string TrackStatusName(TrackStatus status);
+
+// The warp (1) between a reference and an image: x_image = scale * u + position for window offsets u, and
+// gain * I + bias ~ T.
+struct WarpState {
+  Vector2d position = Vector2d::Zero();  // level-0 pixels in the current image
+  double scale = 1.0;
+  double gain = 1.0;  // alpha
+  double bias = 0.0;  // beta, grey levels
+};
+
+struct AlignmentResult {
+  WarpState warp;
+  double residual = 0.0;  // RMS of the compensated error (see above); +inf when never evaluated at level 0
+  double block_residual = 0.0;  // the same RMS over the worst of the 3x3 blocks of the window
+  bool converged = false;
+  int iterations = 0;  // total over all levels
+  TrackStatus status = TrackStatus::kDegenerate;
+  bool ok() const { return status == TrackStatus::kTracked; }
+};
+
+// The stored reference appearance of one feature: the window cut at every pyramid level around a position,
+// with the precomputed Jacobian rows and inverse Gauss-Newton matrix of the inverse-compositional alignment.
+class ReferencePatch {
+ public:
+  ReferencePatch() = default;
+
+  // Cuts the reference around `position` (level-0 pixels, bilinear) from `pyramid`, on up to `max_levels`
+  // levels. Coarse levels where the window (plus a one-pixel gradient border) does not fit or is flat are
+  // dropped. Returns false (and leaves the patch empty) when even level 0 is unusable.
+  bool Create(const ImagePyramid& pyramid, const Vector2d& position, int window_size = 15,
+              int max_levels = 3);
+
+  bool Valid() const { return num_levels_ > 0; }
+  int NumLevels() const { return num_levels_; }
+  int WindowSize() const { return window_size_; }
+  // Where the reference was cut (level-0 pixels of the reference image).
+  const Vector2d& Position() const { return position_; }
+  // Row-major window_size^2 grey values of the (pre-smoothed) reference at `level` minus their mean
+  // Mean(level).
+  const float* Centered(int level) const { return data_.data() + Offset(level); }
+  double Mean(int level) const { return mean_[level]; }
+  // Mean and standard deviation of the level-0 window (useful to judge a reference's contrast).
+  double StdDev() const { return std_dev_; }
+
+  // Precomputed data of the alignment, per level: gradients Tx, Ty, u.grad T (window_size^2 floats each) and
+  // the inverse 5x5 Gauss-Newton matrix of (dx, dy, ds, lambda, delta).
+  const float* Gx(int level) const { return Centered(level) + window_size_ * window_size_; }
+  const float* Gy(int level) const { return Centered(level) + 2 * window_size_ * window_size_; }
+  const float* Gs(int level) const { return Centered(level) + 3 * window_size_ * window_size_; }
+  const Eigen::Matrix<float, 5, 5>& InverseHessian(int level) const { return inverse_hessian_[level]; }
+  // The same with the scale fixed (row and column of ds zero).
+  const Eigen::Matrix<float, 5, 5>& InverseHessianTranslation(int level) const {
+    return inverse_hessian_translation_[level];
+  }
+
+ private:
+  size_t Offset(int level) const { return static_cast<size_t>(level) * 4 * window_size_ * window_size_; }
+
+  int window_size_ = 0;
+  int num_levels_ = 0;
+  Vector2d position_ = Vector2d::Zero();
+  double std_dev_ = 0.0;
+  // Per level: centred values T - mean, Tx, Ty, u.grad T, each window_size^2 floats.
+  std::vector<float> data_;
+  // Per level: mean grey value of the window.
+  std::vector<double> mean_;
+  // Per level: H0^-1 of the 5 parameters (dx, dy, ds, lambda, delta).
+  std::vector<Eigen::Matrix<float, 5, 5>, Eigen::aligned_allocator<Eigen::Matrix<float, 5, 5>>>
+      inverse_hessian_;
+  std::vector<Eigen::Matrix<float, 5, 5>, Eigen::aligned_allocator<Eigen::Matrix<float, 5, 5>>>
+      inverse_hessian_translation_;
+};
+
+// Aligns `reference` to the image in `pyramid` by minimising (1), starting from `initial` (level-0 pixels),
+// coarse to fine from the coarsest level shared by the pyramid and the reference on which the window fits.
+AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePatch& reference,
+                                 const WarpState& initial, const AlignmentOptions& options);
+
+struct RefinePredictionOptions {
+  AlignmentOptions alignment;
+  // Accept only when the converged position is within this distance (level-0 pixels) of the prediction.
+  double max_distance = 3.0;
+  // Accept only when converged scale / initial scale lies in [1 / max_scale_ratio, max_scale_ratio].
+  double max_scale_ratio = 1.25;
+
+  bool Check() const { return alignment.Check() && max_distance > 0.0 && max_scale_ratio >= 1.0; }
+};
+
+// Refines a PREDICTED position (e.g. from point transfer) against a stored reference, starting at the
+// prediction with `initial_scale` (distance of the 3D point to the reference viewpoint / its distance to the
+// current pose, Segvic 2009 §5.2.1). Accepted (status kTracked) only if it converges near the predicted
+// position and scale with a residual <= R; otherwise a normal rejected result is returned.
+AlignmentResult RefinePrediction(const ImagePyramid& pyramid, const ReferencePatch& reference,
+                                 const Vector2d& predicted_position, double initial_scale,
+                                 const RefinePredictionOptions& options);
+
+inline AlignmentOptions DefaultTrackingAlignment() {
+  AlignmentOptions options;
+  options.scale_prior_sigma = 0.02;
+  return options;
+}
+
+struct FeatureTrackerOptions {
+  // Alignment of each feature to its reference. Frame to frame the scale changes little, so tracking uses a
+  // scale prior (std 2 % per frame around the previous scale) that keeps weakly determined scales from
+  // trading off against the position.
+  AlignmentOptions alignment = DefaultTrackingAlignment();
+  // Levels of the reference patches (<= the pyramid levels used when tracking).
+  int num_levels = 3;
+  // Start each frame from position + (last frame-to-frame displacement) instead of the last position.
+  bool constant_velocity = true;
+
+  bool Check() const { return alignment.Check() && num_levels >= 1; }
+};
+
+// One tracked feature as reported after a frame.
+struct TrackedFeature {
+  feature_t id = kInvalidFeatureId;
+  WarpState warp;               // position, scale, gain, bias in the last image
+  double residual = 0.0;        // RMS residual against the reference (grey levels)
+  double block_residual = 0.0;  // RMS residual of the worst 3x3 block of the window
+  bool converged = false;
+  TrackStatus status = TrackStatus::kTracked;
+  int num_frames = 0;  // images in which the feature has been tracked since it was added (1 when added)
+};
+
+// Owns the features and their references and advances all of them on each new frame.
+//
+//   ImagePyramid pyramid(frame);                 // once per frame, shared with the detector etc.
+//   tracker.Track(pyramid);                      // aligns every feature to its reference; failures are
+//   removed tracker.AddFeatures(pyramid, positions);     // new features, reference cut from this frame
+class FeatureTracker {
+ public:
+  explicit FeatureTracker(const FeatureTrackerOptions& options = {});
+
+  // Adds a feature whose reference is cut from `pyramid` at `position`. `id` = kInvalidFeatureId assigns the
+  // next free id. Returns the id, or kInvalidFeatureId when no reference can be cut there (border, flat
+  // window).
+  feature_t AddFeature(const ImagePyramid& pyramid, const Vector2d& position,
+                       feature_t id = kInvalidFeatureId);
+  // Adds one feature per position; returns the ids (kInvalidFeatureId for the rejected ones).
+  std::vector<feature_t> AddFeatures(const ImagePyramid& pyramid, const std::vector<Vector2d>& positions);
+  // Adds a feature with a given reference at a known warp (e.g. after RefinePrediction accepted a
+  // prediction).
+  feature_t AddFeature(const ReferencePatch& reference, const AlignmentResult& alignment,
+                       feature_t id = kInvalidFeatureId);
+
+  // Aligns every feature to its reference in the new image. Features whose alignment fails are removed; the
+  // returned list has one entry per feature that was tracked in this call (failures included, with their
+  // status).
+  const std::vector<TrackedFeature>& Track(const ImagePyramid& pyramid);
+
+  // Removes a feature; returns false when it is unknown.
+  bool Remove(feature_t id);
+  // Redefines the reference of a feature: cut from `pyramid` at `position` (e.g. a key-image after a
+  // topological transition). The feature's warp is reset to (position, scale 1, gain 1, bias 0). Returns
+  // false when unknown or when no reference can be cut there (the feature is then left unchanged).
+  bool SetReference(feature_t id, const ImagePyramid& pyramid, const Vector2d& position);
+
+  // Features currently tracked (all with status kTracked).
+  const std::vector<TrackedFeature>& Features() const { return features_; }
+  const TrackedFeature* Find(feature_t id) const;
+  const ReferencePatch* Reference(feature_t id) const;
+  int NumFeatures() const { return static_cast<int>(features_.size()); }
+  const FeatureTrackerOptions& Options() const { return options_; }
+
+ private:
+  int IndexOf(feature_t id) const;
+
+  FeatureTrackerOptions options_;
+  feature_t next_id_ = 0;
+  std::vector<TrackedFeature> features_;
+  std::vector<ReferencePatch> references_;
+  std::vector<Vector2d> velocities_;
+  std::vector<TrackedFeature> last_results_;
+};
+
+}  // namespace retrace

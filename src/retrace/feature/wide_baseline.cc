@@ -1,0 +1,170 @@
+#include "retrace/feature/wide_baseline.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+namespace retrace {
+namespace {
+
+// Size (diameter in pixels) given to Harris key-points at pyramid level 0; doubles with every level.
+constexpr float kHarrisKeypointSize = 12.0f;
+
+std::vector<cv::KeyPoint> DetectDoG(const cv::Mat& image, const WideBaselineOptions& options) {
+  std::vector<cv::KeyPoint> keypoints;
+  if (options.max_dog_keypoints <= 0) return keypoints;
+  cv::SIFT::create(options.max_dog_keypoints)->detect(image, keypoints);
+  for (cv::KeyPoint& k : keypoints) k.class_id = static_cast<int>(WideBaselineDetector::kDoG);
+  return keypoints;
+}
+
+std::vector<cv::KeyPoint> DetectMultiScaleHarris(const cv::Mat& image, const WideBaselineOptions& options) {
+  std::vector<cv::KeyPoint> keypoints;
+  if (options.max_harris_keypoints <= 0) return keypoints;
+  cv::Mat level = image;
+  const int per_level = std::max(1, options.max_harris_keypoints / std::max(1, options.harris_levels));
+  for (int l = 0; l < options.harris_levels && std::min(level.cols, level.rows) >= 32; ++l) {
+    std::vector<cv::Point2f> corners;
+    cv::goodFeaturesToTrack(level, corners, per_level, options.harris_quality, /*minDistance=*/5.0, cv::noArray(),
+                            /*blockSize=*/3, /*useHarrisDetector=*/true, /*k=*/0.04);
+    const float factor = static_cast<float>(1 << l);
+    for (const cv::Point2f& c : corners) {
+      // Level pixel centres map back to level-0 coordinates as (x + 0.5) * 2^l - 0.5.
+      cv::KeyPoint k(cv::Point2f((c.x + 0.5f) * factor - 0.5f, (c.y + 0.5f) * factor - 0.5f),
+                     kHarrisKeypointSize * factor);
+      k.octave = l;
+      k.class_id = static_cast<int>(WideBaselineDetector::kHarris);
+      keypoints.push_back(k);
+    }
+    cv::Mat next;
+    cv::pyrDown(level, next);
+    level = next;
+  }
+  return keypoints;
+}
+
+std::vector<cv::KeyPoint> DetectMser(const cv::Mat& image, const WideBaselineOptions& options) {
+  std::vector<cv::KeyPoint> keypoints;
+  if (options.max_mser_keypoints <= 0) return keypoints;
+  std::vector<std::vector<cv::Point>> regions;
+  std::vector<cv::Rect> boxes;
+  cv::MSER::create(/*delta=*/5, /*min_area=*/30, /*max_area=*/static_cast<int>(0.01 * image.total()))
+      ->detectRegions(image, regions, boxes);
+  for (const std::vector<cv::Point>& region : regions) {
+    cv::Point2d centroid(0.0, 0.0);
+    for (const cv::Point& p : region) centroid += cv::Point2d(p.x, p.y);
+    centroid *= 1.0 / region.size();
+    // Diameter of the disc with the region's area.
+    const float size = static_cast<float>(2.0 * std::sqrt(region.size() / M_PI));
+    cv::KeyPoint k(cv::Point2f(static_cast<float>(centroid.x), static_cast<float>(centroid.y)), size);
+    k.response = static_cast<float>(region.size());
+    k.class_id = static_cast<int>(WideBaselineDetector::kMser);
+    keypoints.push_back(k);
+  }
+  std::sort(keypoints.begin(), keypoints.end(),
+            [](const cv::KeyPoint& a, const cv::KeyPoint& b) { return a.response > b.response; });
+  if (keypoints.size() > static_cast<size_t>(options.max_mser_keypoints)) {
+    keypoints.resize(options.max_mser_keypoints);
+  }
+  return keypoints;
+}
+
+// Appends `candidates` to `kept`, skipping those within `radius` of a kept key-point of similar scale (size ratio
+// below 2). A uniform grid of cell `radius` makes the test local.
+void FuseInto(const std::vector<cv::KeyPoint>& candidates, double radius, std::vector<cv::KeyPoint>* kept, std::vector<std::vector<int>>* grid, int grid_cols) {
+  const auto cell_of = [&](const cv::Point2f& p) {
+    const int cx = std::clamp(static_cast<int>(p.x / radius), 0, grid_cols - 1);
+    const int cy = std::clamp(static_cast<int>(p.y / radius), 0, static_cast<int>(grid->size() / grid_cols) - 1);
+    return std::pair<int, int>(cx, cy);
+  };
+  const int grid_rows = static_cast<int>(grid->size() / grid_cols);
+  for (const cv::KeyPoint& candidate : candidates) {
+    const auto [cx, cy] = cell_of(candidate.pt);
+    bool duplicate = false;
+    for (int y = std::max(0, cy - 1); y <= std::min(grid_rows - 1, cy + 1) && !duplicate; ++y) {
+      for (int x = std::max(0, cx - 1); x <= std::min(grid_cols - 1, cx + 1) && !duplicate; ++x) {
+        for (int index : (*grid)[y * grid_cols + x]) {
+          const cv::KeyPoint& other = (*kept)[index];
+          const float ratio = std::max(candidate.size, other.size) / std::max(1e-3f, std::min(candidate.size, other.size));
+          if (cv::norm(candidate.pt - other.pt) < radius && ratio < 2.0f) {
+            duplicate = true;
+            break;
+          }
+        }
+      }
+    }
+    if (duplicate) continue;
+    (*grid)[cy * grid_cols + cx].push_back(static_cast<int>(kept->size()));
+    kept->push_back(candidate);
+  }
+}
+
+}  // namespace
+
+bool WideBaselineOptions::Check(std::string* error) const {
+  const auto fail = [&](const char* message) {
+    if (error != nullptr) *error = message;
+    return false;
+  };
+  if (max_dog_keypoints < 0 || max_harris_keypoints < 0 || max_mser_keypoints < 0) {
+    return fail("key-point counts must not be negative");
+  }
+  if (max_dog_keypoints + max_harris_keypoints + max_mser_keypoints == 0) return fail("every detector is disabled");
+  if (harris_levels < 1) return fail("harris_levels must be at least 1");
+  if (!(ratio > 0.0 && ratio <= 1.0)) return fail("ratio must be in (0, 1]");
+  if (!(fusion_radius_px > 0.0)) return fail("fusion_radius_px must be positive");
+  return true;
+}
+
+WideBaselineFeatures ExtractWideBaselineFeatures(const cv::Mat& image, const WideBaselineOptions& options) {
+  CV_Assert(image.type() == CV_8UC1);
+  WideBaselineFeatures features;
+  const double radius = options.fusion_radius_px;
+  const int grid_cols = static_cast<int>(std::ceil(image.cols / radius)) + 1;
+  const int grid_rows = static_cast<int>(std::ceil(image.rows / radius)) + 1;
+  std::vector<std::vector<int>> grid(static_cast<size_t>(grid_cols) * grid_rows);
+  // Priority of the detectors in the fusion: DoG (best localized in scale), then Harris, then MSER.
+  FuseInto(DetectDoG(image, options), radius, &features.keypoints, &grid, grid_cols);
+  FuseInto(DetectMultiScaleHarris(image, options), radius, &features.keypoints, &grid, grid_cols);
+  FuseInto(DetectMser(image, options), radius, &features.keypoints, &grid, grid_cols);
+  if (options.upright) {
+    for (cv::KeyPoint& k : features.keypoints) k.angle = 0.0f;
+  } else {
+    // Harris and MSER key-points carry no orientation; SIFT then describes them upright.
+    for (cv::KeyPoint& k : features.keypoints) k.angle = std::max(0.0f, k.angle);
+  }
+  if (features.keypoints.empty()) {
+    features.descriptors = cv::Mat(0, 128, CV_32F);
+    return features;
+  }
+  cv::SIFT::create()->compute(image, features.keypoints, features.descriptors);
+  // SIFT::compute may drop key-points too close to the border; the class ids travel with the key-points.
+  return features;
+}
+
+std::vector<cv::DMatch> MatchWideBaseline(const WideBaselineFeatures& query, const WideBaselineFeatures& train,
+                                          const WideBaselineOptions& options) {
+  std::vector<cv::DMatch> matches;
+  if (query.size() < 2 || train.size() < 2) return matches;
+  cv::BFMatcher matcher(cv::NORM_L2);
+  std::vector<std::vector<cv::DMatch>> forward;
+  matcher.knnMatch(query.descriptors, train.descriptors, forward, 2);
+  std::vector<int> best_query_of_train;
+  if (options.cross_check) {
+    std::vector<cv::DMatch> backward;
+    matcher.match(train.descriptors, query.descriptors, backward);
+    best_query_of_train.assign(train.size(), -1);
+    for (const cv::DMatch& m : backward) best_query_of_train[m.queryIdx] = m.trainIdx;
+  }
+  for (const std::vector<cv::DMatch>& candidates : forward) {
+    if (candidates.size() < 2) continue;
+    const cv::DMatch& best = candidates[0];
+    if (best.distance >= options.ratio * candidates[1].distance) continue;  // Segvic 2009 §4.1
+    if (options.cross_check && best_query_of_train[best.trainIdx] != best.queryIdx) continue;
+    matches.push_back(best);
+  }
+  return matches;
+}
+
+}  // namespace retrace

@@ -1,0 +1,62 @@
+#pragma once
+
+// Wide-baseline matching (Segvic 2009 §4.1, design §4.2): no assumption on the relative pose of the two images.
+//
+// Key-points come from three detectors that respond to different structures — difference of Gaussians (SIFT's
+// detector), multi-scale Harris corners and MSER regions — and all of them are described by SIFT descriptors.
+// The three sets are fused by dropping a key-point that lies within a few pixels of one already kept at a similar
+// scale. Matches are nearest neighbours in L2 whose distance is below `ratio` times the distance to the second
+// nearest: 0.6 in the paper, strict because urban scenes repeat the same structure (windows, fences) so often.
+//
+// Used for everything the differential tracker cannot do: bootstrap and relocalization of repeat, gap recovery and
+// loop closing in teach, joining routes.
+
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/features2d.hpp>
+
+namespace retrace {
+
+struct WideBaselineOptions {
+  // Difference-of-Gaussians (SIFT) key-points kept, strongest first; 0 disables the detector.
+  int max_dog_keypoints = 1500;
+  // Multi-scale Harris corners kept over all levels; 0 disables the detector.
+  int max_harris_keypoints = 1000;
+  // Pyramid levels (factor 2) on which Harris corners are detected.
+  int harris_levels = 3;
+  // Harris corners weaker than this fraction of the strongest one on their level are ignored.
+  double harris_quality = 0.01;
+  // MSER regions kept, largest stability first; 0 disables the detector.
+  int max_mser_keypoints = 500;
+  // A key-point closer than this (pixels) to an already kept key-point of similar scale is dropped (fusion).
+  double fusion_radius_px = 3.0;
+  // Segvic 2009 §4.1: keep a match when best distance < ratio * second-best distance.
+  double ratio = 0.6;
+  // Keep only matches that are also the best match in the other direction.
+  bool cross_check = true;
+  // Describe every key-point with orientation 0 (upright SIFT). Right for cameras on ground vehicles, which do not
+  // roll; switch off for hand-held cameras.
+  bool upright = true;
+
+  bool Check(std::string* error = nullptr) const;
+};
+
+// Which detector produced a key-point; stored in cv::KeyPoint::class_id.
+enum class WideBaselineDetector : int { kDoG = 0, kHarris = 1, kMser = 2 };
+
+struct WideBaselineFeatures {
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;  // CV_32F, one SIFT descriptor (128 values) per key-point, same order
+
+  size_t size() const { return keypoints.size(); }
+};
+
+// Detects, fuses and describes key-points of an 8-bit gray image.
+WideBaselineFeatures ExtractWideBaselineFeatures(const cv::Mat& image, const WideBaselineOptions& options = {});
+
+// Ratio-tested (and optionally cross-checked) matches; queryIdx indexes `query`, trainIdx indexes `train`.
+std::vector<cv::DMatch> MatchWideBaseline(const WideBaselineFeatures& query, const WideBaselineFeatures& train,
+                                          const WideBaselineOptions& options = {});
+
+}  // namespace retrace

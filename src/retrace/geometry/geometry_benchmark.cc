@@ -1,0 +1,74 @@
+// Benchmarks of the geometry layer: robust 5-point relative pose (150 correspondences, 30 % outliers) and σ_p.
+//
+//   build/src/retrace/geometry/bench_geometry_geometry_benchmark --benchmark_repetitions=5
+//       --benchmark_report_aggregates_only=true
+
+#include <random>
+
+#include <benchmark/benchmark.h>
+
+#include "retrace/camera/perspective_camera.h"
+#include "retrace/geometry/planar_pose.h"
+#include "retrace/geometry/relative_pose.h"
+#include "retrace/geometry/sigma_p.h"
+#include "retrace/geometry/synthetic.h"
+
+namespace retrace {
+namespace {
+
+SyntheticTwoView Scene(const Rigid3d& pose) {
+  const PerspectiveCamera camera(640, 480, 500.0, 500.0, 319.5, 239.5);
+  SyntheticTwoViewOptions options;
+  options.num_points = 150;
+  options.outlier_ratio = 0.3;
+  options.noise_px = 0.5;
+  options.min_distance = 3.0;
+  options.max_distance = 15.0;
+  return GenerateTwoView(camera, pose, options);
+}
+
+void BM_RelativePose5Point150Points30PercentOutliers(benchmark::State& state) {
+  const Rigid3d pose(Eigen::AngleAxisd(0.08, Vector3d(0.1, 1.0, 0.05).normalized()).toRotationMatrix(),
+                     Vector3d(0.2, 0.05, -1.0));
+  const SyntheticTwoView scene = Scene(pose);
+  int iterations = 0;
+  for (auto _ : state) {
+    const TwoViewGeometry g = EstimateRelativePose(scene.bearings_a, scene.bearings_b, 500.0);
+    if (!g.success) state.SkipWithError("estimation failed");
+    iterations = g.num_iterations;
+    benchmark::DoNotOptimize(g.b_from_a.rotation(0, 0));
+  }
+  state.counters["samples"] = iterations;
+}
+BENCHMARK(BM_RelativePose5Point150Points30PercentOutliers)->Unit(benchmark::kMillisecond);
+
+void BM_PlanarPose150Points30PercentOutliers(benchmark::State& state) {
+  const SyntheticTwoView scene = Scene(PlanarPose(0.1, 3.0));
+  for (auto _ : state) {
+    const TwoViewGeometry g = EstimatePlanarRelativePose(scene.bearings_a, scene.bearings_b, 500.0);
+    if (!g.success) state.SkipWithError("estimation failed");
+    benchmark::DoNotOptimize(g.b_from_a.rotation(0, 0));
+  }
+}
+BENCHMARK(BM_PlanarPose150Points30PercentOutliers)->Unit(benchmark::kMillisecond);
+
+// σ_p of n residual vectors (sum of squares + tabulated χ² quantile).
+void BM_SigmaP(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  std::mt19937 rng(1);
+  std::normal_distribution<double> noise(0.0, 0.5);
+  std::vector<Vector2d> residuals(n);
+  for (auto& r : residuals) r = Vector2d(noise(rng), noise(rng));
+  for (auto _ : state) benchmark::DoNotOptimize(SigmaP(residuals));
+}
+BENCHMARK(BM_SigmaP)->Arg(10)->Arg(100)->Arg(1000);
+
+// The quantile alone, from the table and beyond it (Boost.Math).
+void BM_ChiSquareQuantile(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  for (auto _ : state) benchmark::DoNotOptimize(ChiSquareQuantile2n(0.05, n));
+}
+BENCHMARK(BM_ChiSquareQuantile)->Arg(100)->Arg(5000);
+
+}  // namespace
+}  // namespace retrace

@@ -1,0 +1,222 @@
+#include "retrace/geometry/relative_pose.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include <gtest/gtest.h>
+
+#include "retrace/camera/equirectangular_camera.h"
+#include "retrace/camera/perspective_camera.h"
+#include "retrace/geometry/synthetic.h"
+
+namespace retrace {
+namespace {
+
+Rigid3d MakePose(double angle_deg, const Vector3d& axis, const Vector3d& translation) {
+  return Rigid3d(Eigen::AngleAxisd(angle_deg * M_PI / 180.0, axis.normalized()).toRotationMatrix(),
+                 translation);
+}
+
+struct Errors {
+  double rotation_deg;
+  double translation_deg;
+};
+
+Errors PoseErrors(const Rigid3d& estimate, const Rigid3d& truth) {
+  return {RotationErrorDeg(estimate.rotation, truth.rotation),
+          AngleBetweenDeg(estimate.translation, truth.translation)};
+}
+
+Errors PoseErrors(const TwoViewGeometry& g, const Rigid3d& truth) { return PoseErrors(g.b_from_a, truth); }
+
+// Fraction of true outliers flagged as outliers, and of true inliers kept.
+void CheckInlierClassification(const TwoViewGeometry& g, const SyntheticTwoView& scene) {
+  int outliers = 0, rejected = 0, inliers = 0, kept = 0;
+  for (size_t i = 0; i < scene.is_outlier.size(); ++i) {
+    if (scene.is_outlier[i]) {
+      ++outliers;
+      rejected += !g.inlier_mask[i];
+    } else {
+      ++inliers;
+      kept += g.inlier_mask[i];
+    }
+  }
+  EXPECT_GE(kept, 0.9 * inliers);
+  // A random correspondence can fall near its epipolar line by chance; most are rejected.
+  EXPECT_GE(rejected, 0.8 * outliers);
+}
+
+const Rigid3d kPerspectivePoses[] = {
+    MakePose(5.0, Vector3d(0.1, 1.0, 0.05), Vector3d(0.2, 0.05, -1.0)),   // forward motion with a turn
+    MakePose(3.0, Vector3d(1.0, 0.2, 0.1), Vector3d(-0.5, 0.3, -0.8)),    // general motion
+    MakePose(10.0, Vector3d(0.0, 1.0, 0.0), Vector3d(1.0, 0.0, -0.3)),    // sideways + yaw: bas-relief ambiguity
+};
+
+// The best achievable estimate: the Sampson-error optimum over the TRUE inliers, started from the truth.
+Rigid3d GoldStandard(const SyntheticTwoView& scene) {
+  std::vector<int> inliers;
+  for (size_t i = 0; i < scene.is_outlier.size(); ++i) {
+    if (!scene.is_outlier[i]) inliers.push_back(static_cast<int>(i));
+  }
+  const Rigid3d truth(scene.b_from_a.rotation, scene.b_from_a.translation.normalized());
+  return internal::RefineOnSampson(scene.bearings_a, scene.bearings_b, inliers, truth,
+                                   internal::GeneralPoseManifold(), 50);
+}
+
+// Runs 5 seeds of 100 correspondences (0.5 px noise, 30 % outliers, points 3-15 baselines away) and checks the pose
+// errors of every run, the inlier classification, σ_p and the triangulation.
+void RunScenes(const CameraModel& camera, const Rigid3d& pose, uint64_t seed_base, double max_rotation_deg,
+               double max_translation_deg) {
+  for (uint64_t seed = 1; seed <= 5; ++seed) {
+    SyntheticTwoViewOptions options;  // 100 points, 0.5 px noise, 30 % outliers
+    options.min_distance = 3.0;
+    options.max_distance = 15.0;
+    options.seed = seed_base + seed;
+    const SyntheticTwoView scene = GenerateTwoView(camera, pose, options);
+    ASSERT_EQ(scene.bearings_a.size(), 100u);
+    const TwoViewGeometry g = EstimateRelativePose(scene.bearings_a, scene.bearings_b, camera.FocalLength());
+    ASSERT_TRUE(g.success) << g.failure_message;
+    const Errors errors = PoseErrors(g, scene.b_from_a);  // translation compared as a direction
+    const Errors gold = PoseErrors(GoldStandard(scene), scene.b_from_a);
+    std::printf("  seed %d: rotation %.3f deg (optimum %.3f), translation %.3f deg (optimum %.3f), sigma_p %.2f px\n",
+                static_cast<int>(seed), errors.rotation_deg, gold.rotation_deg, errors.translation_deg,
+                gold.translation_deg, g.sigma_p);
+    EXPECT_LT(errors.rotation_deg, max_rotation_deg) << "seed " << seed;
+    EXPECT_LT(errors.translation_deg, max_translation_deg) << "seed " << seed;
+    EXPECT_NEAR(g.b_from_a.translation.norm(), 1.0, 1e-12);
+    CheckInlierClassification(g, scene);
+    // σ_p bounds the per-component reprojection noise in image B (midpoint residuals carry about half of the
+    // 0.5 px noise of the two images) and exceeds the RMS of the same residuals.
+    EXPECT_GT(g.sigma_p, 0.15);
+    EXPECT_LT(g.sigma_p, 1.0);
+    EXPECT_GT(g.sigma_p, g.rms_residual_px);
+    // Triangulated inliers are close to the truth (scaled to a unit baseline) and in front of both cameras.
+    const double scale = 1.0 / scene.b_from_a.translation.norm();
+    int good = 0, checked = 0;
+    for (size_t i = 0; i < scene.is_outlier.size(); ++i) {
+      if (!g.inlier_mask[i] || scene.is_outlier[i]) continue;
+      ++checked;
+      const Vector3d truth = scale * scene.points_in_a[i];
+      good += (g.points_in_a[i] - truth).norm() < 0.1 * truth.norm();
+      EXPECT_GT(g.depths_a[i], 0.0);
+      EXPECT_GT(g.depths_b[i], 0.0);
+    }
+    EXPECT_GE(good, 0.8 * checked);
+  }
+}
+
+TEST(RelativePose, PerspectiveForwardMotion) {
+  const PerspectiveCamera camera(640, 480, 500.0, 500.0, 319.5, 239.5);
+  RunScenes(camera, kPerspectivePoses[0], 10, 0.1, 1.0);
+}
+
+TEST(RelativePose, PerspectiveGeneralMotion) {
+  const PerspectiveCamera camera(640, 480, 500.0, 500.0, 319.5, 239.5);
+  RunScenes(camera, kPerspectivePoses[1], 20, 0.1, 1.0);
+}
+
+TEST(RelativePose, PerspectiveSidewaysMotionReachesTheOptimum) {
+  // Sideways translation with a yaw is nearly ambiguous for a 65° field of view (bas-relief ambiguity): even the
+  // optimum over the true inliers has rotation errors of 0.05-0.2°. Check that the estimator gets close to it.
+  const PerspectiveCamera camera(640, 480, 500.0, 500.0, 319.5, 239.5);
+  for (uint64_t seed = 1; seed <= 5; ++seed) {
+    SyntheticTwoViewOptions options;
+    options.min_distance = 3.0;
+    options.max_distance = 15.0;
+    options.seed = 30 + seed;
+    const SyntheticTwoView scene = GenerateTwoView(camera, kPerspectivePoses[2], options);
+    const TwoViewGeometry g = EstimateRelativePose(scene.bearings_a, scene.bearings_b, camera.FocalLength());
+    ASSERT_TRUE(g.success) << g.failure_message;
+    const Errors errors = PoseErrors(g, scene.b_from_a);
+    const Errors gold = PoseErrors(GoldStandard(scene), scene.b_from_a);
+    std::printf("  seed %d: rotation %.3f deg (optimum %.3f), translation %.3f deg (optimum %.3f)\n",
+                static_cast<int>(seed), errors.rotation_deg, gold.rotation_deg, errors.translation_deg,
+                gold.translation_deg);
+    EXPECT_LT(errors.rotation_deg, 1.3 * gold.rotation_deg + 0.05) << "seed " << seed;
+    EXPECT_LT(errors.translation_deg, 1.5 * gold.translation_deg + 1.0) << "seed " << seed;
+    CheckInlierClassification(g, scene);
+  }
+}
+
+TEST(RelativePose, OmnidirectionalPointsAllAround) {
+  // 3600 x 1800: 573 px per radian, about the angular resolution of the 500 px perspective camera above.
+  const EquirectangularCamera camera(3600, 1800);
+  const Rigid3d poses[] = {
+      MakePose(20.0, Vector3d(0.0, 1.0, 0.0), Vector3d(0.0, 0.0, 1.0)),
+      MakePose(8.0, Vector3d(0.3, 1.0, -0.2), Vector3d(0.7, 0.1, -0.7)),
+      MakePose(45.0, Vector3d(0.0, 1.0, 0.1), Vector3d(-1.0, 0.05, 0.2)),
+  };
+  for (int k = 0; k < 3; ++k) {
+    SyntheticTwoViewOptions options;
+    const SyntheticTwoView scene = GenerateTwoView(camera, poses[k], options);
+    int behind = 0;
+    for (const Vector3d& f : scene.bearings_a) behind += f.z() < 0.0;
+    EXPECT_GT(behind, 20);  // really all around, including behind the camera
+    RunScenes(camera, poses[k], 100 * (k + 1), 0.1, 1.0);
+  }
+}
+
+TEST(RelativePose, DeterministicForEqualSeeds) {
+  const PerspectiveCamera camera(640, 480, 500.0, 500.0, 319.5, 239.5);
+  const SyntheticTwoView scene = GenerateTwoView(camera, kPerspectivePoses[0], SyntheticTwoViewOptions());
+  const TwoViewGeometry g1 = EstimateRelativePose(scene.bearings_a, scene.bearings_b, camera.FocalLength());
+  const TwoViewGeometry g2 = EstimateRelativePose(scene.bearings_a, scene.bearings_b, camera.FocalLength());
+  ASSERT_TRUE(g1.success);
+  EXPECT_EQ(g1.b_from_a.rotation, g2.b_from_a.rotation);
+  EXPECT_EQ(g1.inlier_mask, g2.inlier_mask);
+}
+
+TEST(RelativePose, DegenerateInputFailsCleanly) {
+  const PerspectiveCamera camera(640, 480, 500.0, 500.0, 319.5, 239.5);
+  const double f = camera.FocalLength();
+  const SyntheticTwoView scene = GenerateTwoView(camera, kPerspectivePoses[0], SyntheticTwoViewOptions());
+  const auto expect_clean_failure = [](const TwoViewGeometry& g, const char* what) {
+    EXPECT_FALSE(g.success) << what;
+    EXPECT_FALSE(g.failure_message.empty()) << what;
+    EXPECT_TRUE(g.b_from_a.rotation.allFinite()) << what;
+    EXPECT_TRUE(g.b_from_a.translation.allFinite()) << what;
+    EXPECT_FALSE(std::isnan(g.sigma_p)) << what;
+  };
+
+  // Fewer than five points (and the empty input).
+  std::vector<Vector3d> a4(scene.bearings_a.begin(), scene.bearings_a.begin() + 4);
+  std::vector<Vector3d> b4(scene.bearings_b.begin(), scene.bearings_b.begin() + 4);
+  TwoViewGeometry g = EstimateRelativePose(a4, b4, f);
+  expect_clean_failure(g, "four points");
+  EXPECT_EQ(g.failure, TwoViewFailure::kTooFewCorrespondences);
+  expect_clean_failure(EstimateRelativePose({}, {}, f), "no points");
+
+  // Sizes differ, non-unit bearings, bad focal length.
+  std::vector<Vector3d> b_short(scene.bearings_b.begin(), scene.bearings_b.end() - 1);
+  g = EstimateRelativePose(scene.bearings_a, b_short, f);
+  expect_clean_failure(g, "sizes differ");
+  EXPECT_EQ(g.failure, TwoViewFailure::kInvalidInput);
+  std::vector<Vector3d> a_nan = scene.bearings_a;
+  a_nan[3] = Vector3d(NAN, 0, 1);
+  expect_clean_failure(EstimateRelativePose(a_nan, scene.bearings_b, f), "NaN bearing");
+  expect_clean_failure(EstimateRelativePose(scene.bearings_a, scene.bearings_b, 0.0), "zero focal");
+
+  // All-identical points.
+  const std::vector<Vector3d> same_a(50, Vector3d(0.1, 0.2, 1.0).normalized());
+  const std::vector<Vector3d> same_b(50, Vector3d(0.12, 0.19, 1.0).normalized());
+  expect_clean_failure(EstimateRelativePose(same_a, same_b, f), "identical points");
+
+  // Pure rotation (no baseline), with noise.
+  SyntheticTwoViewOptions options;
+  options.outlier_ratio = 0.0;
+  const SyntheticTwoView rotation_only =
+      GenerateTwoView(camera, MakePose(5.0, Vector3d(0.2, 1.0, 0.0), Vector3d::Zero()), options);
+  g = EstimateRelativePose(rotation_only.bearings_a, rotation_only.bearings_b, f);
+  expect_clean_failure(g, "pure rotation");
+
+  // Invalid options.
+  TwoViewOptions bad;
+  bad.ransac.confidence = 1.5;
+  g = EstimateRelativePose(scene.bearings_a, scene.bearings_b, f, bad);
+  expect_clean_failure(g, "bad options");
+  EXPECT_EQ(g.failure, TwoViewFailure::kInvalidOptions);
+}
+
+}  // namespace
+}  // namespace retrace

@@ -1,0 +1,44 @@
+#pragma once
+
+// Triangulation and reprojection on unit bearing vectors, shared by the two-view estimators (5-point and planar) and
+// by the point transfer.
+//
+// Working on bearings (rays) rather than pixels lets one code path serve perspective and omnidirectional cameras:
+// "in front of the camera" means a positive distance along the ray, which is also meaningful for rays that point
+// sideways or backwards in a panorama.
+
+#include "retrace/util/types.h"
+
+namespace retrace {
+
+struct TriangulatedPoint {
+  // Midpoint of the closest points of the two rays, in camera A's frame.
+  Vector3d point_in_a = Vector3d::Zero();
+  // Signed distances along the rays of A and B to their closest points (the point is in front of a camera when its
+  // distance is positive). For unit bearings these are the distances from the camera centres.
+  double depth_a = 0.0;
+  double depth_b = 0.0;
+};
+
+// Midpoint triangulation (Hartley & Sturm 1997; Lee & Civera 2019 discuss its accuracy) of the rays
+// `bearing_a` (frame A) and `bearing_b` (frame B) for the relative pose b_from_a (x_B = R x_A + t). Returns false
+// when the rays are (numerically) parallel, i.e. the point is at infinity or there is no baseline.
+bool TriangulateMidpoint(const Rigid3d& b_from_a, const Vector3d& bearing_a, const Vector3d& bearing_b,
+                         TriangulatedPoint* point);
+
+// True when both rays meet in front of their cameras (cheirality on bearings): the triangulation succeeds and both
+// depths are positive.
+bool InFrontOfBothCameras(const Rigid3d& b_from_a, const Vector3d& bearing_a, const Vector3d& bearing_b);
+
+// An orthonormal basis (u, v) of the plane tangent to the unit sphere at `bearing`. For a bearing near the optical
+// axis (0, 0, 1), u is close to +x (right) and v close to +y (down), so tangent coordinates times the focal length
+// are close to pixel offsets of a perspective image.
+void TangentBasis(const Vector3d& bearing, Vector3d* u, Vector3d* v);
+
+// Reprojection residual of the 3D point `point_in_cam` observed along the unit `bearing`, in pixels: the component
+// of the unit direction towards the point that is orthogonal to the bearing (≈ the angle between them, in radians),
+// expressed in the tangent basis of the bearing and multiplied by `focal_length_px`. A point behind the bearing
+// (angle > 90°) gets a residual of at least `focal_length_px` in magnitude, so it never looks like a good fit.
+Vector2d TangentResidualPx(const Vector3d& bearing, const Vector3d& point_in_cam, double focal_length_px);
+
+}  // namespace retrace
