@@ -167,6 +167,46 @@ TEST(RendererTest, MarkersAppearWhereTheFisheyeUnifiedModelProjects) {
   std::cout << "unified fisheye: " << points.size() << " markers, max centroid error " << max_error << " px\n";
 }
 
+TEST(RendererTest, MovingOccluderCrossesInFrontOfTheCamera) {
+  // A self-luminous 1 m cube walks along y from -10 to +10 at 5 m/s, 10 m in front of a camera looking along +x.
+  Scene scene;
+  Material glow;
+  glow.emissive = true;
+  glow.color = Vector3f::Constant(0.8f);
+  Mesh cube;
+  cube.AddBox(Vector3f(-0.5f, -0.5f, 1.0f), Vector3f(0.5f, 0.5f, 2.0f), 1.0f, scene.AddMaterial(glow));
+  ScriptedPath path;
+  path.points = {{10.0, -10.0}, {10.0, 10.0}};
+  path.speed = 5.0;
+  path.loop = false;
+  scene.AddMovingObject(cube, path);
+  scene.set_sky(SkyType::kUniform, Vector3f::Zero());
+  // Camera at height 1.5 looking east (+x): x_cam = -y_town (right = south), y_cam = -z_town.
+  Matrix3d r;
+  r << 0, 0, 1, -1, 0, 0, 0, -1, 0;
+  const Rigid3d town_from_cam(r, Vector3d(0, 0, 1.5));
+  const PerspectiveCamera camera(160, 120, 100, 100, 79.5, 59.5);
+  RenderOptions options;
+  options.antialiasing = 4;
+  Renderer renderer(camera, options);
+  SensorOptions sensor;
+  sensor.noise_sigma = 0.0;
+  for (double time : {1.0, 2.0, 3.0}) {  // y = -5, 0, +5: right of the centre, centre, left
+    scene.SetTime(time);
+    const cv::Mat image = renderer.Render(scene, town_from_cam, Lighting(), sensor, 0);
+    const cv::Moments moments = cv::moments(image);
+    ASSERT_GT(moments.m00, 0.0) << "occluder not visible at t=" << time;
+    Vector2d expected;
+    ASSERT_TRUE(camera.Project(town_from_cam.Inverse() * Vector3d(10.0, -10.0 + 5.0 * time, 1.5), &expected));
+    // The centroid of a cube seen slightly from the side is not exactly its centre's projection: 1.5 px.
+    EXPECT_NEAR(moments.m10 / moments.m00, expected.x(), 1.5) << "t=" << time;
+    EXPECT_NEAR(moments.m01 / moments.m00, expected.y(), 1.5) << "t=" << time;
+  }
+  // Back and forth when not looping: at t = 6 s it has reached +10 and returned 10 m to y = 0.
+  EXPECT_NEAR(path.PoseAt(6.0).translation.y(), 0.0, 1e-9);
+  EXPECT_NEAR(path.PoseAt(6.0).rotation(1, 0), -1.0, 1e-9);  // now walking towards -y
+}
+
 Scenario SmallTown() {
   Scenario s;
   s.town.blocks_x = 2;
