@@ -183,7 +183,9 @@ Rigid3d ScriptedPath::PoseAt(double time) const {
 }
 
 Scene::Scene() {
-  device_ = rtcNewDevice(nullptr);
+  // One build thread: the per-frame rebuild of the tiny top-level structure must not wake Embree's worker threads,
+  // which would spin on the cores the renderer's own threads need.
+  device_ = rtcNewDevice("threads=1");
   if (!device_) throw std::runtime_error("cannot create an Embree device");
   scene_ = rtcNewScene(device_);
   rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_DYNAMIC);
