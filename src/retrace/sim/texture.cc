@@ -56,8 +56,14 @@ inline float Fraction(float x) {
 inline const Vector3f& Value(const Vector3f& texel) { return texel; }
 inline float Value(uint8_t texel) { return texel * (1.0f / 255.0f); }
 
+#if defined(__GNUC__)
+#define RETRACE_ALWAYS_INLINE __attribute__((always_inline)) inline
+#else
+#define RETRACE_ALWAYS_INLINE inline
+#endif
+
 template <typename T, typename S>
-T Bilinear(const std::vector<S>& texels, int width, int height, float u, float v) {
+RETRACE_ALWAYS_INLINE T Bilinear(const std::vector<S>& texels, int width, int height, float u, float v) {
   if (!(std::abs(u) < 1e9f) || !(std::abs(v) < 1e9f)) return Value(texels[0]);
   const float x = Fraction(u) * width - 0.5f + 1.0f;  // in [0.5, width + 0.5): truncation = floor
   const float y = Fraction(v) * height - 0.5f + 1.0f;
