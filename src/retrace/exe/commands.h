@@ -11,6 +11,8 @@ namespace retrace {
 void RegisterVersionCommand(CLI::App& app);
 void RegisterSequenceInfoCommand(CLI::App& app);
 void RegisterPerturbCommand(CLI::App& app);
+void RegisterInspectCommand(CLI::App& app);
+void RegisterTeachCommand(CLI::App& app);
 void RegisterCalibrateCommand(CLI::App& app);
 void RegisterCameraInfoCommand(CLI::App& app);
 void RegisterTwoViewCommand(CLI::App& app);

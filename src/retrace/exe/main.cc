@@ -16,6 +16,8 @@ constexpr void (*kCommands[])(CLI::App&) = {
     &retrace::RegisterVersionCommand,
     &retrace::RegisterSequenceInfoCommand,
     &retrace::RegisterPerturbCommand,
+    &retrace::RegisterTeachCommand,
+    &retrace::RegisterInspectCommand,
     &retrace::RegisterCalibrateCommand,
     &retrace::RegisterCameraInfoCommand,
     &retrace::RegisterTwoViewCommand,

@@ -526,20 +526,48 @@ feature_t FeatureTracker::AddFeature(const ReferencePatch& reference, const Alig
 
 const std::vector<TrackedFeature>& FeatureTracker::Track(const ImagePyramid& pyramid) {
   last_results_.clear();
+  std::vector<AlignmentResult> results(features_.size());
+  const auto align = [&](size_t i, const Vector2d& velocity) {
+    const TrackedFeature& feature = features_[i];
+    WarpState initial = feature.warp;
+    const bool predicted = velocity.squaredNorm() > 0.25;
+    if (predicted) initial.position += velocity;
+    results[i] = AlignToReference(pyramid, references_[i], initial, options_.alignment);
+    if (!results[i].ok() && predicted) {
+      // The guess may be wrong after an abrupt change of motion: retry from the last position.
+      AlignmentResult retry = AlignToReference(pyramid, references_[i], feature.warp, options_.alignment);
+      if (retry.ok()) results[i] = retry;
+    }
+  };
+  // Features with a velocity go first (constant-velocity guess). Features without one (new, or with a motion too
+  // small to tell) start from the median displacement of the others in this frame: the image motion of a moving
+  // camera is coherent enough for a first guess, and it matters in turns, where displacements are large.
+  std::vector<double> dx, dy;
+  std::vector<size_t> without_velocity;
+  for (size_t i = 0; i < features_.size(); ++i) {
+    if (!options_.constant_velocity || velocities_[i].squaredNorm() <= 0.25) {
+      without_velocity.push_back(i);
+      continue;
+    }
+    align(i, velocities_[i]);
+    if (results[i].ok()) {
+      dx.push_back(results[i].warp.position.x() - features_[i].warp.position.x());
+      dy.push_back(results[i].warp.position.y() - features_[i].warp.position.y());
+    }
+  }
+  Vector2d common_motion = Vector2d::Zero();
+  if (options_.constant_velocity && dx.size() >= 5) {
+    std::nth_element(dx.begin(), dx.begin() + dx.size() / 2, dx.end());
+    std::nth_element(dy.begin(), dy.begin() + dy.size() / 2, dy.end());
+    common_motion = Vector2d(dx[dx.size() / 2], dy[dy.size() / 2]);
+  }
+  for (size_t i : without_velocity) align(i, common_motion);
+
   size_t kept = 0;
   for (size_t i = 0; i < features_.size(); ++i) {
-    TrackedFeature& feature = features_[i];
-    WarpState initial = feature.warp;
-    const bool predicted = options_.constant_velocity && velocities_[i].squaredNorm() > 0.25;
-    if (predicted) initial.position += velocities_[i];
-    AlignmentResult result = AlignToReference(pyramid, references_[i], initial, options_.alignment);
-    if (!result.ok() && predicted) {
-      // The constant-velocity guess may be wrong after an abrupt change of motion: retry from the last
-      // position.
-      AlignmentResult retry = AlignToReference(pyramid, references_[i], feature.warp, options_.alignment);
-      if (retry.ok()) result = retry;
-    }
-    TrackedFeature updated = feature;
+    const AlignmentResult& result = results[i];
+    TrackedFeature updated = features_[i];
+    const Vector2d previous_position = updated.warp.position;
     updated.warp = result.warp;
     updated.residual = result.residual;
     updated.block_residual = result.block_residual;
@@ -547,7 +575,7 @@ const std::vector<TrackedFeature>& FeatureTracker::Track(const ImagePyramid& pyr
     updated.status = result.status;
     if (result.ok()) {
       updated.num_frames += 1;
-      velocities_[kept] = result.warp.position - feature.warp.position;
+      velocities_[kept] = result.warp.position - previous_position;
       features_[kept] = updated;
       if (kept != i) references_[kept] = std::move(references_[i]);
       ++kept;
@@ -579,7 +607,7 @@ bool FeatureTracker::SetReference(feature_t id, const ImagePyramid& pyramid, con
   feature.warp = WarpState();
   feature.warp.position = position;
   feature.residual = 0.0;
-  velocities_[index].setZero();
+  // The velocity is kept: it belongs to the motion of the camera, not to the reference.
   return true;
 }
 

@@ -269,7 +269,8 @@ class FeatureTracker {
   bool Remove(feature_t id);
   // Redefines the reference of a feature: cut from `pyramid` at `position` (e.g. a key-image after a
   // topological transition). The feature's warp is reset to (position, scale 1, gain 1, bias 0). Returns
-  // false when unknown or when no reference can be cut there (the feature is then left unchanged).
+  // false when unknown or when no reference can be cut there (the feature is then left unchanged). The image
+  // velocity of the feature (for the constant-velocity guess) is kept: it belongs to the motion, not the reference.
   bool SetReference(feature_t id, const ImagePyramid& pyramid, const Vector2d& position);
 
   // Features currently tracked (all with status kTracked).

@@ -239,10 +239,16 @@ void MapDatabase::WriteNode(const MapNode& node) {
       insert_node.BindBlob(7, image.data(), image.size());
     }
     insert_node.Run();
+    WriteObservations(node.id, node.features);
+  });
+}
+
+void MapDatabase::WriteObservations(node_t node, const std::vector<FeatureObservation>& features) {
+  InTransaction([&] {
     SqliteStatement& insert_observation = database_->Prepare(
         "INSERT INTO observations (node_id, feature_id, x, y, patch_size, patch) VALUES (?, ?, ?, ?, ?, ?);");
-    for (const FeatureObservation& f : node.features) {
-      insert_observation.Bind(1, int64_t{node.id})
+    for (const FeatureObservation& f : features) {
+      insert_observation.Bind(1, int64_t{node})
           .Bind(2, int64_t{f.feature_id})
           .Bind(3, f.position.x())
           .Bind(4, f.position.y())

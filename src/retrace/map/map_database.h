@@ -62,6 +62,8 @@ class MapDatabase {
   // Each write runs in its own transaction unless the caller holds one (BeginTransaction()), which is how teach
   // commits a key-image together with the arc that reaches it.
   void WriteNode(const MapNode& node);
+  // Adds observations to a node written before (e.g. features found later by wide-baseline matching).
+  void WriteObservations(node_t node, const std::vector<FeatureObservation>& features);
   void WriteArc(const MapArc& arc);
   void WriteScale(const NodeScale& scale);
   std::unique_ptr<SqliteTransaction> BeginTransaction();

@@ -1,0 +1,110 @@
+// retrace inspect: what is in a map — a summary, the whole graph as JSON, or a report of plots.
+
+#include <filesystem>
+#include <iostream>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "retrace/dataset/ground_truth.h"
+#include "retrace/exe/commands.h"
+#include "retrace/map/map_database.h"
+#include "retrace/teach/map_report.h"
+
+namespace retrace {
+namespace {
+
+struct InspectArguments {
+  std::filesystem::path map_path;
+  bool json = false;
+  std::filesystem::path report_dir;
+  std::filesystem::path ground_truth;
+};
+
+nlohmann::json MapToJson(const Map& map, const std::map<std::string, std::string>& metadata) {
+  nlohmann::json nodes = nlohmann::json::array();
+  for (const MapNode& node : map.nodes()) {
+    nodes.push_back({{"id", node.id},
+                     {"image", node.image_name},
+                     {"source_frame", node.source_frame},
+                     {"timestamp", node.timestamp},
+                     {"features", node.features.size()}});
+  }
+  nlohmann::json arcs = nlohmann::json::array();
+  for (const MapArc& arc : map.arcs()) {
+    const Matrix3d& r = arc.to_from_from.rotation;
+    const Vector3d& t = arc.to_from_from.translation;
+    arcs.push_back({{"id", arc.id},
+                    {"from", arc.from},
+                    {"to", arc.to},
+                    {"kind", arc.kind},
+                    {"sigma_p", arc.sigma_p},
+                    {"features", arc.num_features()},
+                    {"R", {r(0, 0), r(0, 1), r(0, 2), r(1, 0), r(1, 1), r(1, 2), r(2, 0), r(2, 1), r(2, 2)}},
+                    {"t", {t.x(), t.y(), t.z()}}});
+  }
+  nlohmann::json scales = nlohmann::json::array();
+  for (const NodeScale& s : map.scales()) {
+    scales.push_back({{"node", s.node}, {"arc_in", s.arc_in}, {"arc_out", s.arc_out}, {"scale", s.scale}});
+  }
+  return {{"nodes", nodes}, {"arcs", arcs}, {"scales", scales}, {"metadata", metadata}};
+}
+
+void RunInspect(const InspectArguments& args) {
+  auto database = MapDatabase::Open(args.map_path);
+  const bool need_images = !args.report_dir.empty();
+  const Map map = database->ReadMap(need_images);
+  const auto metadata = database->AllMetadata();
+  if (args.json) {
+    std::cout << MapToJson(map, metadata).dump() << "\n";
+  } else {
+    const MapStatistics stats = ComputeMapStatistics(map);
+    const auto file_bytes = std::filesystem::file_size(args.map_path);
+    std::cout << fmt::format("map {}\n", args.map_path.string());
+    std::cout << fmt::format("  key-images      {}\n  arcs            {}\n  features        {}\n", stats.num_nodes,
+                             stats.num_arcs, stats.num_features);
+    std::cout << fmt::format("  features / arc  median {:.0f}, min {:.0f}\n", stats.median_arc_features,
+                             stats.min_arc_features);
+    std::cout << fmt::format("  sigma_p         median {:.2f} px, max {:.2f} px\n", stats.median_sigma_p,
+                             stats.max_sigma_p);
+    std::cout << fmt::format("  spacing         median {:.0f} frames between key-images\n",
+                             stats.median_frames_between_key_images);
+    std::cout << fmt::format("  size            {:.1f} kB ({:.1f} kB of key-images)\n", file_bytes / 1000.0,
+                             database->ImageBytes() / 1000.0);
+    if (const auto it = metadata.find("route_length_m"); it != metadata.end()) {
+      const double metres = std::stod(it->second);
+      if (metres > 0) {
+        std::cout << fmt::format("  route           {:.1f} m, {:.1f} kB/m\n", metres, file_bytes / 1000.0 / metres);
+      }
+    }
+    for (const auto& [key, value] : metadata) {
+      if (key != "route_length_m") std::cout << fmt::format("  {:<15} {}\n", key, value);
+    }
+  }
+  if (!args.report_dir.empty()) {
+    MapReportOptions options;
+    if (!args.ground_truth.empty()) options.ground_truth = ReadKittiPoses(args.ground_truth);
+    if (const auto it = metadata.find("r_p"); it != metadata.end()) options.sigma_p_threshold = std::stod(it->second);
+    if (const auto it = metadata.find("min_features"); it != metadata.end()) {
+      options.min_features = std::stod(it->second);
+    }
+    for (const auto& path : WriteMapReport(map, args.report_dir, options)) {
+      std::cerr << "wrote " << path.string() << "\n";
+    }
+  }
+}
+
+}  // namespace
+
+void RegisterInspectCommand(CLI::App& app) {
+  auto args = std::make_shared<InspectArguments>();
+  CLI::App* cmd = app.add_subcommand("inspect", "Summarize a map; --json prints the graph, --report DIR draws plots");
+  cmd->add_option("--map", args->map_path, "Map file written by retrace teach")->required();
+  cmd->add_flag("--json", args->json, "Print nodes and arcs as one JSON object");
+  cmd->add_option("--report", args->report_dir, "Write plots (features and sigma_p per arc, spacing, key-images, poses)");
+  cmd->add_option("--ground-truth", args->ground_truth,
+                  "KITTI poses.txt of the teach sequence: aligns the pose plot to ground truth");
+  cmd->callback([args]() { RunInspect(*args); });
+}
+
+}  // namespace retrace

@@ -1,0 +1,174 @@
+// retrace teach: build a map from one drive.
+
+#include <chrono>
+#include <filesystem>
+#include <iostream>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "retrace/camera/camera_io.h"
+#include "retrace/dataset/ground_truth.h"
+#include "retrace/dataset/sequence.h"
+#include "retrace/exe/commands.h"
+#include "retrace/image/image_utils.h"
+#include "retrace/map/map_database.h"
+#include "retrace/teach/map_report.h"
+#include "retrace/teach/teacher.h"
+#include "retrace/util/error.h"
+#include "retrace/util/progress.h"
+#include "retrace/util/version.h"
+
+namespace retrace {
+namespace {
+
+struct TeachArguments {
+  std::filesystem::path sequence;
+  std::filesystem::path camera;
+  std::filesystem::path map;
+  int width = 0;
+  size_t every = 1;
+  size_t offset = 0;
+  bool overwrite = false;
+  bool no_progress = false;
+  TeachOptions options;
+  MapDatabaseOptions storage;
+};
+
+// The camera of the sequence: --camera, else the calibration file found in the sequence's layout.
+std::unique_ptr<CameraModel> LoadCamera(const TeachArguments& args, Sequence& sequence) {
+  std::filesystem::path path = args.camera;
+  if (path.empty()) {
+    const auto found = sequence.calibration_file();
+    if (!found) throw InputError(args.sequence.string(), "no calibration file in the sequence; give --camera FILE");
+    path = *found;
+  }
+  return ReadCameraFile(path, sequence.image_size());
+}
+
+void RunTeach(const TeachArguments& args) {
+  std::unique_ptr<Sequence> sequence = OpenSequence(args.sequence);
+  std::unique_ptr<CameraModel> camera = LoadCamera(args, *sequence);
+  if (args.every > 1 || args.offset > 0) {
+    sequence = std::make_unique<SubsampledSequence>(std::move(sequence), std::max<size_t>(1, args.every), args.offset);
+  }
+  double factor = 1.0;
+  if (args.width > 0 && args.width != camera->width()) {
+    factor = static_cast<double>(args.width) / camera->width();
+    camera = camera->Scaled(factor);
+  }
+
+  auto database = MapDatabase::Create(args.map, args.storage, args.overwrite);
+  database->SetMetadata("source_sequence", std::filesystem::absolute(args.sequence).string());
+  database->SetMetadata("method", "tracking");
+  database->SetMetadata("frames_every", std::to_string(args.every));
+  database->SetMetadata("frames_offset", std::to_string(args.offset));
+  database->SetMetadata("width", std::to_string(camera->width()));
+  database->WriteCamera(camera->model_name(), camera->width(), camera->height(), CameraToYaml(*camera));
+
+  Teacher teacher(*camera, args.options, database.get());
+  database->SetMetadata("r_p", fmt::format("{:.3f}", teacher.sigma_p_threshold_px()));
+  database->SetMetadata("min_features", std::to_string(args.options.min_features));
+  database->SetMetadata("max_residual", fmt::format("{:.2f}", args.options.max_residual));
+
+  const auto start = std::chrono::steady_clock::now();
+  double seconds_reading = 0.0;
+  {
+    ProgressBar progress("teach", sequence->size(), !args.no_progress);
+    while (true) {
+      const auto read_start = std::chrono::steady_clock::now();
+      std::optional<Frame> frame = sequence->Next();
+      if (!frame) break;
+      if (factor != 1.0) {
+        cv::Mat resized;
+        ResizeToWidth(frame->image, camera->width(), &resized);
+        frame->image = resized;
+      }
+      seconds_reading += std::chrono::duration<double>(std::chrono::steady_clock::now() - read_start).count();
+      teacher.AddFrame(*frame);
+      progress.Advance(1, fmt::format("{} key-images", teacher.statistics().key_images));
+    }
+    teacher.Finish();
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  const TeachStatistics& stats = teacher.statistics();
+  const Map& map = teacher.map();
+  double route_metres = 0.0;
+  if (const auto truth_file = OpenSequence(args.sequence)->ground_truth_file();
+      truth_file && truth_file->filename() == "poses.txt") {
+    route_metres = RouteLengthMetres(map, ReadKittiPoses(*truth_file));
+    database->SetMetadata("route_length_m", fmt::format("{:.2f}", route_metres));
+  }
+  database->Checkpoint();
+  const MapStatistics map_stats = ComputeMapStatistics(map);
+  database.reset();  // folds the write-ahead log into the map file
+  const double map_kb = std::filesystem::file_size(args.map) / 1000.0;
+
+  std::cout << fmt::format("map {}: {} key-images, {} arcs{} from {} frames\n", args.map.string(),
+                           map_stats.num_nodes, map_stats.num_arcs, stats.loop_closed ? " (loop closed)" : "",
+                           stats.frames);
+  std::string reasons;
+  for (int r = 0; r < 6; ++r) {
+    if (stats.key_images_by_reason[r] == 0) continue;
+    reasons += fmt::format("{}{} {}", reasons.empty() ? "" : ", ", stats.key_images_by_reason[r],
+                           KeyImageReasonName(static_cast<KeyImageReason>(r)));
+  }
+  std::cout << "  key-images by reason: " << reasons << "\n";
+  if (stats.gaps_recovered + stats.gaps_unrecovered > 0) {
+    std::cout << fmt::format("  gaps: {} recovered by matching, {} not recovered\n", stats.gaps_recovered,
+                             stats.gaps_unrecovered);
+  }
+  std::cout << fmt::format("  features per arc: median {:.0f}, min {:.0f}; sigma_p: median {:.2f}, max {:.2f} px "
+                           "(r_p = {:.2f} px)\n",
+                           map_stats.median_arc_features, map_stats.min_arc_features, map_stats.median_sigma_p,
+                           map_stats.max_sigma_p, teacher.sigma_p_threshold_px());
+  std::cout << fmt::format("  map size {:.1f} kB", map_kb);
+  if (route_metres > 0) std::cout << fmt::format(" for {:.1f} m of route: {:.1f} kB/m", route_metres, map_kb / route_metres);
+  std::cout << "\n";
+  std::cout << fmt::format(
+      "  time {:.2f} s ({:.1f} frames/s): reading {:.2f}, pyramid {:.2f}, tracking {:.2f}, geometry {:.2f}, "
+      "detection {:.2f}, matching {:.2f}, storage {:.2f} s\n",
+      seconds, stats.frames / std::max(seconds, 1e-9), seconds_reading, stats.seconds_pyramid, stats.seconds_tracking,
+      stats.seconds_geometry, stats.seconds_detection, stats.seconds_matching, stats.seconds_storage);
+}
+
+}  // namespace
+
+void RegisterTeachCommand(CLI::App& app) {
+  auto args = std::make_shared<TeachArguments>();
+  CLI::App* cmd = app.add_subcommand("teach", "Build a map (key-images linked by two-view geometries) from one drive");
+  cmd->add_option("--sequence", args->sequence, "Image folder, video, KITTI or EuRoC layout")->required();
+  cmd->add_option("--camera", args->camera, "Calibration file (default: the one found in the sequence)");
+  cmd->add_option("--map", args->map, "Map file to write (SQLite)")->required();
+  cmd->add_option("--method", "Mapping method; only 'tracking' (Segvic 2009 §5.1) is available")
+      ->check(CLI::IsMember({"tracking"}));
+  cmd->add_option("--width", args->width, "Work on images resized to this width (default: native)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--every", args->every, "Use every k-th frame (e.g. 2 = even frames)")->check(CLI::PositiveNumber);
+  cmd->add_option("--offset", args->offset, "First frame used with --every (1 = odd frames)");
+  cmd->add_flag("--overwrite", args->overwrite, "Replace an existing map file");
+  cmd->add_flag("--no-progress", args->no_progress, "Do not show the progress bar");
+  cmd->add_option("--r-p", args->options.max_sigma_p_px, "r_p: sigma_p threshold for a new key-image, px at 320 px width")
+      ->capture_default_str();
+  cmd->add_option("--min-features", args->options.min_features, "n: fewest features an arc may keep")
+      ->capture_default_str();
+  cmd->add_option("--max-residual", args->options.max_residual, "R: largest tracking residual, grey levels")
+      ->capture_default_str();
+  cmd->add_option("--max-corners", args->options.max_corners, "Corners tracked per subrange")->capture_default_str();
+  cmd->add_option("--image-format", args->storage.image_format, "Key-image codec in the map: .jpg, .png or .webp")
+      ->capture_default_str();
+  cmd->add_option("--image-quality", args->storage.image_quality, "Quality of lossy key-image codecs (1-100)")
+      ->capture_default_str();
+  cmd->add_flag("--no-loop-closing", [args](int64_t) { args->options.close_loop = false; },
+                "Do not try to close the loop between the first and last key-image");
+  cmd->add_flag("--no-gap-recovery", [args](int64_t) { args->options.recover_gaps = false; },
+                "Do not relate frames across tracking failures by matching");
+  cmd->callback([args]() {
+    std::string error;
+    if (!args->options.Check(&error)) throw InputError("teach options", error);
+    RunTeach(*args);
+  });
+}
+
+}  // namespace retrace

@@ -1,0 +1,458 @@
+#include "retrace/teach/teacher.h"
+
+#include <chrono>
+#include <cmath>
+#include <optional>
+
+#include <opencv2/imgproc.hpp>
+#include <spdlog/spdlog.h>
+
+#include "retrace/geometry/relative_pose.h"
+#include "retrace/geometry/scale.h"
+#include "retrace/util/error.h"
+
+namespace retrace {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// Adds the wall time of its scope to a counter.
+class ScopedTimer {
+ public:
+  explicit ScopedTimer(double* seconds) : seconds_(seconds), start_(Clock::now()) {}
+  ~ScopedTimer() { *seconds_ += std::chrono::duration<double>(Clock::now() - start_).count(); }
+
+ private:
+  double* seconds_;
+  Clock::time_point start_;
+};
+
+// Side of the reference patches stored with the observations (the tracker's window).
+constexpr int kPatchSize = 15;
+
+cv::Mat CutPatch(const cv::Mat& image, const Vector2d& position) {
+  cv::Mat patch;
+  cv::getRectSubPix(image, cv::Size(kPatchSize, kPatchSize),
+                    cv::Point2f(static_cast<float>(position.x()), static_cast<float>(position.y())), patch);
+  return patch;
+}
+
+}  // namespace
+
+const char* KeyImageReasonName(KeyImageReason reason) {
+  switch (reason) {
+    case KeyImageReason::kStart:
+      return "start";
+    case KeyImageReason::kSigmaP:
+      return "sigma_p";
+    case KeyImageReason::kFeatures:
+      return "features";
+    case KeyImageReason::kGap:
+      return "gap";
+    case KeyImageReason::kEnd:
+      return "end";
+    case KeyImageReason::kDisconnected:
+      return "disconnected";
+  }
+  return "?";
+}
+
+bool TeachOptions::Check(std::string* error) const {
+  const auto fail = [&](const std::string& message) {
+    if (error != nullptr) *error = message;
+    return false;
+  };
+  if (reference_width <= 0) return fail("reference_width must be positive");
+  if (!(max_sigma_p_px > 0)) return fail("max_sigma_p_px (r_p) must be positive");
+  if (min_features < 8) return fail("min_features (n) must be at least 8");
+  if (!(max_residual > 0)) return fail("max_residual (R) must be positive");
+  if (max_corners < min_features) return fail("max_corners must be at least min_features");
+  if (!(inlier_threshold_px > 0)) return fail("inlier_threshold_px must be positive");
+  if (!(gap_survival_fraction >= 0 && gap_survival_fraction < 1)) return fail("gap_survival_fraction must be in [0, 1)");
+  if (!tracker.Check()) return fail("invalid tracker options");
+  if (!geometry.Check()) return fail("invalid geometry options");
+  std::string matching_error;
+  if (!matching.Check(&matching_error)) return fail("matching: " + matching_error);
+  return true;
+}
+
+struct Teacher::FrameState {
+  Frame frame;
+  ImagePyramid pyramid;
+  std::vector<TrackedFeature> features;  // tracker state after this frame
+  TwoViewGeometry geometry;              // W(K, this frame)
+  std::vector<feature_t> geometry_ids;   // feature of each correspondence of `geometry`
+  int survivors = 0;                     // features of the key-image still tracked here
+};
+
+struct Teacher::Subrange {
+  node_t node = kInvalidNodeId;
+  size_t frame_index = 0;  // Frame::index of the key-image
+  cv::Mat image;
+  ImagePyramid pyramid;
+  std::unordered_map<feature_t, Vector3d> bearings;  // every feature tracked from the key-image on
+  std::optional<WideBaselineFeatures> wide_baseline;  // computed on demand
+};
+
+Teacher::Teacher(const CameraModel& camera, const TeachOptions& options, MapDatabase* database)
+    : camera_(camera.Clone()), options_(options), database_(database) {
+  std::string error;
+  if (!options_.Check(&error)) throw std::invalid_argument("TeachOptions: " + error);
+  const double pixel_scale = static_cast<double>(camera.width()) / options_.reference_width;
+  max_sigma_p_px_ = options_.max_sigma_p_px * pixel_scale;
+  geometry_options_ = options_.geometry;
+  geometry_options_.ransac.max_error_px = options_.inlier_threshold_px * pixel_scale;
+  geometry_options_.min_inliers = std::max(geometry_options_.min_inliers, 8);
+  detector_options_ = options_.detector;
+  detector_options_.min_distance = options_.corner_min_distance_px * pixel_scale;
+  detector_options_.border = std::max(detector_options_.border, options_.tracker.alignment.window_size / 2 + 2);
+  pyramid_options_.smoothing_sigma = options_.smoothing_sigma_px * pixel_scale;
+  // One more pyramid level per doubling of the resolution, so the coarsest level sees the same motion.
+  pyramid_options_.num_levels = 3 + std::max(0, static_cast<int>(std::floor(std::log2(pixel_scale) + 0.25)));
+  FeatureTrackerOptions tracker_options = options_.tracker;
+  tracker_options.alignment.max_residual = options_.max_residual;
+  tracker_options.num_levels = pyramid_options_.num_levels;
+  tracker_ = FeatureTracker(tracker_options);
+}
+
+Teacher::~Teacher() = default;
+
+void Teacher::AddFrame(const Frame& frame) {
+  if (finished_) throw std::logic_error("Teacher::AddFrame after Finish");
+  if (frame.image.cols != camera_->width() || frame.image.rows != camera_->height() ||
+      frame.image.type() != CV_8UC1) {
+    throw InputError(frame.name, "image is " + std::to_string(frame.image.cols) + "x" +
+                                     std::to_string(frame.image.rows) + " but the camera is " +
+                                     std::to_string(camera_->width()) + "x" + std::to_string(camera_->height()));
+  }
+  ++statistics_.frames;
+  auto current = std::make_unique<FrameState>();
+  current->frame = frame;
+  {
+    ScopedTimer timer(&statistics_.seconds_pyramid);
+    current->pyramid.Build(frame.image, pyramid_options_);
+  }
+  if (!subrange_) {
+    RegisterKeyImage(current.get(), KeyImageReason::kStart, /*with_arc=*/false);
+    previous_ = std::move(current);
+    return;
+  }
+
+  const auto track = [&](FrameState* state) {
+    ScopedTimer timer(&statistics_.seconds_tracking);
+    tracker_.Track(state->pyramid);
+    state->features = tracker_.Features();
+  };
+  track(current.get());
+  EstimateGeometryToKey(current.get());
+  if (GeometryAcceptable(*current)) {
+    previous_ = std::move(current);
+    return;
+  }
+
+  // W(K, f) is no longer good enough: the previous frame, whose geometry still was, becomes the next key-image
+  // (Segvic 2009 §5.1), and the current frame is tracked again from there.
+  const bool previous_is_key = previous_->frame.index == subrange_->frame_index;
+  if (!previous_is_key && previous_->geometry.success) {
+    const KeyImageReason reason =
+        current->survivors < options_.min_features ? KeyImageReason::kFeatures : KeyImageReason::kSigmaP;
+    RegisterKeyImage(previous_.get(), reason, /*with_arc=*/true);
+    track(current.get());
+    EstimateGeometryToKey(current.get());
+    if (GeometryAcceptable(*current)) {
+      previous_ = std::move(current);
+      return;
+    }
+  }
+
+  // Tracking failed right after a key-image: a frame gap or a full occlusion (design §5, gap recovery).
+  spdlog::debug("teach: tracking failed at frame {} ({} of the key-image's features survive)", frame.name,
+                current->survivors);
+  if (options_.recover_gaps && RecoverGap(current.get())) {
+    ++statistics_.gaps_recovered;
+  } else {
+    ++statistics_.gaps_unrecovered;
+    spdlog::warn("teach: cannot relate frame {} to the last key-image; the map is disconnected there", frame.name);
+    current->features.clear();
+    for (const TrackedFeature& f : std::vector<TrackedFeature>(tracker_.Features())) tracker_.Remove(f.id);
+    RegisterKeyImage(current.get(), KeyImageReason::kDisconnected, /*with_arc=*/false);
+  }
+  previous_ = std::move(current);
+}
+
+void Teacher::EstimateGeometryToKey(FrameState* frame) {
+  ScopedTimer timer(&statistics_.seconds_geometry);
+  std::vector<Vector3d> bearings_key, bearings_frame;
+  frame->geometry_ids.clear();
+  for (const TrackedFeature& f : frame->features) {
+    const auto it = subrange_->bearings.find(f.id);
+    Vector3d bearing;
+    if (it == subrange_->bearings.end() || !camera_->Unproject(f.warp.position, &bearing)) continue;
+    bearings_key.push_back(it->second);
+    bearings_frame.push_back(bearing);
+    frame->geometry_ids.push_back(f.id);
+  }
+  frame->survivors = static_cast<int>(frame->geometry_ids.size());
+  frame->geometry = EstimateRelativePose(bearings_key, bearings_frame, camera_->FocalLength(), geometry_options_);
+}
+
+bool Teacher::GeometryAcceptable(const FrameState& frame) const {
+  if (frame.survivors < options_.min_features) return false;
+  if (frame.geometry.success) return frame.geometry.sigma_p <= max_sigma_p_px_;
+  // Too little parallax yet (the vehicle stands or turns on the spot): no key-image is needed.
+  return frame.geometry.failure == TwoViewFailure::kInsufficientParallax;
+}
+
+std::vector<FeatureObservation> Teacher::ObservationsOf(const FrameState& frame) const {
+  std::vector<FeatureObservation> observations;
+  observations.reserve(frame.features.size());
+  for (const TrackedFeature& f : frame.features) {
+    observations.push_back({f.id, f.warp.position, CutPatch(frame.frame.image, f.warp.position)});
+  }
+  return observations;
+}
+
+void Teacher::StartSubrange(FrameState* frame, std::vector<FeatureObservation>* observations) {
+  // Continuing tracks take their reference from the new key-image (the tracker may be one frame further already).
+  std::unordered_map<feature_t, Vector2d> position_at_key;
+  for (const TrackedFeature& f : frame->features) position_at_key[f.id] = f.warp.position;
+  std::vector<Vector2d> existing;
+  for (const TrackedFeature& f : std::vector<TrackedFeature>(tracker_.Features())) {
+    const auto it = position_at_key.find(f.id);
+    if (it == position_at_key.end() || !tracker_.SetReference(f.id, frame->pyramid, it->second)) {
+      tracker_.Remove(f.id);
+      continue;
+    }
+    existing.push_back(it->second);
+  }
+  *observations = ObservationsOf(*frame);
+
+  // New corners fill the subrange up to max_corners ("all Harris corners of the first frame", Segvic 2009 §5.1).
+  {
+    ScopedTimer timer(&statistics_.seconds_detection);
+    CornerDetectorOptions detector = detector_options_;
+    detector.max_corners = options_.max_corners - static_cast<int>(existing.size());
+    if (detector.max_corners > 0) {
+      for (const Corner& corner : DetectCorners(frame->pyramid, detector, cv::Mat(), existing)) {
+        const feature_t id = tracker_.AddFeature(frame->pyramid, corner.position, next_feature_id_);
+        if (id == kInvalidFeatureId) continue;
+        ++next_feature_id_;
+        observations->push_back({id, corner.position, CutPatch(frame->frame.image, corner.position)});
+      }
+    }
+  }
+
+  subrange_ = std::make_unique<Subrange>();
+  subrange_->frame_index = frame->frame.index;
+  subrange_->image = frame->frame.image;
+  subrange_->pyramid = frame->pyramid;
+  for (const TrackedFeature& f : tracker_.Features()) {
+    Vector3d bearing;
+    if (camera_->Unproject(f.warp.position, &bearing)) subrange_->bearings[f.id] = bearing;
+  }
+}
+
+void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool with_arc) {
+  MapNode node;
+  node.id = static_cast<node_t>(map_.nodes().size());
+  node.source_frame = static_cast<int64_t>(frame->frame.source_index);
+  node.image_name = frame->frame.name;
+  node.timestamp = frame->frame.timestamp;
+  node.image = frame->frame.image;
+
+  std::optional<MapArc> arc;
+  std::optional<NodeScale> scale;
+  std::unordered_map<feature_t, double> depth_at_to;
+  if (with_arc) {
+    const TwoViewGeometry& w = frame->geometry;
+    arc.emplace();
+    arc->id = static_cast<arc_t>(map_.arcs().size());
+    arc->from = subrange_->node;
+    arc->to = node.id;
+    arc->to_from_from = w.b_from_a;
+    arc->sigma_p = w.sigma_p;
+    arc->kind = reason == KeyImageReason::kGap ? "gap" : "tracking";
+    std::vector<double> depth_in_previous_arc, depth_in_this_arc;
+    for (size_t i = 0; i < frame->geometry_ids.size(); ++i) {
+      if (!w.inlier_mask[i] || frame->geometry_ids[i] == kInvalidFeatureId) continue;
+      const feature_t id = frame->geometry_ids[i];
+      arc->points.push_back({id, w.points_in_a[i]});
+      depth_at_to[id] = w.depths_b[i];
+      if (const auto it = last_arc_depth_at_to_.find(id); it != last_arc_depth_at_to_.end()) {
+        depth_in_previous_arc.push_back(it->second);
+        depth_in_this_arc.push_back(w.depths_a[i]);
+      }
+    }
+    // Design §3.3: the two geometries meeting at the key-image differ by one scalar, the median of depth ratios.
+    if (last_arc_ != kInvalidArcId && map_.FindArc(last_arc_)->to == subrange_->node) {
+      const ScaleEstimate estimate = EstimateScaleFromDistances(depth_in_previous_arc, depth_in_this_arc, 5);
+      if (estimate.success) scale = NodeScale{subrange_->node, last_arc_, arc->id, estimate.scale};
+    }
+  }
+
+  StartSubrange(frame, &node.features);
+  subrange_->node = node.id;
+  Commit(&node, arc ? &*arc : nullptr, scale ? &*scale : nullptr, pending_observations_);
+  pending_observations_.clear();
+
+  map_.AddNode(std::move(node));
+  if (arc) {
+    last_arc_ = map_.AddArc(std::move(*arc));
+    last_arc_depth_at_to_ = std::move(depth_at_to);
+  } else {
+    last_arc_ = kInvalidArcId;
+    last_arc_depth_at_to_.clear();
+  }
+  if (scale) map_.AddScale(*scale);
+  ++statistics_.key_images;
+  ++statistics_.key_images_by_reason[static_cast<int>(reason)];
+  spdlog::debug("teach: key-image {} at frame {} ({}), {} features", map_.nodes().back().id, frame->frame.name,
+                KeyImageReasonName(reason), map_.nodes().back().features.size());
+}
+
+void Teacher::Commit(const MapNode* node, const MapArc* arc, const NodeScale* scale,
+                     const std::vector<std::pair<node_t, std::vector<FeatureObservation>>>& extra_observations) {
+  for (const auto& [node_id, observations] : extra_observations) {
+    MapNode* existing = map_.MutableNode(node_id);
+    existing->features.insert(existing->features.end(), observations.begin(), observations.end());
+  }
+  if (database_ == nullptr) return;
+  ScopedTimer timer(&statistics_.seconds_storage);
+  auto transaction = database_->BeginTransaction();
+  if (node != nullptr) database_->WriteNode(*node);
+  for (const auto& [node_id, observations] : extra_observations) database_->WriteObservations(node_id, observations);
+  if (arc != nullptr) database_->WriteArc(*arc);
+  if (scale != nullptr) database_->WriteScale(*scale);
+  transaction->Commit();
+}
+
+bool Teacher::RecoverGap(FrameState* frame) {
+  ScopedTimer timer(&statistics_.seconds_matching);
+  if (!subrange_->wide_baseline) {
+    subrange_->wide_baseline = ExtractWideBaselineFeatures(subrange_->image, options_.matching);
+  }
+  const WideBaselineFeatures current = ExtractWideBaselineFeatures(frame->frame.image, options_.matching);
+  const std::vector<cv::DMatch> matches = MatchWideBaseline(*subrange_->wide_baseline, current, options_.matching);
+  if (static_cast<int>(matches.size()) < options_.min_features) return false;
+
+  std::vector<Vector3d> bearings_key, bearings_frame;
+  std::vector<cv::DMatch> used;
+  for (const cv::DMatch& m : matches) {
+    const cv::Point2f& pk = subrange_->wide_baseline->keypoints[m.queryIdx].pt;
+    const cv::Point2f& pf = current.keypoints[m.trainIdx].pt;
+    Vector3d bk, bf;
+    if (!camera_->Unproject(Vector2d(pk.x, pk.y), &bk) || !camera_->Unproject(Vector2d(pf.x, pf.y), &bf)) continue;
+    bearings_key.push_back(bk);
+    bearings_frame.push_back(bf);
+    used.push_back(m);
+  }
+  TwoViewGeometry geometry =
+      EstimateRelativePose(bearings_key, bearings_frame, camera_->FocalLength(), geometry_options_);
+  if (!geometry.success || geometry.sigma_p > max_sigma_p_px_ || geometry.num_inliers < options_.min_features) {
+    return false;
+  }
+
+  // Matched features become map features only when the tracker can follow them: tracked immediately from the
+  // key-image to the matched location (Segvic 2009 §4.1); the others serve the geometry only.
+  for (const TrackedFeature& f : std::vector<TrackedFeature>(tracker_.Features())) tracker_.Remove(f.id);
+  frame->features.clear();
+  frame->geometry_ids.assign(used.size(), kInvalidFeatureId);
+  std::vector<FeatureObservation> key_observations;
+  AlignmentOptions alignment = options_.tracker.alignment;
+  alignment.max_residual = options_.max_residual;
+  for (size_t i = 0; i < used.size(); ++i) {
+    if (!geometry.inlier_mask[i]) continue;
+    const cv::KeyPoint& kk = subrange_->wide_baseline->keypoints[used[i].queryIdx];
+    const cv::KeyPoint& kf = current.keypoints[used[i].trainIdx];
+    const Vector2d position_key(kk.pt.x, kk.pt.y);
+    const Vector2d position_frame(kf.pt.x, kf.pt.y);
+    ReferencePatch reference;
+    if (!reference.Create(subrange_->pyramid, position_key, alignment.window_size, options_.tracker.num_levels)) {
+      continue;
+    }
+    WarpState initial;
+    initial.position = position_frame;
+    initial.scale = kk.size > 0 ? kf.size / kk.size : 1.0;
+    const AlignmentResult aligned = AlignToReference(frame->pyramid, reference, initial, alignment);
+    if (!aligned.ok() || (aligned.warp.position - position_frame).norm() > 3.0) continue;
+    const feature_t id = tracker_.AddFeature(frame->pyramid, aligned.warp.position, next_feature_id_);
+    if (id == kInvalidFeatureId) continue;
+    ++next_feature_id_;
+    frame->geometry_ids[i] = id;
+    TrackedFeature tracked;
+    tracked.id = id;
+    tracked.warp = aligned.warp;
+    frame->features.push_back(tracked);
+    key_observations.push_back({id, position_key, CutPatch(subrange_->image, position_key)});
+  }
+  if (static_cast<int>(key_observations.size()) < 8) return false;
+  frame->geometry = std::move(geometry);
+  pending_observations_.emplace_back(subrange_->node, std::move(key_observations));
+  RegisterKeyImage(frame, KeyImageReason::kGap, /*with_arc=*/true);
+  return true;
+}
+
+void Teacher::Finish() {
+  if (finished_) return;
+  finished_ = true;
+  if (previous_ && subrange_ && previous_->frame.index != subrange_->frame_index && previous_->geometry.success) {
+    RegisterKeyImage(previous_.get(), KeyImageReason::kEnd, /*with_arc=*/true);
+  }
+  if (options_.close_loop && map_.nodes().size() >= 3) CloseLoop();
+  if (database_ != nullptr) database_->Checkpoint();
+}
+
+void Teacher::CloseLoop() {
+  ScopedTimer timer(&statistics_.seconds_matching);
+  const MapNode& first = map_.nodes().front();
+  const MapNode& last = map_.nodes().back();
+  const WideBaselineFeatures features_last = ExtractWideBaselineFeatures(last.image, options_.matching);
+  const WideBaselineFeatures features_first = ExtractWideBaselineFeatures(first.image, options_.matching);
+  const std::vector<cv::DMatch> matches = MatchWideBaseline(features_last, features_first, options_.matching);
+  if (static_cast<int>(matches.size()) < options_.min_features) {
+    spdlog::info("teach: loop not closed ({} matches between the first and last key-image)", matches.size());
+    return;
+  }
+  std::vector<Vector3d> bearings_last, bearings_first;
+  std::vector<cv::DMatch> used;
+  for (const cv::DMatch& m : matches) {
+    const cv::Point2f& pl = features_last.keypoints[m.queryIdx].pt;
+    const cv::Point2f& pf = features_first.keypoints[m.trainIdx].pt;
+    Vector3d bl, bf;
+    if (!camera_->Unproject(Vector2d(pl.x, pl.y), &bl) || !camera_->Unproject(Vector2d(pf.x, pf.y), &bf)) continue;
+    bearings_last.push_back(bl);
+    bearings_first.push_back(bf);
+    used.push_back(m);
+  }
+  const TwoViewGeometry geometry =
+      EstimateRelativePose(bearings_last, bearings_first, camera_->FocalLength(), geometry_options_);
+  if (!geometry.success || geometry.sigma_p > max_sigma_p_px_ || geometry.num_inliers < options_.min_features) {
+    spdlog::info("teach: loop not closed (first and last key-image do not share a reliable geometry)");
+    return;
+  }
+  MapArc arc;
+  arc.id = static_cast<arc_t>(map_.arcs().size());
+  arc.from = last.id;
+  arc.to = first.id;
+  arc.to_from_from = geometry.b_from_a;
+  arc.sigma_p = geometry.sigma_p;
+  arc.kind = "loop";
+  std::vector<FeatureObservation> last_observations, first_observations;
+  for (size_t i = 0; i < used.size(); ++i) {
+    if (!geometry.inlier_mask[i]) continue;
+    const cv::Point2f& pl = features_last.keypoints[used[i].queryIdx].pt;
+    const cv::Point2f& pf = features_first.keypoints[used[i].trainIdx].pt;
+    const feature_t id = next_feature_id_++;
+    arc.points.push_back({id, geometry.points_in_a[i]});
+    last_observations.push_back({id, Vector2d(pl.x, pl.y), CutPatch(last.image, Vector2d(pl.x, pl.y))});
+    first_observations.push_back({id, Vector2d(pf.x, pf.y), CutPatch(first.image, Vector2d(pf.x, pf.y))});
+  }
+  const node_t last_id = last.id, first_id = first.id;
+  Commit(nullptr, &arc, nullptr, {{last_id, std::move(last_observations)}, {first_id, std::move(first_observations)}});
+  map_.AddArc(std::move(arc));
+  statistics_.loop_closed = true;
+  spdlog::info("teach: loop closed between key-images {} and {} ({} inliers, sigma_p {:.2f} px)", last_id, first_id,
+               geometry.num_inliers, geometry.sigma_p);
+}
+
+}  // namespace retrace

@@ -1,0 +1,154 @@
+#pragma once
+
+// Teach: building the hybrid topological-geometric map from one drive (Segvic 2009 §5.1, design §5).
+//
+// Mapping by tracking. A subrange starts at a key-image K with every corner of K handed to the reference-aligned
+// tracker. After each frame f the two-view geometry W(K, f) is estimated from the features tracked since K. When its
+// σ_p exceeds r_p, or fewer than n features survive, the previous frame becomes the next key-image: the arc (K, f-1)
+// keeps W(K, f-1) (R, unit t, the 3D points of its inliers, σ_p) and a new subrange starts at f-1. Key-images are
+// therefore dense where the scene is hard and sparse on easy straight roads.
+//
+// Gap recovery. When tracking fails at once (a frame gap, a full occlusion) right after a key-image, the key-image
+// and the current image are related by wide-baseline matching instead, so the graph stays connected.
+//
+// Loop closing. After the last frame, the first and last key-images are matched; on success an arc joins them and
+// the graph becomes circular.
+//
+// The relative scale between consecutive arcs is stored at their common node (median of depth ratios of the
+// features reconstructed in both, design §3.3).
+//
+// Frames are processed one at a time as they arrive (AddFrame), so the same code can run on a live camera; every
+// key-image is committed to the map database in its own transaction together with the arc that reaches it.
+
+#include <array>
+#include <memory>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "retrace/camera/camera_model.h"
+#include "retrace/dataset/sequence.h"
+#include "retrace/feature/corner_detector.h"
+#include "retrace/feature/feature_tracker.h"
+#include "retrace/feature/image_pyramid.h"
+#include "retrace/feature/wide_baseline.h"
+#include "retrace/geometry/two_view_geometry.h"
+#include "retrace/map/map.h"
+#include "retrace/map/map_database.h"
+
+namespace retrace {
+
+struct TeachOptions {
+  // Pixel thresholds below are given for images of this width (Segvic 2009 works at 320x240) and scaled by
+  // (image width / reference_width).
+  int reference_width = 320;
+  // r_p: a new key-image when σ_p of W(K, f) exceeds this (pixels at reference_width). Segvic 2009 §5.1: 4 px.
+  double max_sigma_p_px = 4.0;
+  // n: a new key-image when fewer features survive since K. Segvic 2009 §5.1: 50.
+  int min_features = 50;
+  // R: tracks whose RMS residual against their reference exceeds this are dropped (grey levels). Paper: 6.
+  double max_residual = 6.0;
+  // Corners handed to the tracker at the start of a subrange, surviving tracks included.
+  int max_corners = 1000;
+  // Minimum distance between corners (pixels at reference_width).
+  double corner_min_distance_px = 2.0;
+  // Gaussian pre-smoothing of the tracker's images (pixels at reference_width). Scaling it with the image keeps
+  // the residual R meaningful at any resolution: fine texture that the paper's 320x240 images did not resolve
+  // would otherwise count as appearance change.
+  double smoothing_sigma_px = 0.4;
+  // Sampson-error threshold of the geometry's inliers (pixels at reference_width).
+  double inlier_threshold_px = 1.5;
+  // Relate a key-image and the current image by wide-baseline matching when tracking fails at once.
+  bool recover_gaps = true;
+  // Match the first and last key-image after the last frame; a circular graph on success.
+  bool close_loop = true;
+  // Tracking "fails at once" when fewer than this fraction of the previous frame's features survive a frame.
+  double gap_survival_fraction = 0.25;
+
+  FeatureTrackerOptions tracker;
+  CornerDetectorOptions detector;
+  TwoViewOptions geometry;
+  WideBaselineOptions matching;
+
+  bool Check(std::string* error = nullptr) const;
+};
+
+// Why a key-image was registered.
+enum class KeyImageReason { kStart, kSigmaP, kFeatures, kGap, kEnd, kDisconnected };
+const char* KeyImageReasonName(KeyImageReason reason);
+
+struct TeachStatistics {
+  int frames = 0;
+  int key_images = 0;
+  std::array<int, 6> key_images_by_reason{};  // indexed by KeyImageReason
+  int gaps_recovered = 0;
+  int gaps_unrecovered = 0;
+  bool loop_closed = false;
+  // Wall time per stage, seconds.
+  double seconds_pyramid = 0, seconds_tracking = 0, seconds_geometry = 0, seconds_detection = 0,
+         seconds_matching = 0, seconds_storage = 0;
+};
+
+class Teacher {
+ public:
+  // `camera` describes the frames given to AddFrame (already at their working resolution). `database` may be
+  // null: the map is then only kept in memory.
+  Teacher(const CameraModel& camera, const TeachOptions& options, MapDatabase* database);
+  ~Teacher();
+
+  // Processes the next frame (8-bit gray, camera-sized). frame.source_index names it in the teach sequence.
+  void AddFrame(const Frame& frame);
+  // Registers the last frame as a key-image and closes the loop. Call once, after the last frame.
+  void Finish();
+
+  const Map& map() const { return map_; }
+  const TeachStatistics& statistics() const { return statistics_; }
+  // Thresholds in pixels of the frames given, after scaling to their width.
+  double sigma_p_threshold_px() const { return max_sigma_p_px_; }
+
+ private:
+  struct FrameState;
+  struct Subrange;
+
+  // Two-view geometry between the subrange's key-image and `frame` from the features tracked since the key-image.
+  void EstimateGeometryToKey(FrameState* frame);
+  bool GeometryAcceptable(const FrameState& frame) const;
+  // Registers `frame` as key-image: the arc from the current key-image (when `with_arc`), the node with its
+  // observations (tracked features plus new corners), the scale at the previous key-image; then starts a subrange.
+  void RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool with_arc);
+  // Relates the current key-image and `frame` by wide-baseline matching; on success registers `frame` as a key-image
+  // reached by a "gap" arc. Returns false when the two images cannot be related.
+  bool RecoverGap(FrameState* frame);
+  // Starts a subrange at `frame`: references redefined there, new corners detected.
+  void StartSubrange(FrameState* frame, std::vector<FeatureObservation>* observations);
+  void CloseLoop();
+  std::vector<FeatureObservation> ObservationsOf(const FrameState& frame) const;
+  void Commit(const MapNode* node, const MapArc* arc, const NodeScale* scale,
+              const std::vector<std::pair<node_t, std::vector<FeatureObservation>>>& extra_observations);
+
+  std::unique_ptr<CameraModel> camera_;
+  TeachOptions options_;
+  MapDatabase* database_;
+  Map map_;
+  TeachStatistics statistics_;
+
+  double max_sigma_p_px_;
+  TwoViewOptions geometry_options_;
+  CornerDetectorOptions detector_options_;
+  ImagePyramidOptions pyramid_options_;
+  FeatureTracker tracker_;
+
+  std::unique_ptr<FrameState> previous_;
+  std::unique_ptr<Subrange> subrange_;
+  // Depth of every inlier of the last arc in its `to` key-image (for the relative scale at that node).
+  arc_t last_arc_ = kInvalidArcId;
+  std::unordered_map<feature_t, double> last_arc_depth_at_to_;
+  feature_t next_feature_id_ = 0;
+  // Observations of earlier key-images found by matching, committed with the next key-image.
+  std::vector<std::pair<node_t, std::vector<FeatureObservation>>> pending_observations_;
+  bool finished_ = false;
+};
+
+}  // namespace retrace
