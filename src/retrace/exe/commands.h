@@ -16,5 +16,6 @@ void RegisterTeachCommand(CLI::App& app);
 void RegisterCalibrateCommand(CLI::App& app);
 void RegisterCameraInfoCommand(CLI::App& app);
 void RegisterTwoViewCommand(CLI::App& app);
+void RegisterSimCommand(CLI::App& app);
 
 }  // namespace retrace
