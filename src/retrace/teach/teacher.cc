@@ -68,6 +68,8 @@ bool TeachOptions::Check(std::string* error) const {
   if (min_features < 8) return fail("min_features (n) must be at least 8");
   if (!(max_residual > 0)) return fail("max_residual (R) must be positive");
   if (max_corners < min_features) return fail("max_corners must be at least min_features");
+  if (min_matched_inliers < 8) return fail("min_matched_inliers must be at least 8");
+  if (min_loop_inliers < min_matched_inliers) return fail("min_loop_inliers must be at least min_matched_inliers");
   if (!(inlier_threshold_px > 0)) return fail("inlier_threshold_px must be positive");
   if (!(min_parallax_px >= 0)) return fail("min_parallax_px must not be negative");
   if (!(gap_survival_fraction >= 0 && gap_survival_fraction < 1)) return fail("gap_survival_fraction must be in [0, 1)");
@@ -355,7 +357,10 @@ bool Teacher::RecoverGap(FrameState* frame) {
   }
   const WideBaselineFeatures current = ExtractWideBaselineFeatures(frame->frame.image, options_.matching);
   const std::vector<cv::DMatch> matches = MatchWideBaseline(*subrange_->wide_baseline, current, options_.matching);
-  if (static_cast<int>(matches.size()) < options_.min_features) return false;
+  if (static_cast<int>(matches.size()) < options_.min_matched_inliers) {
+    spdlog::debug("teach: gap at {}: only {} matches", frame->frame.name, matches.size());
+    return false;
+  }
 
   std::vector<Vector3d> bearings_key, bearings_frame;
   std::vector<cv::DMatch> used;
@@ -370,7 +375,10 @@ bool Teacher::RecoverGap(FrameState* frame) {
   }
   TwoViewGeometry geometry =
       EstimateRelativePose(bearings_key, bearings_frame, camera_->FocalLength(), geometry_options_);
-  if (!geometry.success || geometry.sigma_p > max_sigma_p_px_ || geometry.num_inliers < options_.min_features) {
+  spdlog::debug("teach: gap at {}: {} matches, geometry {} with {} inliers, sigma_p {:.2f} px", frame->frame.name,
+                matches.size(), geometry.success ? "found" : geometry.failure_message, geometry.num_inliers,
+                geometry.sigma_p);
+  if (!geometry.success || geometry.sigma_p > max_sigma_p_px_ || geometry.num_inliers < options_.min_matched_inliers) {
     return false;
   }
 
@@ -407,7 +415,10 @@ bool Teacher::RecoverGap(FrameState* frame) {
     frame->features.push_back(tracked);
     key_observations.push_back({id, position_key, CutPatch(subrange_->image, position_key)});
   }
-  if (static_cast<int>(key_observations.size()) < 8) return false;
+  // Over a gap the appearance may have changed too much for the tracker: the arc then has few features to
+  // localize with, but it keeps the graph connected, which is its purpose.
+  spdlog::debug("teach: gap at {}: {} of {} inliers can be tracked", frame->frame.name, key_observations.size(),
+                geometry.num_inliers);
   frame->geometry = std::move(geometry);
   for (FeatureObservation& observation : key_observations) {
     subrange_->observations[observation.feature_id] = std::move(observation);
@@ -428,55 +439,73 @@ void Teacher::Finish() {
 
 void Teacher::CloseLoop() {
   ScopedTimer timer(&statistics_.seconds_matching);
-  const MapNode& first = map_.nodes().front();
+  // The last key-image is matched with each of the first few (where the drive began, the last key-image may lie
+  // between two of them); the best geometrically verified candidate closes the loop.
+  constexpr size_t kCandidates = 5;
   const MapNode& last = map_.nodes().back();
   const WideBaselineFeatures features_last = ExtractWideBaselineFeatures(last.image, options_.matching);
-  const WideBaselineFeatures features_first = ExtractWideBaselineFeatures(first.image, options_.matching);
-  const std::vector<cv::DMatch> matches = MatchWideBaseline(features_last, features_first, options_.matching);
-  if (static_cast<int>(matches.size()) < options_.min_features) {
-    spdlog::info("teach: loop not closed ({} matches between the first and last key-image)", matches.size());
-    return;
+  struct Candidate {
+    const MapNode* node = nullptr;
+    WideBaselineFeatures features;
+    std::vector<cv::DMatch> matches;
+    TwoViewGeometry geometry;
+  };
+  Candidate best;
+  const size_t num_candidates = std::min(kCandidates, map_.nodes().size() - 2);
+  for (size_t c = 0; c < num_candidates; ++c) {
+    Candidate candidate;
+    candidate.node = &map_.nodes()[c];
+    candidate.features = ExtractWideBaselineFeatures(candidate.node->image, options_.matching);
+    const std::vector<cv::DMatch> matches = MatchWideBaseline(features_last, candidate.features, options_.matching);
+    std::vector<Vector3d> bearings_last, bearings_first;
+    for (const cv::DMatch& m : matches) {
+      const cv::Point2f& pl = features_last.keypoints[m.queryIdx].pt;
+      const cv::Point2f& pf = candidate.features.keypoints[m.trainIdx].pt;
+      Vector3d bl, bf;
+      if (!camera_->Unproject(Vector2d(pl.x, pl.y), &bl) || !camera_->Unproject(Vector2d(pf.x, pf.y), &bf)) continue;
+      bearings_last.push_back(bl);
+      bearings_first.push_back(bf);
+      candidate.matches.push_back(m);
+    }
+    candidate.geometry = EstimateRelativePose(bearings_last, bearings_first, camera_->FocalLength(), geometry_options_);
+    spdlog::debug("teach: loop closing with key-image {}: {} matches, {} inliers, sigma_p {:.2f} px",
+                  candidate.node->id, candidate.matches.size(), candidate.geometry.num_inliers,
+                  candidate.geometry.sigma_p);
+    // A wrong loop closure is worse than none: more support is required than for a gap.
+    const bool acceptable = candidate.geometry.success && candidate.geometry.sigma_p <= max_sigma_p_px_ &&
+                            candidate.geometry.num_inliers >= options_.min_loop_inliers;
+    if (acceptable && (best.node == nullptr || candidate.geometry.num_inliers > best.geometry.num_inliers)) {
+      best = std::move(candidate);
+    }
   }
-  std::vector<Vector3d> bearings_last, bearings_first;
-  std::vector<cv::DMatch> used;
-  for (const cv::DMatch& m : matches) {
-    const cv::Point2f& pl = features_last.keypoints[m.queryIdx].pt;
-    const cv::Point2f& pf = features_first.keypoints[m.trainIdx].pt;
-    Vector3d bl, bf;
-    if (!camera_->Unproject(Vector2d(pl.x, pl.y), &bl) || !camera_->Unproject(Vector2d(pf.x, pf.y), &bf)) continue;
-    bearings_last.push_back(bl);
-    bearings_first.push_back(bf);
-    used.push_back(m);
-  }
-  const TwoViewGeometry geometry =
-      EstimateRelativePose(bearings_last, bearings_first, camera_->FocalLength(), geometry_options_);
-  if (!geometry.success || geometry.sigma_p > max_sigma_p_px_ || geometry.num_inliers < options_.min_features) {
-    spdlog::info("teach: loop not closed (first and last key-image do not share a reliable geometry)");
+  if (best.node == nullptr) {
+    spdlog::info("teach: loop not closed (the last key-image shares no reliable geometry with the first {})",
+                 num_candidates);
     return;
   }
   MapArc arc;
   arc.id = static_cast<arc_t>(map_.arcs().size());
   arc.from = last.id;
-  arc.to = first.id;
-  arc.to_from_from = geometry.b_from_a;
-  arc.sigma_p = geometry.sigma_p;
+  arc.to = best.node->id;
+  arc.to_from_from = best.geometry.b_from_a;
+  arc.sigma_p = best.geometry.sigma_p;
   arc.kind = "loop";
   std::vector<FeatureObservation> last_observations, first_observations;
-  for (size_t i = 0; i < used.size(); ++i) {
-    if (!geometry.inlier_mask[i]) continue;
-    const cv::Point2f& pl = features_last.keypoints[used[i].queryIdx].pt;
-    const cv::Point2f& pf = features_first.keypoints[used[i].trainIdx].pt;
+  for (size_t i = 0; i < best.matches.size(); ++i) {
+    if (!best.geometry.inlier_mask[i]) continue;
+    const cv::Point2f& pl = features_last.keypoints[best.matches[i].queryIdx].pt;
+    const cv::Point2f& pf = best.features.keypoints[best.matches[i].trainIdx].pt;
     const feature_t id = next_feature_id_++;
-    arc.points.push_back({id, geometry.points_in_a[i]});
+    arc.points.push_back({id, best.geometry.points_in_a[i]});
     last_observations.push_back({id, Vector2d(pl.x, pl.y), CutPatch(last.image, Vector2d(pl.x, pl.y))});
-    first_observations.push_back({id, Vector2d(pf.x, pf.y), CutPatch(first.image, Vector2d(pf.x, pf.y))});
+    first_observations.push_back({id, Vector2d(pf.x, pf.y), CutPatch(best.node->image, Vector2d(pf.x, pf.y))});
   }
-  const node_t last_id = last.id, first_id = first.id;
+  const node_t last_id = last.id, first_id = best.node->id;
   Commit(nullptr, &arc, nullptr, {{last_id, std::move(last_observations)}, {first_id, std::move(first_observations)}});
   map_.AddArc(std::move(arc));
   statistics_.loop_closed = true;
   spdlog::info("teach: loop closed between key-images {} and {} ({} inliers, sigma_p {:.2f} px)", last_id, first_id,
-               geometry.num_inliers, geometry.sigma_p);
+               best.geometry.num_inliers, best.geometry.sigma_p);
 }
 
 }  // namespace retrace
