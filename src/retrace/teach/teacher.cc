@@ -92,13 +92,12 @@ struct Teacher::FrameState {
 struct Teacher::Subrange {
   node_t node = kInvalidNodeId;
   size_t frame_index = 0;  // Frame::index of the key-image
-  cv::Mat image;
-  ImagePyramid pyramid;
+  MatchableImage matchable;  // image and pyramid; wide-baseline features computed on demand
+  bool has_wide_baseline = false;
   std::unordered_map<feature_t, Vector3d> bearings;  // every feature tracked from the key-image on
   // Every feature seen at the key-image with its reference patch; only those that end up in an arc are stored.
   std::unordered_map<feature_t, FeatureObservation> observations;
   std::unordered_set<feature_t> stored;  // ids already written with the key-image
-  std::optional<WideBaselineFeatures> wide_baseline;  // computed on demand
 };
 
 Teacher::Teacher(const CameraModel& camera, const TeachOptions& options, MapDatabase* database)
@@ -250,8 +249,8 @@ void Teacher::StartSubrange(FrameState* frame) {
 
   subrange_ = std::make_unique<Subrange>();
   subrange_->frame_index = frame->frame.index;
-  subrange_->image = frame->frame.image;
-  subrange_->pyramid = frame->pyramid;
+  subrange_->matchable.image = frame->frame.image;
+  subrange_->matchable.pyramid = frame->pyramid;
   subrange_->observations = std::move(observations);
   for (const TrackedFeature& f : tracker_.Features()) {
     Vector3d bearing;
@@ -350,79 +349,56 @@ void Teacher::Commit(const MapNode* node, const MapArc* arc, const NodeScale* sc
   transaction->Commit();
 }
 
+MatchedGeometryOptions Teacher::MatchingOptions() const {
+  MatchedGeometryOptions options;
+  options.matching = options_.matching;
+  options.geometry = geometry_options_;
+  options.alignment = options_.tracker.alignment;
+  options.alignment.max_residual = options_.max_residual;
+  options.reference_levels = pyramid_options_.num_levels;
+  return options;
+}
+
+bool Teacher::AcceptableMatchedGeometry(const MatchedGeometry& matched, int min_inliers) const {
+  return matched.geometry.success && matched.geometry.sigma_p <= max_sigma_p_px_ &&
+         matched.geometry.num_inliers >= min_inliers;
+}
+
 bool Teacher::RecoverGap(FrameState* frame) {
   ScopedTimer timer(&statistics_.seconds_matching);
-  if (!subrange_->wide_baseline) {
-    subrange_->wide_baseline = ExtractWideBaselineFeatures(subrange_->image, options_.matching);
+  if (!subrange_->has_wide_baseline) {
+    subrange_->matchable.features = ExtractWideBaselineFeatures(subrange_->matchable.image, options_.matching);
+    subrange_->has_wide_baseline = true;
   }
-  const WideBaselineFeatures current = ExtractWideBaselineFeatures(frame->frame.image, options_.matching);
-  const std::vector<cv::DMatch> matches = MatchWideBaseline(*subrange_->wide_baseline, current, options_.matching);
-  if (static_cast<int>(matches.size()) < options_.min_matched_inliers) {
-    spdlog::debug("teach: gap at {}: only {} matches", frame->frame.name, matches.size());
-    return false;
-  }
+  MatchableImage current;
+  current.image = frame->frame.image;
+  current.pyramid = frame->pyramid;
+  current.features = ExtractWideBaselineFeatures(current.image, options_.matching);
+  MatchedGeometry matched = RelateByMatching(*camera_, subrange_->matchable, current, MatchingOptions());
+  spdlog::debug("teach: gap at {}: {} matches, {} inliers ({} trackable), sigma_p {:.2f} px", frame->frame.name,
+                matched.matches.size(), matched.geometry.num_inliers, matched.num_trackable,
+                matched.geometry.sigma_p);
+  if (!AcceptableMatchedGeometry(matched, options_.min_matched_inliers)) return false;
 
-  std::vector<Vector3d> bearings_key, bearings_frame;
-  std::vector<cv::DMatch> used;
-  for (const cv::DMatch& m : matches) {
-    const cv::Point2f& pk = subrange_->wide_baseline->keypoints[m.queryIdx].pt;
-    const cv::Point2f& pf = current.keypoints[m.trainIdx].pt;
-    Vector3d bk, bf;
-    if (!camera_->Unproject(Vector2d(pk.x, pk.y), &bk) || !camera_->Unproject(Vector2d(pf.x, pf.y), &bf)) continue;
-    bearings_key.push_back(bk);
-    bearings_frame.push_back(bf);
-    used.push_back(m);
-  }
-  TwoViewGeometry geometry =
-      EstimateRelativePose(bearings_key, bearings_frame, camera_->FocalLength(), geometry_options_);
-  spdlog::debug("teach: gap at {}: {} matches, geometry {} with {} inliers, sigma_p {:.2f} px", frame->frame.name,
-                matches.size(), geometry.success ? "found" : geometry.failure_message, geometry.num_inliers,
-                geometry.sigma_p);
-  if (!geometry.success || geometry.sigma_p > max_sigma_p_px_ || geometry.num_inliers < options_.min_matched_inliers) {
-    return false;
-  }
-
-  // Matched features become map features only when the tracker can follow them: tracked immediately from the
-  // key-image to the matched location (Segvic 2009 §4.1); the others serve the geometry only.
+  // Trackable matches restart the tracker; over a gap the appearance may have changed too much for most of them,
+  // and the arc then has few features to localize with, but it keeps the graph connected, which is its purpose.
   for (const TrackedFeature& f : std::vector<TrackedFeature>(tracker_.Features())) tracker_.Remove(f.id);
   frame->features.clear();
-  frame->geometry_ids.assign(used.size(), kInvalidFeatureId);
-  std::vector<FeatureObservation> key_observations;
-  AlignmentOptions alignment = options_.tracker.alignment;
-  alignment.max_residual = options_.max_residual;
-  for (size_t i = 0; i < used.size(); ++i) {
-    if (!geometry.inlier_mask[i]) continue;
-    const cv::KeyPoint& kk = subrange_->wide_baseline->keypoints[used[i].queryIdx];
-    const cv::KeyPoint& kf = current.keypoints[used[i].trainIdx];
-    const Vector2d position_key(kk.pt.x, kk.pt.y);
-    const Vector2d position_frame(kf.pt.x, kf.pt.y);
-    ReferencePatch reference;
-    if (!reference.Create(subrange_->pyramid, position_key, alignment.window_size, options_.tracker.num_levels)) {
-      continue;
-    }
-    WarpState initial;
-    initial.position = position_frame;
-    initial.scale = kk.size > 0 ? kf.size / kk.size : 1.0;
-    const AlignmentResult aligned = AlignToReference(frame->pyramid, reference, initial, alignment);
-    if (!aligned.ok() || (aligned.warp.position - position_frame).norm() > 3.0) continue;
-    const feature_t id = tracker_.AddFeature(frame->pyramid, aligned.warp.position, next_feature_id_);
+  frame->geometry_ids.assign(matched.matches.size(), kInvalidFeatureId);
+  for (size_t i = 0; i < matched.matches.size(); ++i) {
+    if (!matched.trackable[i]) continue;
+    const feature_t id = tracker_.AddFeature(frame->pyramid, matched.position_in_b[i], next_feature_id_);
     if (id == kInvalidFeatureId) continue;
     ++next_feature_id_;
     frame->geometry_ids[i] = id;
     TrackedFeature tracked;
     tracked.id = id;
-    tracked.warp = aligned.warp;
+    tracked.warp.position = matched.position_in_b[i];
     frame->features.push_back(tracked);
-    key_observations.push_back({id, position_key, CutPatch(subrange_->image, position_key)});
+    const Vector2d position_key = matched.PositionInA(subrange_->matchable, i);
+    subrange_->observations[id] = {id, position_key, CutPatch(subrange_->matchable.image, position_key)};
   }
-  // Over a gap the appearance may have changed too much for the tracker: the arc then has few features to
-  // localize with, but it keeps the graph connected, which is its purpose.
-  spdlog::debug("teach: gap at {}: {} of {} inliers can be tracked", frame->frame.name, key_observations.size(),
-                geometry.num_inliers);
-  frame->geometry = std::move(geometry);
-  for (FeatureObservation& observation : key_observations) {
-    subrange_->observations[observation.feature_id] = std::move(observation);
-  }
+  frame->geometry = std::move(matched.geometry);
   RegisterKeyImage(frame, KeyImageReason::kGap, /*with_arc=*/true);
   return true;
 }
@@ -437,48 +413,40 @@ void Teacher::Finish() {
   if (database_ != nullptr) database_->Checkpoint();
 }
 
+MatchableImage Teacher::PrepareForMatching(const cv::Mat& image) const {
+  MatchableImage matchable;
+  matchable.image = image;
+  matchable.pyramid.Build(image, pyramid_options_);
+  matchable.features = ExtractWideBaselineFeatures(image, options_.matching);
+  return matchable;
+}
+
 void Teacher::CloseLoop() {
   ScopedTimer timer(&statistics_.seconds_matching);
   // The last key-image is matched with each of the first few (where the drive began, the last key-image may lie
   // between two of them); the best geometrically verified candidate closes the loop.
   constexpr size_t kCandidates = 5;
   const MapNode& last = map_.nodes().back();
-  const WideBaselineFeatures features_last = ExtractWideBaselineFeatures(last.image, options_.matching);
-  struct Candidate {
-    const MapNode* node = nullptr;
-    WideBaselineFeatures features;
-    std::vector<cv::DMatch> matches;
-    TwoViewGeometry geometry;
-  };
-  Candidate best;
+  const MatchableImage last_image = PrepareForMatching(last.image);
+  const MapNode* best_node = nullptr;
+  MatchableImage best_image;
+  MatchedGeometry best;
   const size_t num_candidates = std::min(kCandidates, map_.nodes().size() - 2);
   for (size_t c = 0; c < num_candidates; ++c) {
-    Candidate candidate;
-    candidate.node = &map_.nodes()[c];
-    candidate.features = ExtractWideBaselineFeatures(candidate.node->image, options_.matching);
-    const std::vector<cv::DMatch> matches = MatchWideBaseline(features_last, candidate.features, options_.matching);
-    std::vector<Vector3d> bearings_last, bearings_first;
-    for (const cv::DMatch& m : matches) {
-      const cv::Point2f& pl = features_last.keypoints[m.queryIdx].pt;
-      const cv::Point2f& pf = candidate.features.keypoints[m.trainIdx].pt;
-      Vector3d bl, bf;
-      if (!camera_->Unproject(Vector2d(pl.x, pl.y), &bl) || !camera_->Unproject(Vector2d(pf.x, pf.y), &bf)) continue;
-      bearings_last.push_back(bl);
-      bearings_first.push_back(bf);
-      candidate.matches.push_back(m);
-    }
-    candidate.geometry = EstimateRelativePose(bearings_last, bearings_first, camera_->FocalLength(), geometry_options_);
-    spdlog::debug("teach: loop closing with key-image {}: {} matches, {} inliers, sigma_p {:.2f} px",
-                  candidate.node->id, candidate.matches.size(), candidate.geometry.num_inliers,
-                  candidate.geometry.sigma_p);
+    const MapNode& node = map_.nodes()[c];
+    MatchableImage image = PrepareForMatching(node.image);
+    MatchedGeometry matched = RelateByMatching(*camera_, last_image, image, MatchingOptions());
+    spdlog::debug("teach: loop closing with key-image {}: {} matches, {} inliers, sigma_p {:.2f} px", node.id,
+                  matched.matches.size(), matched.geometry.num_inliers, matched.geometry.sigma_p);
     // A wrong loop closure is worse than none: more support is required than for a gap.
-    const bool acceptable = candidate.geometry.success && candidate.geometry.sigma_p <= max_sigma_p_px_ &&
-                            candidate.geometry.num_inliers >= options_.min_loop_inliers;
-    if (acceptable && (best.node == nullptr || candidate.geometry.num_inliers > best.geometry.num_inliers)) {
-      best = std::move(candidate);
+    if (AcceptableMatchedGeometry(matched, options_.min_loop_inliers) &&
+        (best_node == nullptr || matched.geometry.num_inliers > best.geometry.num_inliers)) {
+      best_node = &node;
+      best_image = std::move(image);
+      best = std::move(matched);
     }
   }
-  if (best.node == nullptr) {
+  if (best_node == nullptr) {
     spdlog::info("teach: loop not closed (the last key-image shares no reliable geometry with the first {})",
                  num_candidates);
     return;
@@ -486,26 +454,25 @@ void Teacher::CloseLoop() {
   MapArc arc;
   arc.id = static_cast<arc_t>(map_.arcs().size());
   arc.from = last.id;
-  arc.to = best.node->id;
+  arc.to = best_node->id;
   arc.to_from_from = best.geometry.b_from_a;
   arc.sigma_p = best.geometry.sigma_p;
   arc.kind = "loop";
   std::vector<FeatureObservation> last_observations, first_observations;
   for (size_t i = 0; i < best.matches.size(); ++i) {
-    if (!best.geometry.inlier_mask[i]) continue;
-    const cv::Point2f& pl = features_last.keypoints[best.matches[i].queryIdx].pt;
-    const cv::Point2f& pf = best.features.keypoints[best.matches[i].trainIdx].pt;
+    if (!best.trackable[i]) continue;
     const feature_t id = next_feature_id_++;
+    const Vector2d in_last = best.PositionInA(last_image, i);
     arc.points.push_back({id, best.geometry.points_in_a[i]});
-    last_observations.push_back({id, Vector2d(pl.x, pl.y), CutPatch(last.image, Vector2d(pl.x, pl.y))});
-    first_observations.push_back({id, Vector2d(pf.x, pf.y), CutPatch(best.node->image, Vector2d(pf.x, pf.y))});
+    last_observations.push_back({id, in_last, CutPatch(last.image, in_last)});
+    first_observations.push_back({id, best.position_in_b[i], CutPatch(best_node->image, best.position_in_b[i])});
   }
-  const node_t last_id = last.id, first_id = best.node->id;
+  const node_t last_id = last.id, first_id = best_node->id;
   Commit(nullptr, &arc, nullptr, {{last_id, std::move(last_observations)}, {first_id, std::move(first_observations)}});
   map_.AddArc(std::move(arc));
   statistics_.loop_closed = true;
-  spdlog::info("teach: loop closed between key-images {} and {} ({} inliers, sigma_p {:.2f} px)", last_id, first_id,
-               best.geometry.num_inliers, best.geometry.sigma_p);
+  spdlog::info("teach: loop closed between key-images {} and {} ({} inliers, {} trackable, sigma_p {:.2f} px)",
+               last_id, first_id, best.geometry.num_inliers, best.num_trackable, best.geometry.sigma_p);
 }
 
 }  // namespace retrace

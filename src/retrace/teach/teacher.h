@@ -38,6 +38,7 @@
 #include "retrace/geometry/two_view_geometry.h"
 #include "retrace/map/map.h"
 #include "retrace/map/map_database.h"
+#include "retrace/teach/matched_geometry.h"
 
 namespace retrace {
 
@@ -147,6 +148,9 @@ class Teacher {
   // Starts a subrange at `frame`: references redefined there, new corners detected.
   void StartSubrange(FrameState* frame);
   void CloseLoop();
+  MatchedGeometryOptions MatchingOptions() const;
+  bool AcceptableMatchedGeometry(const MatchedGeometry& matched, int min_inliers) const;
+  MatchableImage PrepareForMatching(const cv::Mat& image) const;
   void Commit(const MapNode* node, const MapArc* arc, const NodeScale* scale,
               const std::vector<std::pair<node_t, std::vector<FeatureObservation>>>& extra_observations);
 
