@@ -16,6 +16,7 @@ void RegisterTeachCommand(CLI::App& app);
 void RegisterCalibrateCommand(CLI::App& app);
 void RegisterCameraInfoCommand(CLI::App& app);
 void RegisterTwoViewCommand(CLI::App& app);
+void RegisterSimCommand(CLI::App& app);
 void RegisterRepeatCommand(CLI::App& app);
 
 }  // namespace retrace

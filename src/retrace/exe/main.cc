@@ -21,6 +21,7 @@ constexpr void (*kCommands[])(CLI::App&) = {
     &retrace::RegisterCalibrateCommand,
     &retrace::RegisterCameraInfoCommand,
     &retrace::RegisterTwoViewCommand,
+    &retrace::RegisterSimCommand,
     &retrace::RegisterRepeatCommand,
 };
 

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <optional>
+#include <unordered_set>
 
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
@@ -67,7 +68,10 @@ bool TeachOptions::Check(std::string* error) const {
   if (min_features < 8) return fail("min_features (n) must be at least 8");
   if (!(max_residual > 0)) return fail("max_residual (R) must be positive");
   if (max_corners < min_features) return fail("max_corners must be at least min_features");
+  if (min_matched_inliers < 8) return fail("min_matched_inliers must be at least 8");
+  if (min_loop_inliers < min_matched_inliers) return fail("min_loop_inliers must be at least min_matched_inliers");
   if (!(inlier_threshold_px > 0)) return fail("inlier_threshold_px must be positive");
+  if (!(min_parallax_px >= 0)) return fail("min_parallax_px must not be negative");
   if (!(gap_survival_fraction >= 0 && gap_survival_fraction < 1)) return fail("gap_survival_fraction must be in [0, 1)");
   if (!tracker.Check()) return fail("invalid tracker options");
   if (!geometry.Check()) return fail("invalid geometry options");
@@ -88,10 +92,12 @@ struct Teacher::FrameState {
 struct Teacher::Subrange {
   node_t node = kInvalidNodeId;
   size_t frame_index = 0;  // Frame::index of the key-image
-  cv::Mat image;
-  ImagePyramid pyramid;
+  MatchableImage matchable;  // image and pyramid; wide-baseline features computed on demand
+  bool has_wide_baseline = false;
   std::unordered_map<feature_t, Vector3d> bearings;  // every feature tracked from the key-image on
-  std::optional<WideBaselineFeatures> wide_baseline;  // computed on demand
+  // Every feature seen at the key-image with its reference patch; only those that end up in an arc are stored.
+  std::unordered_map<feature_t, FeatureObservation> observations;
+  std::unordered_set<feature_t> stored;  // ids already written with the key-image
 };
 
 Teacher::Teacher(const CameraModel& camera, const TeachOptions& options, MapDatabase* database)
@@ -103,6 +109,7 @@ Teacher::Teacher(const CameraModel& camera, const TeachOptions& options, MapData
   geometry_options_ = options_.geometry;
   geometry_options_.ransac.max_error_px = options_.inlier_threshold_px * pixel_scale;
   geometry_options_.min_inliers = std::max(geometry_options_.min_inliers, 8);
+  geometry_options_.min_parallax_px = options_.min_parallax_px * pixel_scale;
   detector_options_ = options_.detector;
   detector_options_.min_distance = options_.corner_min_distance_px * pixel_scale;
   detector_options_.border = std::max(detector_options_.border, options_.tracker.alignment.window_size / 2 + 2);
@@ -153,8 +160,9 @@ void Teacher::AddFrame(const Frame& frame) {
   // (Segvic 2009 §5.1), and the current frame is tracked again from there.
   const bool previous_is_key = previous_->frame.index == subrange_->frame_index;
   if (!previous_is_key && previous_->geometry.success) {
-    const KeyImageReason reason =
-        current->survivors < options_.min_features ? KeyImageReason::kFeatures : KeyImageReason::kSigmaP;
+    const bool enough_features = current->survivors >= options_.min_features &&
+                                 (!current->geometry.success || current->geometry.num_inliers >= options_.min_features);
+    const KeyImageReason reason = enough_features ? KeyImageReason::kSigmaP : KeyImageReason::kFeatures;
     RegisterKeyImage(previous_.get(), reason, /*with_arc=*/true);
     track(current.get());
     EstimateGeometryToKey(current.get());
@@ -197,21 +205,15 @@ void Teacher::EstimateGeometryToKey(FrameState* frame) {
 
 bool Teacher::GeometryAcceptable(const FrameState& frame) const {
   if (frame.survivors < options_.min_features) return false;
-  if (frame.geometry.success) return frame.geometry.sigma_p <= max_sigma_p_px_;
+  // The arc keeps only the geometry's inliers, so they are what must number at least n.
+  if (frame.geometry.success) {
+    return frame.geometry.num_inliers >= options_.min_features && frame.geometry.sigma_p <= max_sigma_p_px_;
+  }
   // Too little parallax yet (the vehicle stands or turns on the spot): no key-image is needed.
   return frame.geometry.failure == TwoViewFailure::kInsufficientParallax;
 }
 
-std::vector<FeatureObservation> Teacher::ObservationsOf(const FrameState& frame) const {
-  std::vector<FeatureObservation> observations;
-  observations.reserve(frame.features.size());
-  for (const TrackedFeature& f : frame.features) {
-    observations.push_back({f.id, f.warp.position, CutPatch(frame.frame.image, f.warp.position)});
-  }
-  return observations;
-}
-
-void Teacher::StartSubrange(FrameState* frame, std::vector<FeatureObservation>* observations) {
+void Teacher::StartSubrange(FrameState* frame) {
   // Continuing tracks take their reference from the new key-image (the tracker may be one frame further already).
   std::unordered_map<feature_t, Vector2d> position_at_key;
   for (const TrackedFeature& f : frame->features) position_at_key[f.id] = f.warp.position;
@@ -224,7 +226,10 @@ void Teacher::StartSubrange(FrameState* frame, std::vector<FeatureObservation>* 
     }
     existing.push_back(it->second);
   }
-  *observations = ObservationsOf(*frame);
+  std::unordered_map<feature_t, FeatureObservation> observations;
+  for (const TrackedFeature& f : frame->features) {
+    observations[f.id] = {f.id, f.warp.position, CutPatch(frame->frame.image, f.warp.position)};
+  }
 
   // New corners fill the subrange up to max_corners ("all Harris corners of the first frame", Segvic 2009 §5.1).
   {
@@ -236,15 +241,16 @@ void Teacher::StartSubrange(FrameState* frame, std::vector<FeatureObservation>* 
         const feature_t id = tracker_.AddFeature(frame->pyramid, corner.position, next_feature_id_);
         if (id == kInvalidFeatureId) continue;
         ++next_feature_id_;
-        observations->push_back({id, corner.position, CutPatch(frame->frame.image, corner.position)});
+        observations[id] = {id, corner.position, CutPatch(frame->frame.image, corner.position)};
       }
     }
   }
 
   subrange_ = std::make_unique<Subrange>();
   subrange_->frame_index = frame->frame.index;
-  subrange_->image = frame->frame.image;
-  subrange_->pyramid = frame->pyramid;
+  subrange_->matchable.image = frame->frame.image;
+  subrange_->matchable.pyramid = frame->pyramid;
+  subrange_->observations = std::move(observations);
   for (const TrackedFeature& f : tracker_.Features()) {
     Vector3d bearing;
     if (camera_->Unproject(f.warp.position, &bearing)) subrange_->bearings[f.id] = bearing;
@@ -262,6 +268,10 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
   std::optional<MapArc> arc;
   std::optional<NodeScale> scale;
   std::unordered_map<feature_t, double> depth_at_to;
+  // A key-image stores the features of its arcs (the sets M_k) only: those of the arc reaching it now, and those of
+  // the arc leaving it when that arc is registered. Corners that never make it into an arc are not kept.
+  std::vector<std::pair<node_t, std::vector<FeatureObservation>>> additions;
+  std::unordered_set<feature_t> arc_features;
   if (with_arc) {
     const TwoViewGeometry& w = frame->geometry;
     arc.emplace();
@@ -272,16 +282,24 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
     arc->sigma_p = w.sigma_p;
     arc->kind = reason == KeyImageReason::kGap ? "gap" : "tracking";
     std::vector<double> depth_in_previous_arc, depth_in_this_arc;
+    std::vector<FeatureObservation> from_additions;
     for (size_t i = 0; i < frame->geometry_ids.size(); ++i) {
       if (!w.inlier_mask[i] || frame->geometry_ids[i] == kInvalidFeatureId) continue;
       const feature_t id = frame->geometry_ids[i];
       arc->points.push_back({id, w.points_in_a[i]});
+      arc_features.insert(id);
       depth_at_to[id] = w.depths_b[i];
+      if (subrange_->stored.insert(id).second) {
+        if (const auto it = subrange_->observations.find(id); it != subrange_->observations.end()) {
+          from_additions.push_back(it->second);
+        }
+      }
       if (const auto it = last_arc_depth_at_to_.find(id); it != last_arc_depth_at_to_.end()) {
         depth_in_previous_arc.push_back(it->second);
         depth_in_this_arc.push_back(w.depths_a[i]);
       }
     }
+    additions.emplace_back(subrange_->node, std::move(from_additions));
     // Design §3.3: the two geometries meeting at the key-image differ by one scalar, the median of depth ratios.
     if (last_arc_ != kInvalidArcId && map_.FindArc(last_arc_)->to == subrange_->node) {
       const ScaleEstimate estimate = EstimateScaleFromDistances(depth_in_previous_arc, depth_in_this_arc, 5);
@@ -289,10 +307,15 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
     }
   }
 
-  StartSubrange(frame, &node.features);
+  StartSubrange(frame);
   subrange_->node = node.id;
-  Commit(&node, arc ? &*arc : nullptr, scale ? &*scale : nullptr, pending_observations_);
-  pending_observations_.clear();
+  for (const feature_t id : arc_features) {
+    if (const auto it = subrange_->observations.find(id); it != subrange_->observations.end()) {
+      node.features.push_back(it->second);
+      subrange_->stored.insert(id);
+    }
+  }
+  Commit(&node, arc ? &*arc : nullptr, scale ? &*scale : nullptr, additions);
 
   map_.AddNode(std::move(node));
   if (arc) {
@@ -325,68 +348,56 @@ void Teacher::Commit(const MapNode* node, const MapArc* arc, const NodeScale* sc
   transaction->Commit();
 }
 
+MatchedGeometryOptions Teacher::MatchingOptions() const {
+  MatchedGeometryOptions options;
+  options.matching = options_.matching;
+  options.geometry = geometry_options_;
+  options.alignment = options_.tracker.alignment;
+  options.alignment.max_residual = options_.max_residual;
+  options.reference_levels = pyramid_options_.num_levels;
+  return options;
+}
+
+bool Teacher::AcceptableMatchedGeometry(const MatchedGeometry& matched, int min_inliers) const {
+  return matched.geometry.success && matched.geometry.sigma_p <= max_sigma_p_px_ &&
+         matched.geometry.num_inliers >= min_inliers;
+}
+
 bool Teacher::RecoverGap(FrameState* frame) {
   ScopedTimer timer(&statistics_.seconds_matching);
-  if (!subrange_->wide_baseline) {
-    subrange_->wide_baseline = ExtractWideBaselineFeatures(subrange_->image, options_.matching);
+  if (!subrange_->has_wide_baseline) {
+    subrange_->matchable.features = ExtractWideBaselineFeatures(subrange_->matchable.image, options_.matching);
+    subrange_->has_wide_baseline = true;
   }
-  const WideBaselineFeatures current = ExtractWideBaselineFeatures(frame->frame.image, options_.matching);
-  const std::vector<cv::DMatch> matches = MatchWideBaseline(*subrange_->wide_baseline, current, options_.matching);
-  if (static_cast<int>(matches.size()) < options_.min_features) return false;
+  MatchableImage current;
+  current.image = frame->frame.image;
+  current.pyramid = frame->pyramid;
+  current.features = ExtractWideBaselineFeatures(current.image, options_.matching);
+  MatchedGeometry matched = RelateByMatching(*camera_, subrange_->matchable, current, MatchingOptions());
+  spdlog::debug("teach: gap at {}: {} matches, {} inliers ({} trackable), sigma_p {:.2f} px", frame->frame.name,
+                matched.matches.size(), matched.geometry.num_inliers, matched.num_trackable,
+                matched.geometry.sigma_p);
+  if (!AcceptableMatchedGeometry(matched, options_.min_matched_inliers)) return false;
 
-  std::vector<Vector3d> bearings_key, bearings_frame;
-  std::vector<cv::DMatch> used;
-  for (const cv::DMatch& m : matches) {
-    const cv::Point2f& pk = subrange_->wide_baseline->keypoints[m.queryIdx].pt;
-    const cv::Point2f& pf = current.keypoints[m.trainIdx].pt;
-    Vector3d bk, bf;
-    if (!camera_->Unproject(Vector2d(pk.x, pk.y), &bk) || !camera_->Unproject(Vector2d(pf.x, pf.y), &bf)) continue;
-    bearings_key.push_back(bk);
-    bearings_frame.push_back(bf);
-    used.push_back(m);
-  }
-  TwoViewGeometry geometry =
-      EstimateRelativePose(bearings_key, bearings_frame, camera_->FocalLength(), geometry_options_);
-  if (!geometry.success || geometry.sigma_p > max_sigma_p_px_ || geometry.num_inliers < options_.min_features) {
-    return false;
-  }
-
-  // Matched features become map features only when the tracker can follow them: tracked immediately from the
-  // key-image to the matched location (Segvic 2009 §4.1); the others serve the geometry only.
+  // Trackable matches restart the tracker; over a gap the appearance may have changed too much for most of them,
+  // and the arc then has few features to localize with, but it keeps the graph connected, which is its purpose.
   for (const TrackedFeature& f : std::vector<TrackedFeature>(tracker_.Features())) tracker_.Remove(f.id);
   frame->features.clear();
-  frame->geometry_ids.assign(used.size(), kInvalidFeatureId);
-  std::vector<FeatureObservation> key_observations;
-  AlignmentOptions alignment = options_.tracker.alignment;
-  alignment.max_residual = options_.max_residual;
-  for (size_t i = 0; i < used.size(); ++i) {
-    if (!geometry.inlier_mask[i]) continue;
-    const cv::KeyPoint& kk = subrange_->wide_baseline->keypoints[used[i].queryIdx];
-    const cv::KeyPoint& kf = current.keypoints[used[i].trainIdx];
-    const Vector2d position_key(kk.pt.x, kk.pt.y);
-    const Vector2d position_frame(kf.pt.x, kf.pt.y);
-    ReferencePatch reference;
-    if (!reference.Create(subrange_->pyramid, position_key, alignment.window_size, options_.tracker.num_levels)) {
-      continue;
-    }
-    WarpState initial;
-    initial.position = position_frame;
-    initial.scale = kk.size > 0 ? kf.size / kk.size : 1.0;
-    const AlignmentResult aligned = AlignToReference(frame->pyramid, reference, initial, alignment);
-    if (!aligned.ok() || (aligned.warp.position - position_frame).norm() > 3.0) continue;
-    const feature_t id = tracker_.AddFeature(frame->pyramid, aligned.warp.position, next_feature_id_);
+  frame->geometry_ids.assign(matched.matches.size(), kInvalidFeatureId);
+  for (size_t i = 0; i < matched.matches.size(); ++i) {
+    if (!matched.trackable[i]) continue;
+    const feature_t id = tracker_.AddFeature(frame->pyramid, matched.position_in_b[i], next_feature_id_);
     if (id == kInvalidFeatureId) continue;
     ++next_feature_id_;
     frame->geometry_ids[i] = id;
     TrackedFeature tracked;
     tracked.id = id;
-    tracked.warp = aligned.warp;
+    tracked.warp.position = matched.position_in_b[i];
     frame->features.push_back(tracked);
-    key_observations.push_back({id, position_key, CutPatch(subrange_->image, position_key)});
+    const Vector2d position_key = matched.PositionInA(subrange_->matchable, i);
+    subrange_->observations[id] = {id, position_key, CutPatch(subrange_->matchable.image, position_key)};
   }
-  if (static_cast<int>(key_observations.size()) < 8) return false;
-  frame->geometry = std::move(geometry);
-  pending_observations_.emplace_back(subrange_->node, std::move(key_observations));
+  frame->geometry = std::move(matched.geometry);
   RegisterKeyImage(frame, KeyImageReason::kGap, /*with_arc=*/true);
   return true;
 }
@@ -401,57 +412,66 @@ void Teacher::Finish() {
   if (database_ != nullptr) database_->Checkpoint();
 }
 
+MatchableImage Teacher::PrepareForMatching(const cv::Mat& image) const {
+  MatchableImage matchable;
+  matchable.image = image;
+  matchable.pyramid.Build(image, pyramid_options_);
+  matchable.features = ExtractWideBaselineFeatures(image, options_.matching);
+  return matchable;
+}
+
 void Teacher::CloseLoop() {
   ScopedTimer timer(&statistics_.seconds_matching);
-  const MapNode& first = map_.nodes().front();
+  // The last key-image is matched with each of the first few (where the drive began, the last key-image may lie
+  // between two of them); the best geometrically verified candidate closes the loop.
+  constexpr size_t kCandidates = 5;
   const MapNode& last = map_.nodes().back();
-  const WideBaselineFeatures features_last = ExtractWideBaselineFeatures(last.image, options_.matching);
-  const WideBaselineFeatures features_first = ExtractWideBaselineFeatures(first.image, options_.matching);
-  const std::vector<cv::DMatch> matches = MatchWideBaseline(features_last, features_first, options_.matching);
-  if (static_cast<int>(matches.size()) < options_.min_features) {
-    spdlog::info("teach: loop not closed ({} matches between the first and last key-image)", matches.size());
-    return;
+  const MatchableImage last_image = PrepareForMatching(last.image);
+  const MapNode* best_node = nullptr;
+  MatchableImage best_image;
+  MatchedGeometry best;
+  const size_t num_candidates = std::min(kCandidates, map_.nodes().size() - 2);
+  for (size_t c = 0; c < num_candidates; ++c) {
+    const MapNode& node = map_.nodes()[c];
+    MatchableImage image = PrepareForMatching(node.image);
+    MatchedGeometry matched = RelateByMatching(*camera_, last_image, image, MatchingOptions());
+    spdlog::debug("teach: loop closing with key-image {}: {} matches, {} inliers, sigma_p {:.2f} px", node.id,
+                  matched.matches.size(), matched.geometry.num_inliers, matched.geometry.sigma_p);
+    // A wrong loop closure is worse than none: more support is required than for a gap.
+    if (AcceptableMatchedGeometry(matched, options_.min_loop_inliers) &&
+        (best_node == nullptr || matched.geometry.num_inliers > best.geometry.num_inliers)) {
+      best_node = &node;
+      best_image = std::move(image);
+      best = std::move(matched);
+    }
   }
-  std::vector<Vector3d> bearings_last, bearings_first;
-  std::vector<cv::DMatch> used;
-  for (const cv::DMatch& m : matches) {
-    const cv::Point2f& pl = features_last.keypoints[m.queryIdx].pt;
-    const cv::Point2f& pf = features_first.keypoints[m.trainIdx].pt;
-    Vector3d bl, bf;
-    if (!camera_->Unproject(Vector2d(pl.x, pl.y), &bl) || !camera_->Unproject(Vector2d(pf.x, pf.y), &bf)) continue;
-    bearings_last.push_back(bl);
-    bearings_first.push_back(bf);
-    used.push_back(m);
-  }
-  const TwoViewGeometry geometry =
-      EstimateRelativePose(bearings_last, bearings_first, camera_->FocalLength(), geometry_options_);
-  if (!geometry.success || geometry.sigma_p > max_sigma_p_px_ || geometry.num_inliers < options_.min_features) {
-    spdlog::info("teach: loop not closed (first and last key-image do not share a reliable geometry)");
+  if (best_node == nullptr) {
+    spdlog::info("teach: loop not closed (the last key-image shares no reliable geometry with the first {})",
+                 num_candidates);
     return;
   }
   MapArc arc;
   arc.id = static_cast<arc_t>(map_.arcs().size());
   arc.from = last.id;
-  arc.to = first.id;
-  arc.to_from_from = geometry.b_from_a;
-  arc.sigma_p = geometry.sigma_p;
+  arc.to = best_node->id;
+  arc.to_from_from = best.geometry.b_from_a;
+  arc.sigma_p = best.geometry.sigma_p;
   arc.kind = "loop";
   std::vector<FeatureObservation> last_observations, first_observations;
-  for (size_t i = 0; i < used.size(); ++i) {
-    if (!geometry.inlier_mask[i]) continue;
-    const cv::Point2f& pl = features_last.keypoints[used[i].queryIdx].pt;
-    const cv::Point2f& pf = features_first.keypoints[used[i].trainIdx].pt;
+  for (size_t i = 0; i < best.matches.size(); ++i) {
+    if (!best.trackable[i]) continue;
     const feature_t id = next_feature_id_++;
-    arc.points.push_back({id, geometry.points_in_a[i]});
-    last_observations.push_back({id, Vector2d(pl.x, pl.y), CutPatch(last.image, Vector2d(pl.x, pl.y))});
-    first_observations.push_back({id, Vector2d(pf.x, pf.y), CutPatch(first.image, Vector2d(pf.x, pf.y))});
+    const Vector2d in_last = best.PositionInA(last_image, i);
+    arc.points.push_back({id, best.geometry.points_in_a[i]});
+    last_observations.push_back({id, in_last, CutPatch(last.image, in_last)});
+    first_observations.push_back({id, best.position_in_b[i], CutPatch(best_node->image, best.position_in_b[i])});
   }
-  const node_t last_id = last.id, first_id = first.id;
+  const node_t last_id = last.id, first_id = best_node->id;
   Commit(nullptr, &arc, nullptr, {{last_id, std::move(last_observations)}, {first_id, std::move(first_observations)}});
   map_.AddArc(std::move(arc));
   statistics_.loop_closed = true;
-  spdlog::info("teach: loop closed between key-images {} and {} ({} inliers, sigma_p {:.2f} px)", last_id, first_id,
-               geometry.num_inliers, geometry.sigma_p);
+  spdlog::info("teach: loop closed between key-images {} and {} ({} inliers, {} trackable, sigma_p {:.2f} px)",
+               last_id, first_id, best.geometry.num_inliers, best.num_trackable, best.geometry.sigma_p);
 }
 
 }  // namespace retrace

@@ -11,8 +11,9 @@
 // Gap recovery. When tracking fails at once (a frame gap, a full occlusion) right after a key-image, the key-image
 // and the current image are related by wide-baseline matching instead, so the graph stays connected.
 //
-// Loop closing. After the last frame, the first and last key-images are matched; on success an arc joins them and
-// the graph becomes circular.
+// Loop closing. After the last frame, the last key-image is matched with the first ones (the first five: where
+// the drive began, the last key-image may lie between two of them); the best geometrically verified candidate
+// gets an arc from the last key-image and the graph becomes circular.
 //
 // The relative scale between consecutive arcs is stored at their common node (median of depth ratios of the
 // features reconstructed in both, design §3.3).
@@ -37,6 +38,7 @@
 #include "retrace/geometry/two_view_geometry.h"
 #include "retrace/map/map.h"
 #include "retrace/map/map_database.h"
+#include "retrace/teach/matched_geometry.h"
 
 namespace retrace {
 
@@ -57,9 +59,12 @@ struct TeachOptions {
   // Gaussian pre-smoothing of the tracker's images (pixels at reference_width). Scaling it with the image keeps
   // the residual R meaningful at any resolution: fine texture that the paper's 320x240 images did not resolve
   // would otherwise count as appearance change.
-  double smoothing_sigma_px = 0.4;
+  double smoothing_sigma_px = 0.7;
   // Sampson-error threshold of the geometry's inliers (pixels at reference_width).
   double inlier_threshold_px = 1.5;
+  // A geometry needs this median parallax (pixels at reference_width) before it is trusted; below it the camera has
+  // not moved enough yet and no key-image is needed.
+  double min_parallax_px = 0.5;
   // Relate a key-image and the current image by wide-baseline matching when tracking fails at once.
   bool recover_gaps = true;
   // Match the first and last key-image after the last frame; a circular graph on success.
@@ -67,10 +72,29 @@ struct TeachOptions {
   // Tracking "fails at once" when fewer than this fraction of the previous frame's features survive a frame.
   double gap_survival_fraction = 0.25;
 
+  // Fewest geometry inliers for relating two images by wide-baseline matching (gap recovery, loop closing). Lower
+  // than n: σ_p already penalises geometries supported by few points, and a gap arc keeps the graph connected.
+  int min_matched_inliers = 20;
+  // The same for closing a loop, stricter: a wrong loop closure is worse than none.
+  int min_loop_inliers = 30;
+
   FeatureTrackerOptions tracker;
   CornerDetectorOptions detector;
-  TwoViewOptions geometry;
-  WideBaselineOptions matching;
+  // Two-view geometry of W(K, f). Tracked correspondences have few outliers, so the adaptive sampling may stop
+  // after few samples (the estimator's default minimum is meant for matches).
+  TwoViewOptions geometry = [] {
+    TwoViewOptions o;
+    o.ransac.min_iterations = 20;
+    return o;
+  }();
+  // Wide-baseline matching for gap recovery and loop closing. The ratio is looser than the paper's 0.6 (§4.1)
+  // because every match must also agree with a robustly estimated two-view geometry: on 320x240 images 9 m apart,
+  // 0.6 keeps too few matches to estimate one (17 against 44 with 0.8 in the simulated town).
+  WideBaselineOptions matching = [] {
+    WideBaselineOptions o;
+    o.ratio = 0.8;
+    return o;
+  }();
 
   bool Check(std::string* error = nullptr) const;
 };
@@ -122,9 +146,11 @@ class Teacher {
   // reached by a "gap" arc. Returns false when the two images cannot be related.
   bool RecoverGap(FrameState* frame);
   // Starts a subrange at `frame`: references redefined there, new corners detected.
-  void StartSubrange(FrameState* frame, std::vector<FeatureObservation>* observations);
+  void StartSubrange(FrameState* frame);
   void CloseLoop();
-  std::vector<FeatureObservation> ObservationsOf(const FrameState& frame) const;
+  MatchedGeometryOptions MatchingOptions() const;
+  bool AcceptableMatchedGeometry(const MatchedGeometry& matched, int min_inliers) const;
+  MatchableImage PrepareForMatching(const cv::Mat& image) const;
   void Commit(const MapNode* node, const MapArc* arc, const NodeScale* scale,
               const std::vector<std::pair<node_t, std::vector<FeatureObservation>>>& extra_observations);
 
@@ -146,8 +172,6 @@ class Teacher {
   arc_t last_arc_ = kInvalidArcId;
   std::unordered_map<feature_t, double> last_arc_depth_at_to_;
   feature_t next_feature_id_ = 0;
-  // Observations of earlier key-images found by matching, committed with the next key-image.
-  std::vector<std::pair<node_t, std::vector<FeatureObservation>>> pending_observations_;
   bool finished_ = false;
 };
 

@@ -12,6 +12,7 @@
 #include "retrace/camera/camera_io.h"
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/dataset/sequence.h"
+#include "retrace/teach/map_report.h"
 #include "retrace/teach/teacher.h"
 #include "retrace/util/testing.h"
 
@@ -41,11 +42,12 @@ double Median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-Map TeachKitti(const std::filesystem::path& kitti, size_t every, TeachStatistics* stats, double* sigma_threshold) {
+Map TeachKitti(const std::filesystem::path& kitti, size_t every, TeachStatistics* stats, double* sigma_threshold,
+               MapDatabase* database = nullptr) {
   std::unique_ptr<Sequence> sequence = OpenSequence(kitti);
   const auto camera = ReadCameraFile(*sequence->calibration_file(), sequence->image_size());
   if (every > 1) sequence = std::make_unique<SubsampledSequence>(std::move(sequence), every, 0);
-  Teacher teacher(*camera, TeachOptions(), nullptr);
+  Teacher teacher(*camera, TeachOptions(), database);
   while (auto frame = sequence->Next()) teacher.AddFrame(*frame);
   teacher.Finish();
   *stats = teacher.statistics();
@@ -75,10 +77,36 @@ void CheckKittiMap(const Map& map, const TeachStatistics& stats, double sigma_th
 
 TEST(TeachKitti, MapOfAllFramesAgreesWithGroundTruth) {
   RETRACE_REQUIRE_SHARED_DATA(kitti, "kitti07");
+  const auto dir = testing::MakeTempDir("teach_kitti");
+  auto database = MapDatabase::Create(dir / "route.db");
   TeachStatistics stats;
   double sigma_threshold = 0;
-  const Map map = TeachKitti(kitti, 1, &stats, &sigma_threshold);
-  CheckKittiMap(map, stats, sigma_threshold, ReadKittiPoses(kitti / "poses.txt"));
+  const Map map = TeachKitti(kitti, 1, &stats, &sigma_threshold, database.get());
+  const std::vector<TimedPose> truth = ReadKittiPoses(kitti / "poses.txt");
+  CheckKittiMap(map, stats, sigma_threshold, truth);
+
+  // The stored map equals the one in memory, and it is compact: at most 30 kB per metre of route (the paper's
+  // figure, design §5).
+  database.reset();
+  const Map stored = MapDatabase::Open(dir / "route.db")->ReadMap();
+  ASSERT_EQ(stored.nodes().size(), map.nodes().size());
+  ASSERT_EQ(stored.arcs().size(), map.arcs().size());
+  for (size_t i = 0; i < map.arcs().size(); ++i) {
+    EXPECT_EQ(stored.arcs()[i].num_features(), map.arcs()[i].num_features());
+    // Every feature of an arc is observed in both of its key-images (repeat needs both positions).
+    for (const ArcPoint& point : stored.arcs()[i].points) {
+      for (const node_t node : {stored.arcs()[i].from, stored.arcs()[i].to}) {
+        const auto& features = stored.FindNode(node)->features;
+        EXPECT_TRUE(std::any_of(features.begin(), features.end(),
+                                [&](const FeatureObservation& f) { return f.feature_id == point.feature_id; }))
+            << "feature " << point.feature_id << " of arc " << i << " missing in node " << node;
+      }
+    }
+  }
+  const double kilobytes = std::filesystem::file_size(dir / "route.db") / 1000.0;
+  const double metres = RouteLengthMetres(map, truth);
+  std::cout << "kitti07 map: " << kilobytes << " kB for " << metres << " m = " << kilobytes / metres << " kB/m\n";
+  EXPECT_LE(kilobytes / metres, 30.0);
 }
 
 TEST(TeachKitti, MapOfEvenFramesAgreesWithGroundTruth) {

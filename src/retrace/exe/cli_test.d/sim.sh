@@ -1,0 +1,19 @@
+# retrace sim: example scenario, a tiny render (KITTI layout), the repeat variant, bad scenario files.
+expect sim-example 0 'sun_azimuth_deg' -- "$bin" sim example-scenario
+"$bin" sim example-scenario >"$tmp/town.yaml"
+expect sim-render 0 'wrote 4 frames' -- "$bin" sim render --scenario "$tmp/town.yaml" --out "$tmp/teach" --frames 4 \
+  --width 80 --height 60 --quiet --contact-sheet "$tmp/sheet.png" --contact-sheet-every 2
+expect sim-render-layout 0 '^4 4 4$' -- bash -c "echo \$(ls '$tmp/teach/image_0' | wc -l) \$(wc -l <'$tmp/teach/poses.txt') \$(wc -l <'$tmp/teach/times.txt')"
+expect sim-render-calib 0 '^P0: ' -- head -1 "$tmp/teach/calib.txt"
+expect sim-contact-sheet 0 'sheet.png' -- ls "$tmp/sheet.png"
+expect sim-repeat 0 'repeat variant' -- "$bin" sim render --out "$tmp/repeat" --variant repeat --frames 2 --width 80 \
+  --height 60 --quiet
+printf 'seed: 1\ncamera:\n  model: perspective\n  width: wide\n' >"$tmp/bad.yaml"
+expect sim-bad-value 1 'bad.yaml: line 4: camera.width: expected an integer' -- \
+  "$bin" sim render --scenario "$tmp/bad.yaml" --out "$tmp/bad"
+printf 'seed: 1\nrout:\n  type: auto\n' >"$tmp/bad2.yaml"
+expect sim-unknown-key 1 'bad2.yaml: line 2: rout: unknown key' -- \
+  "$bin" sim render --scenario "$tmp/bad2.yaml" --out "$tmp/bad"
+expect sim-missing-file 1 'cannot open the scenario file' -- \
+  "$bin" sim render --scenario "$tmp/none.yaml" --out "$tmp/bad"
+expect sim-bad-variant 105 'variant' -- "$bin" sim render --out "$tmp/bad" --variant sideways

@@ -1,0 +1,26 @@
+# retrace teach and retrace inspect.
+if [[ -d $data/kitti07 ]]; then
+  expect teach-kitti 0 'key-images' -- "$bin" teach --sequence "$data/kitti07" --map "$tmp/k07.db" --every 2 --no-progress
+  expect inspect-summary 0 'key-images' -- "$bin" inspect --map "$tmp/k07.db"
+  # --json: one object with the documented fields; arcs chain the nodes.
+  expect inspect-json 0 'ok' -- bash -c "'$bin' inspect --map '$tmp/k07.db' --json | python3 -c '
+import json, sys
+m = json.load(sys.stdin)
+assert len(m[\"nodes\"]) >= 2 and len(m[\"arcs\"]) == len(m[\"nodes\"]) - 1
+for n in m[\"nodes\"]:
+    assert n[\"image\"].endswith(\".png\") and n[\"source_frame\"] % 2 == 0
+for a in m[\"arcs\"]:
+    assert len(a[\"R\"]) == 9 and len(a[\"t\"]) == 3 and a[\"features\"] >= 50 and a[\"sigma_p\"] >= 0
+    assert abs(sum(x * x for x in a[\"t\"]) - 1) < 1e-6
+print(\"ok\")'"
+  expect inspect-report 0 'key_image_poses.png' -- "$bin" inspect --map "$tmp/k07.db" --report "$tmp/report" \
+    --ground-truth "$data/kitti07/poses.txt"
+  # An existing map is never replaced without --overwrite, and stays intact.
+  before=$(md5sum "$tmp/k07.db")
+  expect teach-no-overwrite 1 'exists already' -- "$bin" teach --sequence "$data/kitti07" --map "$tmp/k07.db"
+  expect teach-map-intact 0 '' -- bash -c "[[ '$before' == \"\$(md5sum '$tmp/k07.db')\" ]]"
+fi
+expect teach-missing-sequence 1 'retrace: error: .*nowhere' -- "$bin" teach --sequence "$tmp/nowhere" --map "$tmp/x.db"
+echo "not a map" >"$tmp/foreign.db"
+expect inspect-foreign 1 "retrace: error: $tmp/foreign.db: not a retrace map" -- "$bin" inspect --map "$tmp/foreign.db"
+expect inspect-missing 1 'no such map file' -- "$bin" inspect --map "$tmp/missing.db"

@@ -1,0 +1,45 @@
+#pragma once
+
+// Recording a simulated drive to disk in the KITTI odometry layout, so every other tool reads simulated and real
+// sequences the same way:
+// (written by dataset/KittiSequenceWriter):
+//   DIR/image_0/000000.png ...   the frames (grey, or colour when sensor.color)
+//   DIR/times.txt                one timestamp (s) per line
+//   DIR/poses.txt                ground truth: world_from_cam as 12 numbers (3x4 row-major) per line
+//   DIR/calib.txt                "P0: ..." projection matrix K [I | 0] (perspective cameras)
+//   DIR/camera.yaml              the full camera model (camera/camera_io.h WriteCameraFile: distortion, panoramas)
+//   DIR/scenario.yaml            the effective scenario (after the variant's overrides), to reproduce the run
+// The world frame is the simulator's (simulator.h): a level camera on the ground at the route's start.
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "retrace/sim/simulator.h"
+
+namespace retrace {
+
+struct RecordOptions {
+  // Draw a progress bar on stderr.
+  bool progress = true;
+  // Write a contact sheet (every `contact_sheet_every`-th frame, labelled) to this PNG; empty = none.
+  std::filesystem::path contact_sheet;
+  int contact_sheet_every = 10;
+  int contact_sheet_columns = 4;
+};
+
+struct RecordSummary {
+  int frames = 0;
+  double route_length_m = 0.0;
+  double driven_m = 0.0;
+  double seconds = 0.0;  // wall-clock time of rendering and writing
+};
+
+// Drives the simulator's autopilot to the end of the route (or the scenario's frame count) and writes the sequence
+// into `out_dir` (created if needed). Throws InputError when the folder cannot be written.
+RecordSummary RecordSequence(Simulator* simulator, const std::filesystem::path& out_dir,
+                             const RecordOptions& options);
+
+}  // namespace retrace

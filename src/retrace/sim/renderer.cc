@@ -1,0 +1,465 @@
+#include "retrace/sim/renderer.h"
+
+#include <algorithm>
+#include <atomic>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <cmath>
+#include <functional>
+#include <thread>
+
+#include "retrace/sim/procedural_texture.h"
+
+namespace retrace {
+namespace {
+
+constexpr int kTileSize = 16;
+constexpr int kBatchSize = 256;
+constexpr float kInfinity = std::numeric_limits<float>::infinity();
+
+// Runs fn(i) for i in [0, n) on `threads` threads (work stealing by an atomic counter). The caller works too and
+// returns as soon as every item is done: it never waits for a helper thread that the OS has not scheduled yet (on
+// a busy machine that wait would cost more than the work). Late helpers find no work left and exit; they only touch
+// the shared state they own a reference to.
+void ParallelFor(int n, int threads, const std::function<void(int)>& fn) {
+  threads = std::max(1, std::min(threads, n));
+  if (threads == 1) {
+    for (int i = 0; i < n; ++i) fn(i);
+    return;
+  }
+  struct State {
+    std::atomic<int> next{0};
+    std::atomic<int> done{0};
+    int n = 0;
+    std::function<void(int)> fn;
+    std::mutex mutex;
+    std::condition_variable finished;
+  };
+  auto state = std::make_shared<State>();
+  state->n = n;
+  state->fn = fn;
+  auto work = [](State& s) {
+    for (int i = s.next++; i < s.n; i = s.next++) {
+      s.fn(i);
+      if (++s.done == s.n) {
+        std::lock_guard<std::mutex> lock(s.mutex);
+        s.finished.notify_all();
+      }
+    }
+  };
+  for (int t = 1; t < threads; ++t) std::thread([state, work]() { work(*state); }).detach();
+  work(*state);
+  std::unique_lock<std::mutex> lock(state->mutex);
+  state->finished.wait(lock, [&]() { return state->done.load() == n; });
+}
+
+// 8-bit value of linear intensity v in [0, 1] through the gamma 1/2.2 response, tabulated.
+class ResponseCurve {
+ public:
+  static constexpr int kSize = 65536;
+  ResponseCurve() : table_(kSize) {
+    for (int i = 0; i < kSize; ++i) table_[i] = 255.0f * std::pow(static_cast<float>(i) / (kSize - 1), 1.0f / 2.2f);
+  }
+  float operator()(float v) const {
+    const int i = static_cast<int>(std::min(1.0f, std::max(0.0f, v)) * (kSize - 1) + 0.5f);
+    return table_[i];
+  }
+
+ private:
+  std::vector<float> table_;
+};
+
+const ResponseCurve& Response() {
+  static const ResponseCurve curve;
+  return curve;
+}
+
+// Approximately standard normal from one hash: the sum of four 16-bit uniforms (Irwin-Hall), scaled to unit
+// variance. Cheap, deterministic, and bounded at +-3.46 sigma.
+float HashGaussian(uint64_t h) {
+  float sum = 0.0f;
+  for (int i = 0; i < 4; ++i) sum += static_cast<float>((h >> (16 * i)) & 0xffff) * (1.0f / 65535.0f);
+  return (sum - 2.0f) * 1.7320508f;
+}
+
+float Smoothstep(float a, float b, float x) {
+  const float t = std::min(1.0f, std::max(0.0f, (x - a) / (b - a)));
+  return t * t * (3.0f - 2.0f * t);
+}
+
+}  // namespace
+
+Vector3d Lighting::SunDirection() const {
+  const double az = sun_azimuth_deg * M_PI / 180.0;
+  const double el = sun_elevation_deg * M_PI / 180.0;
+  return Vector3d(std::sin(az) * std::cos(el), std::cos(az) * std::cos(el), std::sin(el));
+}
+
+bool Lighting::Check() const {
+  return std::isfinite(sun_azimuth_deg) && sun_elevation_deg >= -90.0 && sun_elevation_deg <= 90.0 &&
+         sun_irradiance >= 0.0 && sky_irradiance >= 0.0;
+}
+
+bool SensorOptions::Check() const { return exposure > 0.0 && gain > 0.0 && noise_sigma >= 0.0; }
+
+bool RenderOptions::Check() const { return antialiasing >= 1 && antialiasing <= 8 && num_threads >= 1; }
+
+struct Renderer::Frame {
+  const Scene* scene;
+  Eigen::Matrix3f rotation;  // town_from_cam
+  Vector3f origin;
+  Vector3f sun;
+  bool sun_up;
+  bool gray;  // grey output: textures are sampled on their luminance only
+  float sun_irradiance;
+  float sky_irradiance;
+  int width, height, tiles_x, tiles_y;
+  std::vector<Vector3f> color;
+  std::vector<uint32_t> key;
+};
+
+Renderer::Renderer(const CameraModel& camera, const RenderOptions& options)
+    : camera_(camera.Clone()), options_(options) {
+  const int w = camera.width(), h = camera.height();
+  const size_t n = static_cast<size_t>(w) * h;
+  bearings_.assign(n, Vector3f::Zero());
+  diff_x_.assign(n, Vector3f::Zero());
+  diff_y_.assign(n, Vector3f::Zero());
+  valid_.assign(n, 0);
+  const int ss = options.antialiasing;
+  sub_bearings_.assign(ss > 1 ? n * ss * ss : 0, Vector3f::Zero());
+  auto unproject = [&](double x, double y, Vector3f* out) {
+    Vector3d b;
+    if (!camera.Unproject(Vector2d(x, y), &b) || !b.allFinite()) return false;
+    *out = b.cast<float>();
+    return true;
+  };
+  ParallelFor(h, options.num_threads, [&](int y) {
+    for (int x = 0; x < w; ++x) {
+      const size_t i = static_cast<size_t>(y) * w + x;
+      Vector3f b, bx, by;
+      if (!unproject(x, y, &b)) continue;
+      valid_[i] = 1;
+      bearings_[i] = b;
+      // Differentials by central differences of the model over one pixel (robust at image borders).
+      Vector3f l = Vector3f::Zero(), r = l, u = l, d = l;
+      const bool has_x = unproject(x - 0.5, y, &l) && unproject(x + 0.5, y, &r);
+      const bool has_y = unproject(x, y - 0.5, &u) && unproject(x, y + 0.5, &d);
+      diff_x_[i] = has_x ? Vector3f(r - l) : Vector3f::Zero();
+      diff_y_[i] = has_y ? Vector3f(d - u) : Vector3f::Zero();
+      for (int sy = 0; sy < ss && ss > 1; ++sy) {
+        for (int sx = 0; sx < ss; ++sx) {
+          Vector3f s;
+          const double ox = (sx + 0.5) / ss - 0.5, oy = (sy + 0.5) / ss - 0.5;
+          sub_bearings_[i * ss * ss + sy * ss + sx] = unproject(x + ox, y + oy, &s) ? s : b;
+        }
+      }
+    }
+  });
+}
+
+Renderer::~Renderer() = default;
+
+void Renderer::TraceBatch(const Frame& frame, const Vector3f* directions, const Vector3f* diff_x,
+                          const Vector3f* diff_y, int count, Vector3f* colors, uint32_t* keys) const {
+  const Scene& scene = *frame.scene;
+  RTCRayHit rays[kBatchSize];
+  RTCRay shadow[kBatchSize];
+  int shadow_of[kBatchSize];
+  Vector3f albedo[kBatchSize];
+  float ambient[kBatchSize], direct[kBatchSize];
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  for (int i = 0; i < count; ++i) {
+    RTCRayHit& r = rays[i];
+    r.ray.org_x = frame.origin.x();
+    r.ray.org_y = frame.origin.y();
+    r.ray.org_z = frame.origin.z();
+    r.ray.dir_x = directions[i].x();
+    r.ray.dir_y = directions[i].y();
+    r.ray.dir_z = directions[i].z();
+    r.ray.tnear = 0.0f;
+    r.ray.tfar = kInfinity;
+    r.ray.time = 0.0f;
+    r.ray.mask = 0xffffffffu;
+    r.ray.id = i;
+    r.ray.flags = 0;
+    r.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    r.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  }
+  rtcIntersect1M(scene.embree_scene(), &context, rays, count, sizeof(RTCRayHit));
+
+  int num_shadow = 0;
+  const Vector3f sky_color = scene.sky_color();
+  for (int i = 0; i < count; ++i) {
+    const RTCRayHit& r = rays[i];
+    const Vector3f& dir = directions[i];
+    direct[i] = 0.0f;
+    if (r.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
+      keys[i] = 0;
+      ambient[i] = -1.0f;  // marks sky
+      if (scene.sky_type() == SkyType::kUniform) {
+        colors[i] = sky_color;
+        continue;
+      }
+      // Procedural sky: horizon-to-zenith gradient, clouds on a plane above, sun glow and disc.
+      const float up = dir.z();
+      const float brightness = frame.sky_irradiance / 0.5f;
+      const Vector3f horizon(0.78f, 0.82f, 0.88f), zenith(0.28f, 0.42f, 0.72f);
+      const float t = std::sqrt(std::max(0.0f, up));
+      Vector3f c = up < 0.0f ? Vector3f(0.5f, 0.5f, 0.5f) : Vector3f(horizon * (1.0f - t) + zenith * t);
+      if (up > 0.02f && scene.clouds().width() > 0) {
+        constexpr float kScale = 0.08f;  // cloud texture tiles per unit of the plane at height 1
+        const float inv = 1.0f / up;
+        const Vector2f uv(dir.x() * inv * kScale, dir.y() * inv * kScale);
+        auto axis = [&](const Vector3f& d) {
+          return Vector2f((d.x() * up - dir.x() * d.z()) * inv * inv * kScale,
+                          (d.y() * up - dir.y() * d.z()) * inv * inv * kScale);
+        };
+        const float cover = scene.clouds().SampleFiltered(uv.x(), uv.y(), axis(diff_x[i]), axis(diff_y[i])).x();
+        const float amount = Smoothstep(0.45f, 0.75f, cover) * Smoothstep(0.02f, 0.25f, up);
+        c = c * (1.0f - 0.85f * amount) + Vector3f(0.95f, 0.95f, 0.96f) * (0.85f * amount) * (0.9f + 0.2f * cover);
+      }
+      c *= brightness;
+      if (frame.sun_up) {
+        const float cosine = dir.dot(frame.sun);
+        if (cosine > 0.0f) {
+          const float glow = 0.35f * std::pow(cosine, 48.0f) + (cosine > 0.99996f ? 6.0f : 0.0f);
+          c += glow * Vector3f(1.0f, 0.95f, 0.85f) * (frame.sun_irradiance / 1.5f);
+        }
+      }
+      colors[i] = c;
+      continue;
+    }
+    const Rigid3d* town_from_object = nullptr;
+    const TriangleShading& s = scene.Shading(r.hit.geomID, r.hit.instID[0], r.hit.primID, &town_from_object);
+    const Material& material = scene.materials()[s.material];
+    const float t = r.ray.tfar;
+    const Vector3f p = frame.origin + t * dir;
+    Vector3f n = s.normal;
+    Vector3f p_obj = p, d_obj = dir, dx_obj = diff_x[i], dy_obj = diff_y[i];
+    if (town_from_object) {
+      const Eigen::Matrix3f rot = town_from_object->rotation.cast<float>();
+      const Vector3f trans = town_from_object->translation.cast<float>();
+      n = rot * n;
+      p_obj = rot.transpose() * (p - trans);
+      d_obj = rot.transpose() * dir;
+      dx_obj = rot.transpose() * diff_x[i];
+      dy_obj = rot.transpose() * diff_y[i];
+    }
+    // Two-sided surfaces: the normal faces the viewer.
+    float d_dot_n = dir.dot(n);
+    if (d_dot_n > 0.0f) {
+      n = -n;
+      d_dot_n = -d_dot_n;
+    }
+    d_dot_n = std::min(d_dot_n, -1e-4f);
+    keys[i] = static_cast<uint32_t>(HashCombine(scene.ObjectKey(r.hit.geomID, r.hit.instID[0]), s.face)) | 1u;
+    if (material.emissive) {
+      colors[i] = material.color;
+      ambient[i] = -1.0f;
+      continue;
+    }
+    Vector3f a = material.color;
+    if (material.texture >= 0) {
+      const Texture& texture = scene.textures()[material.texture];
+      const Vector3f rel = p_obj - s.p0;
+      const float u = s.uv0.x() + s.grad_u.dot(rel);
+      const float v = s.uv0.y() + s.grad_v.dot(rel);
+      Vector2f axis_a = Vector2f::Zero(), axis_b = Vector2f::Zero();
+      if (options_.filter_textures) {
+        // Ray differentials (Igehy 1999): dP = t (dD - (dD.n)/(D.n) D), in the object frame.
+        const Vector3f n_obj = town_from_object ? Vector3f(town_from_object->rotation.cast<float>().transpose() * n) : n;
+        const Vector3f dpx = t * (dx_obj - (dx_obj.dot(n_obj) / d_dot_n) * d_obj);
+        const Vector3f dpy = t * (dy_obj - (dy_obj.dot(n_obj) / d_dot_n) * d_obj);
+        axis_a = Vector2f(s.grad_u.dot(dpx), s.grad_v.dot(dpx));
+        axis_b = Vector2f(s.grad_u.dot(dpy), s.grad_v.dot(dpy));
+      }
+      if (frame.gray) {
+        // Luminance only: lum(tint * texture) ~ lum(tint) * lum(texture) (exact for grey tints).
+        const float lum = 0.2126f * a.x() + 0.7152f * a.y() + 0.0722f * a.z();
+        a = Vector3f::Constant(lum * (options_.filter_textures ? texture.SampleFilteredGray(u, v, axis_a, axis_b)
+                                                               : texture.SampleTrilinearGray(u, v, 0.0f)));
+      } else {
+        a = a.cwiseProduct(options_.filter_textures ? texture.SampleFiltered(u, v, axis_a, axis_b)
+                                                    : texture.SampleTrilinear(u, v, 0.0f));
+      }
+    }
+    albedo[i] = a;
+    ambient[i] = frame.sky_irradiance * (0.75f + 0.25f * n.z());
+    const float n_dot_l = frame.sun_up ? n.dot(frame.sun) : 0.0f;
+    if (n_dot_l > 0.0f) {
+      direct[i] = frame.sun_irradiance * n_dot_l;
+      if (options_.shadows) {
+        RTCRay& sr = shadow[num_shadow];
+        const Vector3f o = p + (1e-3f + 1e-4f * t) * n;
+        sr.org_x = o.x();
+        sr.org_y = o.y();
+        sr.org_z = o.z();
+        sr.dir_x = frame.sun.x();
+        sr.dir_y = frame.sun.y();
+        sr.dir_z = frame.sun.z();
+        sr.tnear = 0.0f;
+        // Above the highest object nothing can cast a shadow: end the ray there (saves most of its traversal).
+        sr.tfar = frame.sun.z() > 1e-3f ? std::max(0.0f, (scene.top() - o.z()) / frame.sun.z()) : kInfinity;
+        sr.time = 0.0f;
+        sr.mask = 0xffffffffu;
+        sr.id = i;
+        sr.flags = 0;
+        shadow_of[num_shadow++] = i;
+      }
+    }
+  }
+  if (num_shadow > 0) {
+    RTCIntersectContext shadow_context;
+    rtcInitIntersectContext(&shadow_context);
+    shadow_context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // parallel rays from neighbouring points
+    rtcOccluded1M(scene.embree_scene(), &shadow_context, shadow, num_shadow, sizeof(RTCRay));
+    for (int k = 0; k < num_shadow; ++k) {
+      if (shadow[k].tfar < 0.0f) {  // occluded: Embree sets tfar to -inf
+        const int i = shadow_of[k];
+        direct[i] = 0.0f;
+        keys[i] ^= 0x80000000u;
+      }
+    }
+  }
+  for (int i = 0; i < count; ++i) {
+    if (ambient[i] < 0.0f) continue;  // sky or emissive
+    colors[i] = albedo[i] * (ambient[i] + direct[i]);
+  }
+}
+
+void Renderer::RenderTile(const Frame& frame, int tile) const {
+  const int tx = tile % frame.tiles_x, ty = tile / frame.tiles_x;
+  const int x0 = tx * kTileSize, y0 = ty * kTileSize;
+  const int x1 = std::min(frame.width, x0 + kTileSize), y1 = std::min(frame.height, y0 + kTileSize);
+  std::vector<Vector3f> dirs(kBatchSize), dxs(kBatchSize), dys(kBatchSize), colors(kBatchSize);
+  uint32_t keys[kBatchSize];
+  int index[kBatchSize];
+  int count = 0;
+  for (int y = y0; y < y1; ++y) {
+    for (int x = x0; x < x1; ++x) {
+      const int i = y * frame.width + x;
+      if (!valid_[i]) continue;
+      dirs[count] = frame.rotation * bearings_[i];
+      dxs[count] = frame.rotation * diff_x_[i];
+      dys[count] = frame.rotation * diff_y_[i];
+      index[count++] = i;
+    }
+  }
+  TraceBatch(frame, dirs.data(), dxs.data(), dys.data(), count, colors.data(), keys);
+  auto& out_color = const_cast<std::vector<Vector3f>&>(frame.color);
+  auto& out_key = const_cast<std::vector<uint32_t>&>(frame.key);
+  for (int k = 0; k < count; ++k) {
+    out_color[index[k]] = colors[k];
+    out_key[index[k]] = keys[k];
+  }
+}
+
+void Renderer::SupersampleRange(const Frame& frame, const std::vector<int>& pixels, size_t begin,
+                                size_t end) const {
+  const int ss = options_.antialiasing;
+  const int per_pixel = ss * ss;
+  const int pixels_per_batch = kBatchSize / per_pixel;
+  std::vector<Vector3f> dirs(kBatchSize), dxs(kBatchSize), dys(kBatchSize), colors(kBatchSize);
+  uint32_t keys[kBatchSize];
+  auto& out_color = const_cast<std::vector<Vector3f>&>(frame.color);
+  const float inv_ss = 1.0f / ss;
+  for (size_t start = begin; start < end; start += pixels_per_batch) {
+    const size_t stop = std::min(end, start + pixels_per_batch);
+    int count = 0;
+    for (size_t k = start; k < stop; ++k) {
+      const int i = pixels[k];
+      const Vector3f dx = frame.rotation * diff_x_[i] * inv_ss;
+      const Vector3f dy = frame.rotation * diff_y_[i] * inv_ss;
+      for (int s = 0; s < per_pixel; ++s) {
+        dirs[count] = frame.rotation * sub_bearings_[static_cast<size_t>(i) * per_pixel + s];
+        dxs[count] = dx;
+        dys[count] = dy;
+        ++count;
+      }
+    }
+    TraceBatch(frame, dirs.data(), dxs.data(), dys.data(), count, colors.data(), keys);
+    for (size_t k = start; k < stop; ++k) {
+      Vector3f sum = Vector3f::Zero();
+      for (int s = 0; s < per_pixel; ++s) sum += colors[(k - start) * per_pixel + s];
+      out_color[pixels[k]] = sum / static_cast<float>(per_pixel);
+    }
+  }
+}
+
+cv::Mat Renderer::Render(const Scene& scene, const Rigid3d& town_from_cam, const Lighting& lighting,
+                         const SensorOptions& sensor, uint64_t noise_seed) const {
+  Frame frame;
+  frame.scene = &scene;
+  frame.rotation = town_from_cam.rotation.cast<float>();
+  frame.origin = town_from_cam.translation.cast<float>();
+  frame.sun = lighting.SunDirection().cast<float>();
+  frame.sun_up = lighting.sun_elevation_deg > 0.0;
+  frame.gray = !sensor.color;
+  frame.sun_irradiance = static_cast<float>(lighting.sun_irradiance);
+  frame.sky_irradiance = static_cast<float>(lighting.sky_irradiance);
+  frame.width = camera_->width();
+  frame.height = camera_->height();
+  frame.tiles_x = (frame.width + kTileSize - 1) / kTileSize;
+  frame.tiles_y = (frame.height + kTileSize - 1) / kTileSize;
+  const size_t n = static_cast<size_t>(frame.width) * frame.height;
+  frame.color.assign(n, Vector3f::Zero());
+  frame.key.assign(n, 0xffffffffu);
+  const int threads = options_.num_threads;
+  ParallelFor(frame.tiles_x * frame.tiles_y, threads, [&](int tile) { RenderTile(frame, tile); });
+
+  // Edge pixels: a neighbour (right or below) sees another object, face or shadow state.
+  std::vector<int> edges;
+  if (options_.antialiasing > 1) {
+    std::vector<uint8_t> mark(n, 0);
+    const int w = frame.width, h = frame.height;
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        const int i = y * w + x;
+        if (!valid_[i]) continue;
+        if (x + 1 < w && valid_[i + 1] && frame.key[i] != frame.key[i + 1]) mark[i] = mark[i + 1] = 1;
+        if (y + 1 < h && valid_[i + w] && frame.key[i] != frame.key[i + w]) mark[i] = mark[i + w] = 1;
+      }
+    }
+    for (size_t i = 0; i < n; ++i) {
+      if (mark[i]) edges.push_back(static_cast<int>(i));
+    }
+    constexpr size_t kChunk = 256;
+    const int chunks = static_cast<int>((edges.size() + kChunk - 1) / kChunk);
+    ParallelFor(chunks, threads, [&](int c) {
+      SupersampleRange(frame, edges, c * kChunk, std::min(edges.size(), (c + 1) * kChunk));
+    });
+  }
+  last_supersampled_ = edges.size();
+
+  // Sensor: exposure x gain, gamma response, 8 bits, noise.
+  const float scale = static_cast<float>(sensor.exposure * sensor.gain);
+  const float sigma = static_cast<float>(sensor.noise_sigma);
+  const ResponseCurve& response = Response();
+  cv::Mat image(frame.height, frame.width, sensor.color ? CV_8UC3 : CV_8UC1);
+  ParallelFor(frame.height, threads, [&](int y) {
+    uint8_t* row = image.ptr<uint8_t>(y);
+    for (int x = 0; x < frame.width; ++x) {
+      const size_t i = static_cast<size_t>(y) * frame.width + x;
+      const Vector3f c = frame.color[i] * scale;
+      const uint64_t h = HashCombine(noise_seed, i);
+      auto quantize = [&](float linear, uint64_t hash) {
+        const float value = response(linear) + (sigma > 0.0f ? sigma * HashGaussian(hash) : 0.0f);
+        return static_cast<uint8_t>(std::min(255.0f, std::max(0.0f, value)) + 0.5f);
+      };
+      if (sensor.color) {
+        row[3 * x + 0] = quantize(c.z(), HashMix(h + 2));
+        row[3 * x + 1] = quantize(c.y(), HashMix(h + 1));
+        row[3 * x + 2] = quantize(c.x(), h);
+      } else {
+        row[x] = quantize(0.2126f * c.x() + 0.7152f * c.y() + 0.0722f * c.z(), h);
+      }
+    }
+  });
+  return image;
+}
+
+}  // namespace retrace

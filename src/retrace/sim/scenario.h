@@ -1,0 +1,101 @@
+#pragma once
+
+// A simulation scenario: everything that defines a recorded drive (world, camera, vehicle, route, driving style,
+// light, sensor, rendering, frame rate), as plain data. scenario_io.h reads and writes it as YAML; the command line
+// can override fields. A scenario has two variants of one drive:
+//  - teach: the drive as specified;
+//  - repeat: the same route with the `repeat` overrides (by default another time of day — sun on the other side,
+//    lower, different exposure — a 1 m lateral offset, some wobble, other sensor noise and other positions of the
+//    moving pedestrians and cars), so that "teach" and "repeat" recordings come from one scenario and one flag.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "retrace/camera/camera_model.h"
+#include "retrace/camera/perspective_camera.h"
+#include "retrace/sim/renderer.h"
+#include "retrace/sim/town.h"
+#include "retrace/sim/vehicle.h"
+
+namespace retrace {
+
+struct CameraSpec {
+  // "perspective" (pinhole + radial-tangential distortion), "unified" (fisheye / catadioptric omnidirectional,
+  // Mei 2007, with xi) or "equirectangular" (360 x 180 degree panorama).
+  std::string model = "perspective";
+  int width = 320;
+  int height = 240;
+  // Horizontal field of view (degrees) that sets fx = fy when `fx` is 0 (perspective < 180, unified any).
+  double hfov_deg = 80.0;
+  // Mirror / fisheye parameter of the unified model (0 = perspective, 1 = parabolic mirror / ~180+ degree fisheye).
+  double xi = 1.0;
+  // Intrinsics in pixels (perspective); fx = 0 means "from hfov_deg", cx/cy < 0 mean the image centre.
+  double fx = 0.0, fy = 0.0, cx = -1.0, cy = -1.0;
+  LensDistortion distortion;
+
+  bool Check() const;
+  std::unique_ptr<CameraModel> MakeCamera() const;
+};
+
+struct RouteSpec {
+  // "auto": a seeded drive of `segments` junction-to-junction streets with turns; "loop": around the rectangle of
+  // blocks [loop_i0, loop_i1] x [loop_j0, loop_j1] (junction indices); "waypoints": the given town-frame points
+  // (X east, Y north, metres), driven as given (no lane offset).
+  std::string type = "auto";
+  int segments = 8;
+  int loop_i0 = 0, loop_j0 = 0, loop_i1 = 2, loop_j1 = 1;
+  std::vector<Vector2d> waypoints;
+
+  bool Check() const;
+};
+
+// Overrides for the repeat recording of a route.
+struct RepeatSpec {
+  Lighting lighting{250.0, 25.0, 1.2, 0.6};
+  double exposure = 0.9;
+  double lateral_offset = 1.0;     // metres right of the route (teach drives at the scenario's offset)
+  double wobble_amplitude = 0.25;  // metres
+  double time_offset = 37.0;       // seconds added to the clock of the moving occluders
+};
+
+struct Scenario {
+  // Seed of the world and of everything random in the drive (the town uses town.seed, derived from this unless
+  // given explicitly in the file).
+  uint64_t seed = 1;
+  TownOptions town;
+  // A scene file of the user's (glTF, OBJ, ... via Assimp) instead of the built-in town; empty = the town. Needs
+  // route.type "waypoints" (in the file's ground plane, metres after scaling).
+  std::string scene_file;
+  double scene_scale = 1.0;  // metres per file unit
+  bool scene_y_up = true;    // the file's up axis is Y (glTF convention) rather than Z
+  CameraSpec camera;
+  VehicleOptions vehicle;
+  RouteSpec route;
+  DriveOptions drive;
+  Lighting lighting;
+  SensorOptions sensor;
+  RenderOptions render;
+  // Frames per second of the recording and number of frames (0 = until the end of the route).
+  double frame_rate = 10.0;
+  int num_frames = 0;
+  // Seconds on the occluders' clock at the first frame.
+  double time_offset = 0.0;
+  // Calibration markers: self-luminous spheres at these points of the output world frame (simulator.h), for
+  // checking projections against ground truth (e.g. in the dark: sun_elevation_deg < 0, sky_irradiance 0).
+  std::vector<Vector3d> markers;
+  double marker_radius = 0.1;
+  double marker_brightness = 0.8;
+  RepeatSpec repeat;
+
+  // Returns an explanation of the first invalid field, or "" when the scenario is valid.
+  std::string Validate() const;
+};
+
+enum class ScenarioVariant { kTeach, kRepeat };
+
+// The scenario with the variant's overrides applied (teach: unchanged).
+Scenario ApplyVariant(const Scenario& scenario, ScenarioVariant variant);
+
+}  // namespace retrace

@@ -1,0 +1,121 @@
+#include "retrace/sim/simulator.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "retrace/sim/procedural_texture.h"
+#include "retrace/sim/scene_file.h"
+
+namespace retrace {
+
+std::vector<Vector2d> ResolveRoute(const Scenario& scenario, const TownLayout& layout) {
+  const RouteSpec& r = scenario.route;
+  if (r.type == "waypoints") return r.waypoints;
+  std::vector<Vector2d> junctions;
+  if (r.type == "loop") {
+    junctions = LoopRouteJunctions(layout, r.loop_i0, r.loop_j0, r.loop_i1, r.loop_j1);
+  } else {
+    junctions = RandomRouteJunctions(layout, r.segments, scenario.seed);
+  }
+  return OffsetPolyline(junctions, layout.lane_offset());
+}
+
+Simulator::Simulator(const Scenario& scenario) : scenario_(scenario) {
+  scene_ = std::make_unique<Scene>();
+  if (scenario.scene_file.empty()) {
+    layout_ = BuildTown(scenario.town, scene_.get());
+  } else {
+    SceneFileOptions options;
+    options.scale = scenario.scene_scale;
+    options.y_up = scenario.scene_y_up;
+    LoadSceneFile(scenario.scene_file, options, scene_.get());
+    scene_->set_sky(SkyType::kProcedural);
+    scene_->Commit();
+  }
+  route_ = std::make_unique<RoutePath>(ResolveRoute(scenario, layout_), scenario.drive);
+  // World frame: a level camera on the ground at the route's start, looking along the route.
+  VehicleState start;
+  start.position = route_->Position(0.0);
+  start.heading = route_->Heading(0.0);
+  town_from_world_ = Vehicle(scenario.vehicle, start).TownFromVehicle() * Vehicle::VehicleFromCamera(0.0, 0.0, 0.0);
+  if (!scenario.markers.empty()) {
+    Material glow;
+    glow.emissive = true;
+    glow.color = Vector3f::Constant(static_cast<float>(scenario.marker_brightness));
+    const int material = scene_->AddMaterial(glow);
+    Mesh markers;
+    for (const Vector3d& p : scenario.markers) {
+      const Vector3f centre = (town_from_world_ * p).cast<float>();
+      markers.AddBlob(centre, Vector3f::Constant(static_cast<float>(scenario.marker_radius)), 3, 0.0f, 0, 1.0f,
+                      material);
+    }
+    scene_->AddStaticMesh(markers);
+    scene_->Commit();
+  }
+  driver_ = std::make_unique<RouteDriver>(route_.get(), scenario.drive, scenario.vehicle);
+  vehicle_ = std::make_unique<Vehicle>(scenario.vehicle, driver_->StartState());
+  const std::unique_ptr<CameraModel> camera = scenario.camera.MakeCamera();
+  renderer_ = std::make_unique<Renderer>(*camera, scenario.render);
+  time_ = 0.0;
+}
+
+Simulator::~Simulator() = default;
+
+int Simulator::ExpectedFrames() const {
+  if (scenario_.num_frames > 0) return scenario_.num_frames;
+  // Integrate the travel time of the speed profile.
+  double t = 0.0;
+  for (double s = 0.0; s < route_->length(); s += 0.5) t += 0.5 / std::max(0.3, route_->Speed(s));
+  return static_cast<int>(t * scenario_.frame_rate) + 1;
+}
+
+SimFrame Simulator::RenderCurrent() {
+  SimFrame frame;
+  frame.timestamp = time_;
+  frame.town_from_cam = vehicle_->TownFromCamera();
+  frame.world_from_cam = town_from_world_.Inverse() * frame.town_from_cam;
+  frame.vehicle = vehicle_->state();
+  frame.progress = driver_->progress();
+  scene_->SetTime(time_ + scenario_.time_offset);
+  const uint64_t noise_seed =
+      HashCombine(HashCombine(scenario_.seed, scenario_.drive.wobble_seed + 0x9e37), static_cast<uint64_t>(frame_index_));
+  frame.image = renderer_->Render(*scene_, frame.town_from_cam, scenario_.lighting, scenario_.sensor, noise_seed);
+  ++frame_index_;
+  return frame;
+}
+
+void Simulator::Drive(double dt) {
+  // Physics and control at <= 20 ms steps.
+  const int steps = std::max(1, static_cast<int>(std::ceil(dt / 0.02)));
+  for (int k = 0; k < steps; ++k) {
+    double steering = 0.0, speed = 0.0;
+    driver_->Control(vehicle_->state(), &steering, &speed);
+    vehicle_->Step(steering, speed, dt / steps);
+  }
+  time_ += dt;
+}
+
+bool Simulator::NextFrame(SimFrame* frame) {
+  if (scenario_.num_frames > 0 && frame_index_ >= scenario_.num_frames) return false;
+  if (scenario_.num_frames == 0 && driver_->Finished()) return false;
+  *frame = RenderCurrent();
+  Drive(1.0 / scenario_.frame_rate);
+  return true;
+}
+
+SimFrame Simulator::Step(double steering, double speed, double dt) {
+  const int steps = std::max(1, static_cast<int>(std::ceil(dt / 0.02)));
+  for (int k = 0; k < steps; ++k) vehicle_->Step(steering, speed, dt / steps);
+  time_ += dt;
+  double unused_steering, unused_speed;
+  driver_->Control(vehicle_->state(), &unused_steering, &unused_speed);  // keeps the progress up to date
+  return RenderCurrent();
+}
+
+cv::Mat Simulator::RenderAt(const Rigid3d& world_from_cam, double time, uint64_t noise_seed) {
+  scene_->SetTime(time + scenario_.time_offset);
+  return renderer_->Render(*scene_, town_from_world_ * world_from_cam, scenario_.lighting, scenario_.sensor,
+                           noise_seed);
+}
+
+}  // namespace retrace

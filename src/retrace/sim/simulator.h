@@ -1,0 +1,83 @@
+#pragma once
+
+// The simulator: a scenario's world, vehicle and renderer, driven frame by frame along the route (autopilot) or
+// step by step by an external controller (closed loop).
+//
+// Output world frame ("world"): the frame of a camera standing on the ground at the start of the route, looking
+// along the route's initial direction, level: x right, y down (gravity), z forward, origin on the ground. Poses
+// written by the simulator are world_from_cam; the first teach pose is near identity (a translation of the camera
+// height upwards, -camera_height along y, plus the camera's forward offset and tilt). Teach and repeat recordings of
+// one scenario share this frame, so their ground truth compares directly.
+
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "retrace/sim/renderer.h"
+#include "retrace/sim/scenario.h"
+#include "retrace/sim/scene.h"
+#include "retrace/sim/town.h"
+#include "retrace/sim/vehicle.h"
+
+namespace retrace {
+
+struct SimFrame {
+  cv::Mat image;
+  double timestamp = 0.0;  // seconds since the first frame
+  Rigid3d world_from_cam;
+  Rigid3d town_from_cam;
+  VehicleState vehicle;
+  double progress = 0.0;   // metres along the route
+};
+
+class Simulator {
+ public:
+  // Builds the world (takes a few hundred milliseconds for the town) and places the vehicle at the route's start.
+  explicit Simulator(const Scenario& scenario);
+  ~Simulator();
+
+  const Scenario& scenario() const { return scenario_; }
+  const CameraModel& camera() const { return renderer_->camera(); }
+  Scene& scene() { return *scene_; }
+  const TownLayout& layout() const { return layout_; }
+  const RoutePath& route() const { return *route_; }
+  const Rigid3d& town_from_world() const { return town_from_world_; }
+  const VehicleState& vehicle_state() const { return vehicle_->state(); }
+  double time() const { return time_; }
+  // Pixels re-rendered with sub-samples (anti-aliasing of edges) in the last frame.
+  size_t last_supersampled_pixels() const { return renderer_->last_supersampled_pixels(); }
+
+  // Autopilot: renders the current view into `frame`, then drives one frame period along the route. Returns false
+  // (and leaves `frame` untouched) when the route is finished or the scenario's frame count is reached.
+  bool NextFrame(SimFrame* frame);
+  // Number of frames the autopilot will produce (estimated from the speed profile when num_frames = 0).
+  int ExpectedFrames() const;
+
+  // Closed loop: applies `steering` (radians, positive left) and `speed` (m/s) for `dt` seconds, then renders.
+  SimFrame Step(double steering, double speed, double dt);
+
+  // Renders the world at `time` from any camera pose given in the world frame (for tests and tools).
+  cv::Mat RenderAt(const Rigid3d& world_from_cam, double time, uint64_t noise_seed = 0);
+
+ private:
+  SimFrame RenderCurrent();
+  void Drive(double dt);
+
+  Scenario scenario_;
+  std::unique_ptr<Scene> scene_;
+  TownLayout layout_;
+  std::unique_ptr<RoutePath> route_;
+  std::unique_ptr<RouteDriver> driver_;
+  std::unique_ptr<Vehicle> vehicle_;
+  std::unique_ptr<Renderer> renderer_;
+  Rigid3d town_from_world_;
+  double time_ = 0.0;
+  int frame_index_ = 0;
+};
+
+// The waypoints a scenario's route resolves to in `layout` (town frame).
+std::vector<Vector2d> ResolveRoute(const Scenario& scenario, const TownLayout& layout);
+
+}  // namespace retrace

@@ -1,0 +1,271 @@
+#include "retrace/sim/simulator.h"
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "retrace/dataset/ground_truth.h"
+#include "retrace/sim/recording.h"
+#include "retrace/sim/scenario_io.h"
+#include "retrace/util/error.h"
+#include "retrace/util/testing.h"
+
+namespace retrace {
+namespace {
+
+Scenario SmallTown() {
+  Scenario s;
+  s.town.blocks_x = 2;
+  s.town.blocks_y = 2;
+  s.camera.width = 160;
+  s.camera.height = 120;
+  s.route.segments = 3;
+  return s;
+}
+
+Matrix34d ReadP0(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  std::string tag;
+  in >> tag;
+  Matrix34d p;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) in >> p(r, c);
+  }
+  return p;
+}
+
+// Ground truth through the written files: markers at known world points, seen at night (only the markers glow),
+// must appear where poses.txt and calib.txt project them.
+TEST(SimulatorTest, WrittenPosesAndCalibrationAgreeWithTheRenderedViews) {
+  Scenario s = SmallTown();
+  s.camera.width = 320;
+  s.camera.height = 240;
+  s.num_frames = 8;
+  s.town.num_pedestrians = 0;
+  s.town.num_moving_cars = 0;
+  s.lighting.sun_elevation_deg = -10.0;
+  s.lighting.sky_irradiance = 0.0;
+  s.sensor.noise_sigma = 0.0;
+  s.render.antialiasing = 4;
+  s.drive.wobble_amplitude = 0.3;  // the camera also moves sideways and turns a little
+  s.marker_radius = 0.12;
+  s.markers = {{-2.0, -2.2, 12.0}, {2.0, -3.0, 16.0}, {-1.0, -4.0, 20.0}, {0.5, -1.0, 24.0}, {1.5, -3.6, 30.0}};
+  const std::filesystem::path dir = testing::MakeTempDir("sim_poses");
+  Simulator sim(s);
+  RecordOptions options;
+  options.progress = false;
+  const RecordSummary summary = RecordSequence(&sim, dir, options);
+  ASSERT_EQ(summary.frames, 8);
+
+  std::vector<Rigid3d> poses;
+  for (const TimedPose& p : ReadKittiPoses(dir / "poses.txt", dir / "times.txt")) poses.push_back(p.world_from_cam);
+  ASSERT_EQ(poses.size(), 8u);
+  const Matrix34d p0 = ReadP0(dir / "calib.txt");
+  // The first pose is near identity: the camera height above the ground origin and its tilt.
+  EXPECT_NEAR(poses[0].translation.y(), -s.vehicle.camera_height, 0.35);
+  EXPECT_LT(RotationErrorDeg(poses[0].rotation, Matrix3d::Identity()), s.vehicle.camera_tilt_deg + 3.0);
+  int checked = 0;
+  double max_error = 0.0;
+  for (int f = 0; f < 8; ++f) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "%06d.png", f);
+    const cv::Mat image = cv::imread((dir / "image_0" / name).string(), cv::IMREAD_GRAYSCALE);
+    ASSERT_FALSE(image.empty());
+    const Rigid3d cam_from_world = poses[f].Inverse();
+    std::vector<Vector2d> predicted;
+    for (const Vector3d& x : s.markers) predicted.push_back((p0 * (cam_from_world * x).homogeneous()).hnormalized());
+    for (size_t m = 0; m < s.markers.size(); ++m) {
+      const Vector3d h = p0 * (cam_from_world * s.markers[m]).homogeneous();
+      const Vector2d expected = h.hnormalized();
+      if (h.z() <= 0 || expected.x() < 8 || expected.y() < 8 || expected.x() > 311 || expected.y() > 231) continue;
+      bool crowded = false;  // another marker inside the centroid window
+      for (size_t o = 0; o < predicted.size(); ++o) crowded |= o != m && (predicted[o] - expected).norm() < 18.0;
+      if (crowded) continue;
+      double sx = 0, sy = 0, sw = 0;
+      for (int y = static_cast<int>(expected.y()) - 7; y <= static_cast<int>(expected.y()) + 8; ++y) {
+        for (int xx = static_cast<int>(expected.x()) - 7; xx <= static_cast<int>(expected.x()) + 8; ++xx) {
+          const double w = image.at<uint8_t>(y, xx);
+          sx += w * xx;
+          sy += w * y;
+          sw += w;
+        }
+      }
+      ASSERT_GT(sw, 500.0) << "frame " << f << ": no marker near " << expected.transpose();
+      const double error = (Vector2d(sx / sw, sy / sw) - expected).norm();
+      EXPECT_LT(error, 0.5) << "frame " << f;
+      max_error = std::max(max_error, error);
+      ++checked;
+    }
+  }
+  EXPECT_GE(checked, 25);
+  std::cout << checked << " marker views, max error " << max_error << " px\n";
+}
+
+TEST(SimulatorTest, RepeatVariantHasOtherSunAndOneMetreLateralOffset) {
+  Scenario s = SmallTown();
+  s.num_frames = 40;
+  const Scenario teach = ApplyVariant(s, ScenarioVariant::kTeach);
+  const Scenario repeat = ApplyVariant(s, ScenarioVariant::kRepeat);
+  EXPECT_NE(teach.lighting.sun_azimuth_deg, repeat.lighting.sun_azimuth_deg);
+  EXPECT_NE(teach.lighting.sun_elevation_deg, repeat.lighting.sun_elevation_deg);
+  Simulator sim_teach(teach), sim_repeat(repeat);
+  std::vector<SimFrame> a, b;
+  SimFrame f;
+  while (sim_teach.NextFrame(&f)) a.push_back(f);
+  while (sim_repeat.NextFrame(&f)) b.push_back(f);
+  ASSERT_EQ(a.size(), 40u);
+  ASSERT_EQ(b.size(), 40u);
+  // Both in the same world frame: the first street runs along world z, so the sideways offset is the difference
+  // of the camera centres' x (right) at equal distance along the street.
+  std::vector<double> offsets;
+  for (const SimFrame& r : b) {
+    const Vector3d cr = r.world_from_cam.translation;
+    if (cr.z() > 30.0) break;  // stay on the first straight street
+    // Teach camera centre at the same z (interpolated).
+    for (size_t k = 0; k + 1 < a.size(); ++k) {
+      const Vector3d c0 = a[k].world_from_cam.translation, c1 = a[k + 1].world_from_cam.translation;
+      if (c0.z() <= cr.z() && cr.z() < c1.z()) {
+        const double t = (cr.z() - c0.z()) / (c1.z() - c0.z());
+        offsets.push_back(cr.x() - (c0.x() + t * (c1.x() - c0.x())));
+        break;
+      }
+    }
+  }
+  ASSERT_GE(offsets.size(), 5u);
+  double mean = 0.0;
+  for (double o : offsets) mean += o / offsets.size();
+  EXPECT_NEAR(mean, 1.0, 0.3);  // 1 m to the right, +- the wobble of 0.25 m
+  // The images differ (other light, other place).
+  EXPECT_GT(std::abs(cv::mean(a[0].image)[0] - cv::mean(b[0].image)[0]), 2.0);
+}
+
+TEST(SimulatorTest, BicycleModelDrivesCirclesOfRadiusWheelbaseOverTanSteering) {
+  VehicleOptions options;
+  Vehicle vehicle(options, VehicleState());
+  const double steering = 0.2;
+  const double radius = options.wheelbase / std::tan(steering);
+  // Half a circle: the car ends 2 r to the left, heading backwards.
+  const double half = M_PI * radius;
+  for (int k = 0; k < 100; ++k) vehicle.Step(steering, half / 10.0, 0.1);
+  EXPECT_NEAR(vehicle.state().position.x(), 0.0, 1e-6);
+  EXPECT_NEAR(vehicle.state().position.y(), 2.0 * radius, 1e-6);
+  EXPECT_NEAR(std::abs(vehicle.state().heading), M_PI, 1e-6);
+  // The camera: at the configured height, looking forward (+x of the town at heading 0) and tilted down.
+  Vehicle straight(options, VehicleState());
+  const Rigid3d town_from_cam = straight.TownFromCamera();
+  EXPECT_NEAR(town_from_cam.translation.z(), options.camera_height, 1e-12);
+  const Vector3d forward = town_from_cam.rotation.col(2);
+  EXPECT_GT(forward.x(), 0.99);
+  EXPECT_NEAR(forward.z(), -std::sin(options.camera_tilt_deg * M_PI / 180.0), 1e-12);
+}
+
+TEST(SimulatorTest, SpeedProfileSlowsDownInTurns) {
+  DriveOptions drive;
+  const RoutePath path({{0, 0}, {60, 0}, {60, 60}}, drive);
+  EXPECT_NEAR(path.Speed(20.0), drive.max_speed, 1e-9);
+  const double turn = path.Project(Vector2d(60 - 2.1, 2.1), 0.0, path.length());  // middle of the rounded corner
+  const double expected = std::sqrt(drive.max_lateral_acceleration * drive.corner_radius);
+  EXPECT_NEAR(path.Speed(turn), expected, 0.3);
+  EXPECT_LT(path.Speed(turn), 0.5 * drive.max_speed);
+  // Braking before the turn is limited by max_deceleration: 10 m before the corner the car is still faster.
+  EXPECT_GT(path.Speed(turn - 12.0), path.Speed(turn) + 1.0);
+  // The autopilot follows the route within a few decimetres.
+  Scenario s = SmallTown();
+  s.camera.width = 32;
+  s.camera.height = 24;
+  Simulator sim(s);
+  SimFrame f;
+  double worst = 0.0;
+  int frames = 0;
+  while (sim.NextFrame(&f)) {
+    const double along = sim.route().Project(f.vehicle.position, 0.0, sim.route().length());
+    worst = std::max(worst, (sim.route().Position(along) - f.vehicle.position).norm());
+    ++frames;
+  }
+  EXPECT_GT(frames, 50);
+  EXPECT_LT(worst, 0.6);
+}
+
+TEST(SimulatorTest, SteppingApiDrivesTheCarAndRendersWhatItSees) {
+  Scenario s = SmallTown();
+  s.camera.width = 64;
+  s.camera.height = 48;
+  Simulator sim(s);
+  const VehicleState start = sim.vehicle_state();
+  // Straight ahead for 1 s at 5 m/s: 5 m along the heading, the camera pose moves with it.
+  const SimFrame a = sim.Step(0.0, 5.0, 1.0);
+  EXPECT_NEAR((a.vehicle.position - start.position).norm(), 5.0, 1e-9);
+  EXPECT_NEAR(a.vehicle.heading, start.heading, 1e-12);
+  EXPECT_NEAR(a.timestamp, 1.0, 1e-12);
+  EXPECT_EQ(a.image.size(), cv::Size(64, 48));
+  // Steering left turns the car left (heading grows) as the bicycle model says.
+  const SimFrame b = sim.Step(0.1, 5.0, 1.0);
+  EXPECT_NEAR(b.vehicle.heading - a.vehicle.heading, 5.0 * std::tan(0.1) / s.vehicle.wheelbase, 1e-9);
+  // The returned pose is the one rendered: rendering it again gives the same image (no noise).
+  Scenario quiet = s;
+  quiet.sensor.noise_sigma = 0.0;
+  Simulator sim2(quiet);
+  const SimFrame c = sim2.Step(0.0, 5.0, 1.0);
+  const cv::Mat again = sim2.RenderAt(c.world_from_cam, c.timestamp);
+  EXPECT_EQ(cv::norm(c.image, again, cv::NORM_L1), 0.0);
+}
+
+TEST(SimulatorTest, ScenarioFileErrorsNameTheKeyAndLine) {
+  try {
+    ParseScenario("seed: 3\ncamera:\n  model: perspective\n  width: wide\n", "bad.yaml");
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.yaml: line 4: camera.width"), std::string::npos) << e.what();
+  }
+  try {
+    ParseScenario("seed: 3\nroute:\n  typo: 1\n", "bad.yaml");
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("line 3: route.typo: unknown key"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(ParseScenario("camera: [1, 2\n", "bad.yaml"), InputError);
+  EXPECT_THROW(ParseScenario("camera:\n  model: fisheye\n", "bad.yaml"), InputError);
+  EXPECT_THROW(ReadScenario("/nonexistent/scenario.yaml"), InputError);
+}
+
+TEST(SimulatorTest, ScenarioRoundTripsThroughYaml) {
+  Scenario s;
+  s.seed = 7;
+  s.town.seed = 11;
+  s.town.blocks_x = 3;
+  s.camera.model = "equirectangular";
+  s.camera.width = 400;
+  s.camera.height = 200;
+  s.camera.distortion.k1 = -0.2;
+  s.route.type = "waypoints";
+  s.route.waypoints = {{1, 2}, {30, 2.5}};
+  s.drive.lateral_offset = 0.4;
+  s.lighting.sun_azimuth_deg = 210;
+  s.sensor.color = true;
+  s.render.num_threads = 1;
+  s.repeat.lateral_offset = -1.0;
+  s.markers = {{1, -2, 10}};
+  const Scenario r = ParseScenario(ScenarioToYaml(s), "round trip");
+  EXPECT_EQ(r.seed, 7u);
+  EXPECT_EQ(r.town.seed, 11u);
+  EXPECT_EQ(r.town.blocks_x, 3);
+  EXPECT_EQ(r.camera.model, "equirectangular");
+  EXPECT_EQ(r.camera.width, 400);
+  EXPECT_DOUBLE_EQ(r.camera.distortion.k1, -0.2);
+  EXPECT_EQ(r.route.type, "waypoints");
+  ASSERT_EQ(r.route.waypoints.size(), 2u);
+  EXPECT_DOUBLE_EQ(r.route.waypoints[1].y(), 2.5);
+  EXPECT_DOUBLE_EQ(r.drive.lateral_offset, 0.4);
+  EXPECT_DOUBLE_EQ(r.lighting.sun_azimuth_deg, 210);
+  EXPECT_TRUE(r.sensor.color);
+  EXPECT_EQ(r.render.num_threads, 1);
+  EXPECT_DOUBLE_EQ(r.repeat.lateral_offset, -1.0);
+  ASSERT_EQ(r.markers.size(), 1u);
+  EXPECT_DOUBLE_EQ(r.markers[0].z(), 10.0);
+}
+
+}  // namespace
+}  // namespace retrace

@@ -1,0 +1,55 @@
+#pragma once
+
+// Relating two images by wide-baseline matching (Segvic 2009 §4.1, design §4.2): the step shared by gap recovery,
+// loop closing and mapping by matching. Matches are verified by a robust two-view geometry, and every inlier is
+// checked immediately with the tracker: aligned from image A's appearance at its key-point to image B near the
+// matched key-point. Only such trackable matches may become map features used for localization; the others serve
+// the geometry only.
+
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "retrace/camera/camera_model.h"
+#include "retrace/feature/feature_tracker.h"
+#include "retrace/feature/image_pyramid.h"
+#include "retrace/feature/wide_baseline.h"
+#include "retrace/geometry/two_view_geometry.h"
+
+namespace retrace {
+
+// An image prepared for matching: the tracker's pyramid and the wide-baseline features.
+struct MatchableImage {
+  cv::Mat image;
+  ImagePyramid pyramid;
+  WideBaselineFeatures features;
+};
+
+struct MatchedGeometry {
+  TwoViewGeometry geometry;        // over `matches` (index-aligned); b_from_a maps A's frame into B's
+  std::vector<cv::DMatch> matches;  // queryIdx: key-point of A, trainIdx: key-point of B
+  // Per match: an inlier that the tracker follows from A to B, and where it converged in B.
+  std::vector<bool> trackable;
+  std::vector<Vector2d> position_in_b;
+  int num_trackable = 0;
+
+  Vector2d PositionInA(const MatchableImage& a, size_t i) const {
+    const cv::Point2f& p = a.features.keypoints[matches[i].queryIdx].pt;
+    return Vector2d(p.x, p.y);
+  }
+};
+
+struct MatchedGeometryOptions {
+  WideBaselineOptions matching;
+  TwoViewOptions geometry;
+  AlignmentOptions alignment;
+  int reference_levels = 3;  // pyramid levels of the references cut in A
+  // A trackable match must converge within this distance (pixels) of its matched key-point in B.
+  double max_track_distance_px = 3.0;
+};
+
+// Matches A with B, estimates the geometry and checks trackability. Never throws; geometry.success tells.
+MatchedGeometry RelateByMatching(const CameraModel& camera, const MatchableImage& a, const MatchableImage& b,
+                                 const MatchedGeometryOptions& options);
+
+}  // namespace retrace
