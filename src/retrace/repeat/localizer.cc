@@ -474,26 +474,46 @@ void Localizer::Localize(FrameResult* result) {
     const std::optional<ArcPredictor>* transfer;
     ArcRole role;
   };
-  const std::array<RoleTransfer, 3> roles = {RoleTransfer{arc, &predict_current, ArcRole::kCurrent},
-                                             RoleTransfer{next, &predict_next, ArcRole::kNext},
-                                             RoleTransfer{previous, &predict_previous, ArcRole::kPrevious}};
+  std::array<RoleTransfer, 3> roles = {RoleTransfer{arc, &predict_current, ArcRole::kCurrent},
+                                       RoleTransfer{next, &predict_next, ArcRole::kNext},
+                                       RoleTransfer{previous, &predict_previous, ArcRole::kPrevious}};
   const double drift_limit =
       std::max(options_.max_drift_px * pixel_scale_, 3.0 * std::max(0.0, result->sigma_p));
-  for (const TrackedFeature& f : std::vector<TrackedFeature>(tracker_.Features())) {
-    for (const RoleTransfer& r : roles) {
-      if (r.arc == nullptr) continue;
+  // Sanity check of each transfer first: when many of an arc's tracked features disagree with their predictions, the
+  // transfer is wrong (e.g. a weakly conditioned current geometry right after passing a key-image), not the tracks;
+  // that arc then gets neither consistency checks nor predictions in this frame.
+  const std::optional<ArcPredictor> kNoPredictor;
+  std::vector<feature_t> drifted;
+  for (RoleTransfer& r : roles) {
+    if (r.arc == nullptr || !r.transfer->has_value()) continue;
+    int checked = 0;
+    std::vector<feature_t> candidates;
+    for (const TrackedFeature& f : tracker_.Features()) {
       const auto point = r.arc->points.find(f.id);
       if (point == r.arc->points.end()) continue;
-      if (!r.transfer->has_value()) break;  // the feature's arc has no trustworthy prediction now
-      const TransferredPoint predicted = (*r.transfer)->Transfer(point->second, *camera_, ArcImage::kA, 0.0);
-      if (predicted.projectable && (predicted.pixel - f.warp.position).norm() > drift_limit) {
-        tracker_.Remove(f.id);
-        reference_node_.erase(f.id);
-        ++result->dropped;
-        ++result->drifted;
+      bool owned_by_earlier_role = false;
+      for (const RoleTransfer& other : roles) {
+        if (&other == &r) break;
+        owned_by_earlier_role |= other.arc != nullptr && other.arc->points.count(f.id) > 0;
       }
-      break;
+      if (owned_by_earlier_role) continue;
+      const TransferredPoint predicted = (*r.transfer)->Transfer(point->second, *camera_, ArcImage::kA, 0.0);
+      if (!predicted.projectable) continue;
+      ++checked;
+      if ((predicted.pixel - f.warp.position).norm() > drift_limit) candidates.push_back(f.id);
     }
+    if (static_cast<double>(candidates.size()) > std::max(3.0, options_.max_drift_fraction * checked)) {
+      r.transfer = &kNoPredictor;
+      continue;
+    }
+    drifted.insert(drifted.end(), candidates.begin(), candidates.end());
+  }
+  // Consistency (Segvic 2009 §5.2.1): discontinue tracks that drifted from their prediction.
+  for (const feature_t id : drifted) {
+    tracker_.Remove(id);
+    reference_node_.erase(id);
+    ++result->dropped;
+    ++result->drifted;
   }
 
   // Prudence (eqs. (7), (8)) and resumption of mapped but untracked features.
@@ -584,6 +604,10 @@ void Localizer::Localize(FrameResult* result) {
   int direction = DecideTransition(geometry_b.estimated ? &geometry_b.geometry : nullptr, position_a,
                                    geometry_a.estimated ? &geometry_a.geometry : nullptr, arc->arc->to_from_from,
                                    max_sigma_p_px_, options_.backward_margin);
+  // W_t:b fails (no parallax) when the camera is at b: the same plane test with the camera placed by W_t:a.
+  if (direction == 0 && !geometry_b.usable && geometry_a.usable && position_a.valid && position_a.along > 1.0) {
+    direction = +1;
+  }
   if ((direction > 0 && next == nullptr) || (direction < 0 && previous == nullptr)) direction = 0;
   if (direction != 0) ApplyTransition(direction, result);
 }

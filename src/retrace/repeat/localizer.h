@@ -89,6 +89,9 @@ struct LocalizerOptions {
   // Consistency: a tracked feature farther than max(this, 3 σ_p) from its prediction is discontinued (px at
   // reference_width).
   double max_drift_px = 3.0;
+  // Sanity check of a transfer: when more than this fraction of an arc's tracked features (and more than 3) drift
+  // from their predictions, the transfer is distrusted for that frame instead of the tracks.
+  double max_drift_fraction = 0.25;
   // Backward transitions need the camera this far (arc lengths) behind a: hysteresis against flicker right after
   // a forward transition, where W_t:a has almost no baseline.
   double backward_margin = 0.1;
