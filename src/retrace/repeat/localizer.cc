@@ -305,7 +305,6 @@ void Localizer::FillCounts(FrameResult* result) const {
   result->tracked_by_role = {0, 0, 0};
   const ArcData* arc = Arc(arc_);
   if (arc == nullptr) return;
-  const ArcData* previous = Arc(arc->previous);
   const ArcData* next = Arc(arc->next);
   for (const TrackedFeature& f : tracker_.Features()) {
     ArcRole role;
@@ -319,7 +318,6 @@ void Localizer::FillCounts(FrameResult* result) const {
     ++result->tracked_by_role[static_cast<int>(role)];
     result->marks.push_back({f.warp.position, role, true});
   }
-  (void)previous;
 }
 
 Localizer::CurrentGeometry Localizer::EstimateCurrentGeometry(node_t node_id) {

@@ -17,18 +17,27 @@
 //  3. decomposed point transfer (§4.4): the current arc's points are transferred with the more accurate usable
 //     one of W_t:a / W_t:b, the next arc's with W_t:b, the previous arc's with W_t:a — only through usable
 //     geometries (σ_p gating, §5.2.1);
-//  4. consistency: a tracked feature farther than `max_drift_px` (or 3 σ_p) from its prediction is discontinued;
+//  4. consistency: a tracked feature farther than `max_drift_px` (or 3 σ_p) from its prediction is discontinued —
+//     after a sanity check of the transfer itself: when more than `max_drift_fraction` of an arc's tracks disagree
+//     with it, the transfer is distrusted for that frame (no drops, no predictions for that arc);
 //  5. prudence (eqs. (7), (8)): features of the next arc are resumed only when the camera is closer to b than
 //     `next_arc_ratio` (0.5) of the arc length, those of the previous arc only when closer to a than
 //     `previous_arc_ratio` (0.3);
 //  6. resumption: every mapped but untracked feature predicted inside the image is refined against its
 //     reference (RefinePrediction, starting at scale = 1 / distance ratio) and accepted only near the
-//     prediction; a rejected feature is retried after `retry_interval` frames;
+//     prediction; a rejected feature is retried after `retry_interval` frames. References are cut from the arc's
+//     key-image nearest to the camera. A neighbouring arc that shares too few features with the current geometry
+//     is reached through the relative scale stored at the common node; when the map stores none (kitti07 has such
+//     nodes in its turns) or right after a transition, the features seen in the nearby key-image are predicted by
+//     the rotation between that key-image and the current image (Kabsch on the tracked features seen in both),
+//     aligned, and accepted only when they agree with the median offset of all candidates;
 //  7. topological transition (eq. (9)): forward when the camera centre passes the plane through b's centre
-//     perpendicular to the arc's direction of travel, decided with W_t:b; backward symmetrically with W_t:a
-//     (with a small margin against flicker); cancelled when the geometry's σ_p is too large. After a transition
-//     the references are redefined: features of an arc take their reference from the arc's `to` key-image,
-//     features of the arc two behind are dropped;
+//     perpendicular to the arc's direction of travel, decided with W_t:b (with W_t:a's position when W_t:b has no
+//     parallax, i.e. the camera is at b); backward symmetrically with W_t:a (with a small margin against
+//     flicker); cancelled when the geometry's σ_p is too large. After a transition the features of the arc two
+//     behind are dropped. Deviation from the paper: references are NOT redefined from the farther key-image at a
+//     transition — re-cutting them restarts the alignment without its motion prior, which lost most tracks in
+//     kitti07's turns; features keep the reference of the key-image nearest to them when they were (re)started;
 //  8. steering (eq. (10)): w = k * mean(x_t - x*) over the current arc's features, x the horizontal normalised
 //     coordinate in the current image and x* in key-image b.
 //
