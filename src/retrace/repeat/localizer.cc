@@ -608,6 +608,13 @@ void Localizer::Localize(FrameResult* result) {
   }
   if ((direction > 0 && next == nullptr) || (direction < 0 && previous == nullptr)) direction = 0;
   if (direction != 0) ApplyTransition(direction, result);
+  // Short arcs (dense key-images, dropped frames): the camera may have passed the next arc's end too. Its position on
+  // that arc comes from the same transfer chained into the next arc's frame (eq. (9) as a plane test there).
+  if (direction > 0 && predict_next && next != nullptr && next->next != kInvalidArcId &&
+      LocateOnArc(predict_next->current_from_a, next->arc->to_from_from).along > 1.0) {
+    ApplyTransition(+1, result);
+    result->transition = 2;
+  }
 }
 
 void Localizer::ApplyTransition(int direction, FrameResult* result) {

@@ -166,7 +166,7 @@ struct FrameResult {
   bool position_valid = false;
   double steering = 0.0;  // Segvic 2009 eq. (10), radians (0 when not valid)
   bool steering_valid = false;
-  int transition = 0;         // +1 forward, -1 backward, 0 none in this frame
+  int transition = 0;         // +1 forward, -1 backward, 0 none in this frame (+2: two arcs forward)
   bool bootstrapped = false;  // (re)initialised by wide-baseline matching in this frame
   double seconds = 0.0;       // processing time of this frame
   std::vector<FeatureMark> marks;  // tracked features and rejected predictions (for overlays)
