@@ -43,11 +43,11 @@ double Median(std::vector<double> v) {
 }
 
 Map TeachKitti(const std::filesystem::path& kitti, size_t every, TeachStatistics* stats, double* sigma_threshold,
-               MapDatabase* database = nullptr) {
+               MapDatabase* database = nullptr, const TeachOptions& options = TeachOptions()) {
   std::unique_ptr<Sequence> sequence = OpenSequence(kitti);
   const auto camera = ReadCameraFile(*sequence->calibration_file(), sequence->image_size());
   if (every > 1) sequence = std::make_unique<SubsampledSequence>(std::move(sequence), every, 0);
-  Teacher teacher(*camera, TeachOptions(), database);
+  Teacher teacher(*camera, options, database);
   while (auto frame = sequence->Next()) teacher.AddFrame(*frame);
   teacher.Finish();
   *stats = teacher.statistics();
@@ -115,6 +115,17 @@ TEST(TeachKitti, MapOfEvenFramesAgreesWithGroundTruth) {
   double sigma_threshold = 0;
   const Map map = TeachKitti(kitti, 2, &stats, &sigma_threshold);
   for (const MapNode& node : map.nodes()) EXPECT_EQ(node.source_frame % 2, 0) << "source frames are original indices";
+  CheckKittiMap(map, stats, sigma_threshold, ReadKittiPoses(kitti / "poses.txt"));
+}
+
+TEST(TeachKitti, MappingByMatchingAgreesWithGroundTruth) {
+  RETRACE_REQUIRE_SHARED_DATA(kitti, "kitti07");
+  TeachOptions options;
+  options.method = TeachOptions::Method::kMatching;
+  TeachStatistics stats;
+  double sigma_threshold = 0;
+  const Map map = TeachKitti(kitti, 1, &stats, &sigma_threshold, nullptr, options);
+  for (const MapArc& arc : map.arcs()) EXPECT_EQ(arc.kind, "matching");
   CheckKittiMap(map, stats, sigma_threshold, ReadKittiPoses(kitti / "poses.txt"));
 }
 
