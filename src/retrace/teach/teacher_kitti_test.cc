@@ -70,6 +70,23 @@ void CheckKittiMap(const Map& map, const TeachStatistics& stats, double sigma_th
   std::cout << "kitti07 teach: " << map.nodes().size() << " key-images; arc rotation error median "
             << Median(errors.rotation_deg) << " deg, translation direction error median "
             << Median(errors.direction_deg) << " deg, max " << max_direction << " deg\n";
+  // Relative scales at the nodes (design §3.3) against the ratio of the true baselines of the two arcs.
+  std::vector<double> scale_errors;
+  const auto baseline = [&](const MapArc& arc) {
+    return (truth[map.FindNode(arc.to)->source_frame].world_from_cam.translation -
+            truth[map.FindNode(arc.from)->source_frame].world_from_cam.translation)
+        .norm();
+  };
+  for (const NodeScale& scale : map.scales()) {
+    const double true_scale = baseline(*map.FindArc(scale.arc_out)) / baseline(*map.FindArc(scale.arc_in));
+    scale_errors.push_back(std::abs(scale.scale / true_scale - 1.0));
+  }
+  std::cout << "  relative scales at " << scale_errors.size() << " of " << map.nodes().size() - 2
+            << " interior nodes, median error " << (scale_errors.empty() ? 0.0 : 100 * Median(scale_errors))
+            << " %\n";
+  EXPECT_GE(2 * scale_errors.size(), map.nodes().size() - 2);
+  ASSERT_FALSE(scale_errors.empty());
+  EXPECT_LE(Median(scale_errors), 0.10);
   EXPECT_LE(Median(errors.rotation_deg), 0.3);
   EXPECT_LE(Median(errors.direction_deg), 3.0);
   EXPECT_LE(max_direction, 10.0);
