@@ -38,6 +38,17 @@ cv::Mat CutPatch(const cv::Mat& image, const Vector2d& position) {
   return patch;
 }
 
+// A key-image made of a teach frame, without features yet.
+MapNode NodeFromFrame(node_t id, const Frame& frame) {
+  MapNode node;
+  node.id = id;
+  node.source_frame = static_cast<int64_t>(frame.source_index);
+  node.image_name = frame.name;
+  node.timestamp = frame.timestamp;
+  node.image = frame.image;
+  return node;
+}
+
 }  // namespace
 
 const char* KeyImageReasonName(KeyImageReason reason) {
@@ -266,12 +277,7 @@ void Teacher::StartSubrange(FrameState* frame) {
 }
 
 void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool with_arc) {
-  MapNode node;
-  node.id = static_cast<node_t>(map_.nodes().size());
-  node.source_frame = static_cast<int64_t>(frame->frame.source_index);
-  node.image_name = frame->frame.name;
-  node.timestamp = frame->frame.timestamp;
-  node.image = frame->frame.image;
+  MapNode node = NodeFromFrame(static_cast<node_t>(map_.nodes().size()), frame->frame);
 
   std::optional<MapArc> arc;
   std::optional<NodeScale> scale;
@@ -432,12 +438,7 @@ MatchableImage& Teacher::MatchableFrame(size_t index) {
 void Teacher::BuildByMatching() {
   if (frames_.empty()) return;
   const auto register_node = [&](size_t index, KeyImageReason reason) {
-    MapNode node;
-    node.id = static_cast<node_t>(map_.nodes().size());
-    node.source_frame = static_cast<int64_t>(frames_[index].source_index);
-    node.image_name = frames_[index].name;
-    node.timestamp = frames_[index].timestamp;
-    node.image = frames_[index].image;
+    MapNode node = NodeFromFrame(static_cast<node_t>(map_.nodes().size()), frames_[index]);
     Commit(&node, nullptr, nullptr, {});
     node_of_frame_[index] = node.id;
     map_.AddNode(std::move(node));
@@ -478,12 +479,7 @@ void Teacher::RelateFramesByMatching(size_t a, size_t b) {
     ++statistics_.gaps_unrecovered;
   }
 
-  MapNode node;
-  node.id = static_cast<node_t>(map_.nodes().size());
-  node.source_frame = static_cast<int64_t>(frames_[b].source_index);
-  node.image_name = frames_[b].name;
-  node.timestamp = frames_[b].timestamp;
-  node.image = frames_[b].image;
+  MapNode node = NodeFromFrame(static_cast<node_t>(map_.nodes().size()), frames_[b]);
   std::optional<MapArc> arc;
   std::optional<NodeScale> scale;
   std::vector<FeatureObservation> from_additions;
