@@ -26,6 +26,7 @@ struct TeachArguments {
   std::filesystem::path sequence;
   std::filesystem::path camera;
   std::filesystem::path map;
+  std::string method = "tracking";
   int width = 0;
   size_t every = 1;
   size_t offset = 0;
@@ -60,7 +61,7 @@ void RunTeach(const TeachArguments& args) {
 
   auto database = MapDatabase::Create(args.map, args.storage, args.overwrite);
   database->SetMetadata("source_sequence", std::filesystem::absolute(args.sequence).string());
-  database->SetMetadata("method", "tracking");
+  database->SetMetadata("method", args.method);
   database->SetMetadata("frames_every", std::to_string(args.every));
   database->SetMetadata("frames_offset", std::to_string(args.offset));
   database->SetMetadata("width", std::to_string(camera->width()));
@@ -109,7 +110,7 @@ void RunTeach(const TeachArguments& args) {
                            map_stats.num_nodes, map_stats.num_arcs, stats.loop_closed ? " (loop closed)" : "",
                            stats.frames);
   std::string reasons;
-  for (int r = 0; r < 6; ++r) {
+  for (int r = 0; r < static_cast<int>(stats.key_images_by_reason.size()); ++r) {
     if (stats.key_images_by_reason[r] == 0) continue;
     reasons += fmt::format("{}{} {}", reasons.empty() ? "" : ", ", stats.key_images_by_reason[r],
                            KeyImageReasonName(static_cast<KeyImageReason>(r)));
@@ -141,8 +142,14 @@ void RegisterTeachCommand(CLI::App& app) {
   cmd->add_option("--sequence", args->sequence, "Image folder, video, KITTI or EuRoC layout")->required();
   cmd->add_option("--camera", args->camera, "Calibration file (default: the one found in the sequence)");
   cmd->add_option("--map", args->map, "Map file to write (SQLite)")->required();
-  cmd->add_option("--method", "Mapping method; only 'tracking' (Segvic 2009 §5.1) is available")
-      ->check(CLI::IsMember({"tracking"}));
+  cmd->add_option("--method", args->method,
+                  "tracking: key-images where the tracked geometry degrades (default); matching: every "
+                  "--matching-interval frames, key-images inserted where arcs are weak (Segvic 2009 §5.1)")
+      ->check(CLI::IsMember({"tracking", "matching"}))
+      ->capture_default_str();
+  cmd->add_option("--matching-interval", args->options.matching_interval,
+                  "Frames between initial key-images of --method matching")
+      ->capture_default_str();
   cmd->add_option("--width", args->width, "Work on images resized to this width (default: native)")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--every", args->every, "Use every k-th frame (e.g. 2 = even frames)")->check(CLI::PositiveNumber);
@@ -166,6 +173,8 @@ void RegisterTeachCommand(CLI::App& app) {
                 "Do not relate frames across tracking failures by matching");
   cmd->callback([args]() {
     std::string error;
+    args->options.method =
+        args->method == "matching" ? TeachOptions::Method::kMatching : TeachOptions::Method::kTracking;
     if (!args->options.Check(&error)) throw InputError("teach options", error);
     RunTeach(*args);
   });

@@ -45,6 +45,20 @@ void Weather(cv::Mat& img, int cells, float strength, uint64_t seed) {
   }
 }
 
+void ClampImage(cv::Mat& img);
+
+// A width x height texture whose texel (x, y) is texel(x, y), clamped to [0, 1].
+template <typename Texel>
+cv::Mat FillTexture(int width, int height, Texel&& texel) {
+  cv::Mat img(height, width, CV_32FC3);
+  for (int y = 0; y < height; ++y) {
+    Rgb* row = img.ptr<Rgb>(y);
+    for (int x = 0; x < width; ++x) row[x] = texel(x, y);
+  }
+  ClampImage(img);
+  return img;
+}
+
 void ClampImage(cv::Mat& img) {
   for (int y = 0; y < img.rows; ++y) {
     Rgb* row = img.ptr<Rgb>(y);
@@ -369,116 +383,74 @@ cv::Mat MakeAsphaltTexture(uint64_t seed) {
 
 cv::Mat MakeSidewalkTexture(uint64_t seed) {
   constexpr int kSize = 256;  // 4 m, slabs of 0.5 m = 32 px
-  cv::Mat img(kSize, kSize, CV_32FC3);
-  for (int y = 0; y < kSize; ++y) {
-    Rgb* row = img.ptr<Rgb>(y);
-    for (int x = 0; x < kSize; ++x) {
-      const int sx = x / 32, sy = y / 32;
-      const bool joint = x % 32 == 0 || y % 32 == 0;
-      const float slab = 0.5f + 0.12f * static_cast<float>(HashToUnit(HashCombine(seed, sy * 64 + sx)));
-      const float stain = PeriodicFbm((x + 0.5f) / kSize, (y + 0.5f) / kSize, 4, 4, 3, seed + 1);
-      float g = joint ? 0.28f : slab * (0.85f + 0.3f * stain) + 0.06f * TexelNoise(x, y, seed + 2);
-      row[x] = Rgb(g * 1.02f, g, g * 0.95f);
-    }
-  }
-  ClampImage(img);
-  return img;
+  return FillTexture(kSize, kSize, [&](int x, int y) {
+    const int sx = x / 32, sy = y / 32;
+    const bool joint = x % 32 == 0 || y % 32 == 0;
+    const float slab = 0.5f + 0.12f * static_cast<float>(HashToUnit(HashCombine(seed, sy * 64 + sx)));
+    const float stain = PeriodicFbm((x + 0.5f) / kSize, (y + 0.5f) / kSize, 4, 4, 3, seed + 1);
+    float g = joint ? 0.28f : slab * (0.85f + 0.3f * stain) + 0.06f * TexelNoise(x, y, seed + 2);
+    return Rgb(g * 1.02f, g, g * 0.95f);
+  });
 }
 
 cv::Mat MakeGrassTexture(uint64_t seed) {
   constexpr int kSize = 256;
-  cv::Mat img(kSize, kSize, CV_32FC3);
-  for (int y = 0; y < kSize; ++y) {
-    Rgb* row = img.ptr<Rgb>(y);
-    for (int x = 0; x < kSize; ++x) {
-      const float u = (x + 0.5f) / kSize, v = (y + 0.5f) / kSize;
-      const float clumps = PeriodicFbm(u, v, 8, 8, 4, seed);
-      const float blade = TexelNoise(x, y, seed + 1);
-      const float g = 0.6f + 0.5f * (clumps - 0.5f) + 0.35f * blade;
-      row[x] = Rgb(0.16f * g, 0.36f * g, 0.1f * g);
-    }
-  }
-  ClampImage(img);
-  return img;
+  return FillTexture(kSize, kSize, [&](int x, int y) {
+    const float u = (x + 0.5f) / kSize, v = (y + 0.5f) / kSize;
+    const float clumps = PeriodicFbm(u, v, 8, 8, 4, seed);
+    const float blade = TexelNoise(x, y, seed + 1);
+    const float g = 0.6f + 0.5f * (clumps - 0.5f) + 0.35f * blade;
+    return Rgb(0.16f * g, 0.36f * g, 0.1f * g);
+  });
 }
 
 cv::Mat MakeFoliageTexture(uint64_t seed) {
   constexpr int kSize = 256;
-  cv::Mat img(kSize, kSize, CV_32FC3);
-  for (int y = 0; y < kSize; ++y) {
-    Rgb* row = img.ptr<Rgb>(y);
-    for (int x = 0; x < kSize; ++x) {
-      const float u = (x + 0.5f) / kSize, v = (y + 0.5f) / kSize;
-      const float clusters = PeriodicFbm(u, v, 6, 6, 4, seed);
-      const float leaves = PeriodicValueNoise(u * 48, v * 48, 48, 48, seed + 1);
-      const float lit = clusters > 0.48f ? 1.0f : 0.35f;
-      const float g = lit * (0.6f + 0.6f * (leaves - 0.5f)) + 0.15f * TexelNoise(x, y, seed + 2);
-      row[x] = Rgb(0.14f * g, 0.32f * g, 0.09f * g);
-    }
-  }
-  ClampImage(img);
-  return img;
+  return FillTexture(kSize, kSize, [&](int x, int y) {
+    const float u = (x + 0.5f) / kSize, v = (y + 0.5f) / kSize;
+    const float clusters = PeriodicFbm(u, v, 6, 6, 4, seed);
+    const float leaves = PeriodicValueNoise(u * 48, v * 48, 48, 48, seed + 1);
+    const float lit = clusters > 0.48f ? 1.0f : 0.35f;
+    const float g = lit * (0.6f + 0.6f * (leaves - 0.5f)) + 0.15f * TexelNoise(x, y, seed + 2);
+    return Rgb(0.14f * g, 0.32f * g, 0.09f * g);
+  });
 }
 
 cv::Mat MakeBarkTexture(uint64_t seed) {
   constexpr int kWidth = 64, kHeight = 128;
-  cv::Mat img(kHeight, kWidth, CV_32FC3);
-  for (int y = 0; y < kHeight; ++y) {
-    Rgb* row = img.ptr<Rgb>(y);
-    for (int x = 0; x < kWidth; ++x) {
-      const float furrow = PeriodicFbm((x + 0.5f) / kWidth, (y + 0.5f) / kHeight, 8, 2, 3, seed);
-      const float g = 0.55f + 0.8f * (furrow - 0.5f) + 0.15f * TexelNoise(x, y, seed + 1);
-      row[x] = Rgb(0.33f * g, 0.24f * g, 0.16f * g);
-    }
-  }
-  ClampImage(img);
-  return img;
+  return FillTexture(kWidth, kHeight, [&](int x, int y) {
+    const float furrow = PeriodicFbm((x + 0.5f) / kWidth, (y + 0.5f) / kHeight, 8, 2, 3, seed);
+    const float g = 0.55f + 0.8f * (furrow - 0.5f) + 0.15f * TexelNoise(x, y, seed + 1);
+    return Rgb(0.33f * g, 0.24f * g, 0.16f * g);
+  });
 }
 
 cv::Mat MakeRoofTexture(uint64_t seed) {
   constexpr int kSize = 128;
-  cv::Mat img(kSize, kSize, CV_32FC3);
-  for (int y = 0; y < kSize; ++y) {
-    Rgb* row = img.ptr<Rgb>(y);
-    for (int x = 0; x < kSize; ++x) {
-      const float g = 0.35f + 0.2f * TexelNoise(x, y, seed) +
+  return FillTexture(kSize, kSize, [&](int x, int y) {
+    const float g = 0.35f + 0.2f * TexelNoise(x, y, seed) +
                       0.1f * (PeriodicFbm((x + 0.5f) / kSize, (y + 0.5f) / kSize, 4, 4, 3, seed + 1) - 0.5f);
-      row[x] = Rgb(g, g * 0.97f, g * 0.93f);
-    }
-  }
-  ClampImage(img);
-  return img;
+    return Rgb(g, g * 0.97f, g * 0.93f);
+  });
 }
 
 cv::Mat MakePaintTexture(uint64_t seed) {
   constexpr int kSize = 64;
-  cv::Mat img(kSize, kSize, CV_32FC3);
-  for (int y = 0; y < kSize; ++y) {
-    Rgb* row = img.ptr<Rgb>(y);
-    for (int x = 0; x < kSize; ++x) {
-      const float g = 0.8f + 0.05f * TexelNoise(x, y, seed) +
+  return FillTexture(kSize, kSize, [&](int x, int y) {
+    const float g = 0.8f + 0.05f * TexelNoise(x, y, seed) +
                       0.1f * (PeriodicFbm((x + 0.5f) / kSize, (y + 0.5f) / kSize, 3, 3, 3, seed + 1) - 0.5f);
-      row[x] = Rgb(g, g, g);
-    }
-  }
-  ClampImage(img);
-  return img;
+    return Rgb(g, g, g);
+  });
 }
 
 cv::Mat MakeGlassTexture(uint64_t seed) {
   constexpr int kWidth = 64, kHeight = 32;
-  cv::Mat img(kHeight, kWidth, CV_32FC3);
-  for (int y = 0; y < kHeight; ++y) {
-    Rgb* row = img.ptr<Rgb>(y);
-    for (int x = 0; x < kWidth; ++x) {
-      const float t = static_cast<float>(y) / kHeight;
-      const float streak = 0.5f + 0.5f * std::sin(0.3f * (x + y));
-      const float g = 0.08f + 0.2f * (1.0f - t) * streak + 0.02f * TexelNoise(x, y, seed);
-      row[x] = Rgb(g * 0.9f, g, g * 1.15f);
-    }
-  }
-  ClampImage(img);
-  return img;
+  return FillTexture(kWidth, kHeight, [&](int x, int y) {
+    const float t = static_cast<float>(y) / kHeight;
+    const float streak = 0.5f + 0.5f * std::sin(0.3f * (x + y));
+    const float g = 0.08f + 0.2f * (1.0f - t) * streak + 0.02f * TexelNoise(x, y, seed);
+    return Rgb(g * 0.9f, g, g * 1.15f);
+  });
 }
 
 cv::Mat MakeClothTexture(uint64_t seed) {
@@ -489,16 +461,10 @@ cv::Mat MakeClothTexture(uint64_t seed) {
   const Rgb b = Scale(a, static_cast<float>(rng.Uniform(0.3, 0.7)));
   const int stripe = rng.Int(3, 8);
   const bool checks = rng.Chance(0.5);
-  cv::Mat img(kHeight, kWidth, CV_32FC3);
-  for (int y = 0; y < kHeight; ++y) {
-    Rgb* row = img.ptr<Rgb>(y);
-    for (int x = 0; x < kWidth; ++x) {
-      const bool on = checks ? (((x / stripe) + (y / stripe)) % 2 == 0) : ((y / stripe) % 2 == 0);
-      row[x] = Scale(on ? a : b, 1.0f + 0.1f * TexelNoise(x, y, seed));
-    }
-  }
-  ClampImage(img);
-  return img;
+  return FillTexture(kWidth, kHeight, [&](int x, int y) {
+    const bool on = checks ? (((x / stripe) + (y / stripe)) % 2 == 0) : ((y / stripe) % 2 == 0);
+    return Scale(on ? a : b, 1.0f + 0.1f * TexelNoise(x, y, seed));
+  });
 }
 
 }  // namespace retrace

@@ -38,6 +38,17 @@ cv::Mat CutPatch(const cv::Mat& image, const Vector2d& position) {
   return patch;
 }
 
+// A key-image made of a teach frame, without features yet.
+MapNode NodeFromFrame(node_t id, const Frame& frame) {
+  MapNode node;
+  node.id = id;
+  node.source_frame = static_cast<int64_t>(frame.source_index);
+  node.image_name = frame.name;
+  node.timestamp = frame.timestamp;
+  node.image = frame.image;
+  return node;
+}
+
 }  // namespace
 
 const char* KeyImageReasonName(KeyImageReason reason) {
@@ -54,6 +65,8 @@ const char* KeyImageReasonName(KeyImageReason reason) {
       return "end";
     case KeyImageReason::kDisconnected:
       return "disconnected";
+    case KeyImageReason::kMatching:
+      return "matching";
   }
   return "?";
 }
@@ -73,6 +86,7 @@ bool TeachOptions::Check(std::string* error) const {
   if (!(inlier_threshold_px > 0)) return fail("inlier_threshold_px must be positive");
   if (!(min_parallax_px >= 0)) return fail("min_parallax_px must not be negative");
   if (!(gap_survival_fraction >= 0 && gap_survival_fraction < 1)) return fail("gap_survival_fraction must be in [0, 1)");
+  if (matching_interval < 2) return fail("matching_interval must be at least 2");
   if (!tracker.Check()) return fail("invalid tracker options");
   if (!geometry.Check()) return fail("invalid geometry options");
   std::string matching_error;
@@ -132,6 +146,10 @@ void Teacher::AddFrame(const Frame& frame) {
                                      std::to_string(camera_->width()) + "x" + std::to_string(camera_->height()));
   }
   ++statistics_.frames;
+  if (options_.method == TeachOptions::Method::kMatching) {
+    frames_.push_back(frame);
+    return;
+  }
   auto current = std::make_unique<FrameState>();
   current->frame = frame;
   {
@@ -258,12 +276,7 @@ void Teacher::StartSubrange(FrameState* frame) {
 }
 
 void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool with_arc) {
-  MapNode node;
-  node.id = static_cast<node_t>(map_.nodes().size());
-  node.source_frame = static_cast<int64_t>(frame->frame.source_index);
-  node.image_name = frame->frame.name;
-  node.timestamp = frame->frame.timestamp;
-  node.image = frame->frame.image;
+  MapNode node = NodeFromFrame(static_cast<node_t>(map_.nodes().size()), frame->frame);
 
   std::optional<MapArc> arc;
   std::optional<NodeScale> scale;
@@ -405,11 +418,127 @@ bool Teacher::RecoverGap(FrameState* frame) {
 void Teacher::Finish() {
   if (finished_) return;
   finished_ = true;
+  if (options_.method == TeachOptions::Method::kMatching) BuildByMatching();
   if (previous_ && subrange_ && previous_->frame.index != subrange_->frame_index && previous_->geometry.success) {
     RegisterKeyImage(previous_.get(), KeyImageReason::kEnd, /*with_arc=*/true);
   }
   if (options_.close_loop && map_.nodes().size() >= 3) CloseLoop();
   if (database_ != nullptr) database_->Checkpoint();
+}
+
+MatchableImage& Teacher::MatchableFrame(size_t index) {
+  auto it = matchable_frames_.find(index);
+  if (it == matchable_frames_.end()) {
+    it = matchable_frames_.emplace(index, PrepareForMatching(frames_[index].image)).first;
+  }
+  return it->second;
+}
+
+void Teacher::BuildByMatching() {
+  if (frames_.empty()) return;
+  const auto register_node = [&](size_t index, KeyImageReason reason) {
+    MapNode node = NodeFromFrame(static_cast<node_t>(map_.nodes().size()), frames_[index]);
+    Commit(&node, nullptr, nullptr, {});
+    node_of_frame_[index] = node.id;
+    map_.AddNode(std::move(node));
+    ++statistics_.key_images;
+    ++statistics_.key_images_by_reason[static_cast<int>(reason)];
+  };
+  register_node(0, KeyImageReason::kStart);
+  size_t previous = 0;
+  for (size_t candidate = options_.matching_interval; previous + 1 < frames_.size();
+       candidate += options_.matching_interval) {
+    const size_t next = std::min(candidate, frames_.size() - 1);
+    RelateFramesByMatching(previous, next);
+    previous = next;
+  }
+}
+
+void Teacher::RelateFramesByMatching(size_t a, size_t b) {
+  MatchedGeometry matched;
+  {
+    ScopedTimer timer(&statistics_.seconds_matching);
+    matched = RelateByMatching(*camera_, MatchableFrame(a), MatchableFrame(b), MatchingOptions());
+  }
+  const bool acceptable =
+      AcceptableMatchedGeometry(matched, options_.min_features) && matched.num_trackable >= options_.min_features;
+  spdlog::debug("teach (matching): frames {}-{}: {} inliers, {} trackable, sigma_p {:.2f} px{}", a, b,
+                matched.geometry.num_inliers, matched.num_trackable, matched.geometry.sigma_p,
+                acceptable ? "" : b - a > 1 ? ": splitting" : ": cannot relate");
+  if (!acceptable && b - a > 1) {
+    // Segvic 2009 §5.1: insert a key-image between the two and try both halves.
+    const size_t middle = (a + b) / 2;
+    RelateFramesByMatching(a, middle);
+    RelateFramesByMatching(middle, b);
+    return;
+  }
+  if (!acceptable) {
+    spdlog::warn("teach: frames {} and {} cannot be related; the map is disconnected there", frames_[a].name,
+                 frames_[b].name);
+    ++statistics_.gaps_unrecovered;
+  }
+
+  MapNode node = NodeFromFrame(static_cast<node_t>(map_.nodes().size()), frames_[b]);
+  std::optional<MapArc> arc;
+  std::optional<NodeScale> scale;
+  std::vector<FeatureObservation> from_additions;
+  if (acceptable) {
+    const node_t from = node_of_frame_.at(a);
+    arc.emplace();
+    arc->id = static_cast<arc_t>(map_.arcs().size());
+    arc->from = from;
+    arc->to = node.id;
+    arc->to_from_from = matched.geometry.b_from_a;
+    arc->sigma_p = matched.geometry.sigma_p;
+    arc->kind = "matching";
+    const MapNode* from_node = map_.FindNode(from);
+    std::unordered_set<feature_t> stored_at_from;
+    for (const FeatureObservation& f : from_node->features) stored_at_from.insert(f.feature_id);
+    // The previous arc ends at `from` when it was registered just before this one: its depths give the scale.
+    const MapArc* previous_arc = map_.arcs().empty() ? nullptr : &map_.arcs().back();
+    std::unordered_map<feature_t, double> depth_in_previous;
+    if (previous_arc != nullptr && previous_arc->to == from) {
+      const Rigid3d& to_from_from = previous_arc->to_from_from;
+      for (const ArcPoint& p : previous_arc->points) depth_in_previous[p.feature_id] = (to_from_from * p.point_in_from).norm();
+    }
+    std::vector<double> depth_previous, depth_this;
+    for (size_t i = 0; i < matched.matches.size(); ++i) {
+      if (!matched.trackable[i]) continue;
+      // A key-point of image A that an earlier arc already made a feature keeps its id, so that features are
+      // shared between consecutive arcs (and give the relative scale at their common node).
+      const auto key = std::make_pair(a, matched.matches[i].queryIdx);
+      auto [it, inserted] = feature_of_keypoint_.try_emplace(key, next_feature_id_);
+      if (inserted) ++next_feature_id_;
+      const feature_t id = it->second;
+      feature_of_keypoint_[std::make_pair(b, matched.matches[i].trainIdx)] = id;
+      arc->points.push_back({id, matched.geometry.points_in_a[i]});
+      if (stored_at_from.insert(id).second) {
+        const Vector2d in_a = matched.PositionInA(MatchableFrame(a), i);
+        from_additions.push_back({id, in_a, CutPatch(frames_[a].image, in_a)});
+      }
+      node.features.push_back({id, matched.position_in_b[i], CutPatch(frames_[b].image, matched.position_in_b[i])});
+      if (const auto d = depth_in_previous.find(id); d != depth_in_previous.end()) {
+        depth_previous.push_back(d->second);
+        depth_this.push_back(matched.geometry.depths_a[i]);
+      }
+    }
+    const ScaleEstimate estimate = EstimateScaleFromDistances(depth_previous, depth_this, 5);
+    if (estimate.success) scale = NodeScale{from, previous_arc->id, arc->id, estimate.scale};
+  }
+  Commit(&node, arc ? &*arc : nullptr, scale ? &*scale : nullptr,
+         arc ? std::vector<std::pair<node_t, std::vector<FeatureObservation>>>{{arc->from, std::move(from_additions)}}
+             : std::vector<std::pair<node_t, std::vector<FeatureObservation>>>{});
+  node_of_frame_[b] = node.id;
+  map_.AddNode(std::move(node));
+  if (arc) map_.AddArc(std::move(*arc));
+  if (scale) map_.AddScale(*scale);
+  ++statistics_.key_images;
+  ++statistics_.key_images_by_reason[static_cast<int>(acceptable ? KeyImageReason::kMatching
+                                                                   : KeyImageReason::kDisconnected)];
+  // Frames before b are not needed any more.
+  for (auto it = matchable_frames_.begin(); it != matchable_frames_.end();) {
+    it = it->first < b ? matchable_frames_.erase(it) : std::next(it);
+  }
 }
 
 MatchableImage Teacher::PrepareForMatching(const cv::Mat& image) const {

@@ -11,6 +11,11 @@
 // Gap recovery. When tracking fails at once (a frame gap, a full occlusion) right after a key-image, the key-image
 // and the current image are related by wide-baseline matching instead, so the graph stays connected.
 //
+// Mapping by matching. Every 30th frame is a candidate key-image; consecutive candidates are related by
+// wide-baseline matching (matched_geometry.h), and where an arc has fewer than n trackable features or σ_p above
+// r_p, the frame halfway between its key-images is inserted and both halves are tried again (recursively). This
+// mode keeps the frames in memory until Finish().
+//
 // Loop closing. After the last frame, the last key-image is matched with the first ones (the first five: where
 // the drive began, the last key-image may lie between two of them); the best geometrically verified candidate
 // gets an arc from the last key-image and the graph becomes circular.
@@ -22,6 +27,7 @@
 // key-image is committed to the map database in its own transaction together with the arc that reaches it.
 
 #include <array>
+#include <map>
 #include <memory>
 #include <string>
 #include <unordered_map>
@@ -43,6 +49,14 @@
 namespace retrace {
 
 struct TeachOptions {
+  enum class Method {
+    kTracking,  // Segvic 2009 §5.1 "mapping by tracking" (default)
+    kMatching,  // "mapping by matching": every k-th frame, key-images inserted where an arc is too weak
+  };
+  Method method = Method::kTracking;
+  // Mapping by matching: frames between the initial key-image candidates (Segvic 2009: 30).
+  int matching_interval = 30;
+
   // Pixel thresholds below are given for images of this width (Segvic 2009 works at 320x240) and scaled by
   // (image width / reference_width).
   int reference_width = 320;
@@ -100,13 +114,13 @@ struct TeachOptions {
 };
 
 // Why a key-image was registered.
-enum class KeyImageReason { kStart, kSigmaP, kFeatures, kGap, kEnd, kDisconnected };
+enum class KeyImageReason { kStart, kSigmaP, kFeatures, kGap, kEnd, kDisconnected, kMatching };
 const char* KeyImageReasonName(KeyImageReason reason);
 
 struct TeachStatistics {
   int frames = 0;
   int key_images = 0;
-  std::array<int, 6> key_images_by_reason{};  // indexed by KeyImageReason
+  std::array<int, 7> key_images_by_reason{};  // indexed by KeyImageReason
   int gaps_recovered = 0;
   int gaps_unrecovered = 0;
   bool loop_closed = false;
@@ -148,6 +162,10 @@ class Teacher {
   // Starts a subrange at `frame`: references redefined there, new corners detected.
   void StartSubrange(FrameState* frame);
   void CloseLoop();
+  void BuildByMatching();
+  // Mapping by matching: relates frames a < b, inserting key-images between them where needed.
+  void RelateFramesByMatching(size_t a, size_t b);
+  MatchableImage& MatchableFrame(size_t index);
   MatchedGeometryOptions MatchingOptions() const;
   bool AcceptableMatchedGeometry(const MatchedGeometry& matched, int min_inliers) const;
   MatchableImage PrepareForMatching(const cv::Mat& image) const;
@@ -173,6 +191,13 @@ class Teacher {
   std::unordered_map<feature_t, double> last_arc_depth_at_to_;
   feature_t next_feature_id_ = 0;
   bool finished_ = false;
+
+  // Mapping by matching: the buffered frames, their prepared images, the node of each key-image frame, and the
+  // feature id given to a key-point (frame, key-point index).
+  std::vector<Frame> frames_;
+  std::unordered_map<size_t, MatchableImage> matchable_frames_;
+  std::unordered_map<size_t, node_t> node_of_frame_;
+  std::map<std::pair<size_t, int>, feature_t> feature_of_keypoint_;
 };
 
 }  // namespace retrace

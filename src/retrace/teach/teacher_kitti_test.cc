@@ -43,11 +43,11 @@ double Median(std::vector<double> v) {
 }
 
 Map TeachKitti(const std::filesystem::path& kitti, size_t every, TeachStatistics* stats, double* sigma_threshold,
-               MapDatabase* database = nullptr) {
+               MapDatabase* database = nullptr, const TeachOptions& options = TeachOptions()) {
   std::unique_ptr<Sequence> sequence = OpenSequence(kitti);
   const auto camera = ReadCameraFile(*sequence->calibration_file(), sequence->image_size());
   if (every > 1) sequence = std::make_unique<SubsampledSequence>(std::move(sequence), every, 0);
-  Teacher teacher(*camera, TeachOptions(), database);
+  Teacher teacher(*camera, options, database);
   while (auto frame = sequence->Next()) teacher.AddFrame(*frame);
   teacher.Finish();
   *stats = teacher.statistics();
@@ -70,6 +70,23 @@ void CheckKittiMap(const Map& map, const TeachStatistics& stats, double sigma_th
   std::cout << "kitti07 teach: " << map.nodes().size() << " key-images; arc rotation error median "
             << Median(errors.rotation_deg) << " deg, translation direction error median "
             << Median(errors.direction_deg) << " deg, max " << max_direction << " deg\n";
+  // Relative scales at the nodes (design §3.3) against the ratio of the true baselines of the two arcs.
+  std::vector<double> scale_errors;
+  const auto baseline = [&](const MapArc& arc) {
+    return (truth[map.FindNode(arc.to)->source_frame].world_from_cam.translation -
+            truth[map.FindNode(arc.from)->source_frame].world_from_cam.translation)
+        .norm();
+  };
+  for (const NodeScale& scale : map.scales()) {
+    const double true_scale = baseline(*map.FindArc(scale.arc_out)) / baseline(*map.FindArc(scale.arc_in));
+    scale_errors.push_back(std::abs(scale.scale / true_scale - 1.0));
+  }
+  std::cout << "  relative scales at " << scale_errors.size() << " of " << map.nodes().size() - 2
+            << " interior nodes, median error " << (scale_errors.empty() ? 0.0 : 100 * Median(scale_errors))
+            << " %\n";
+  EXPECT_GE(2 * scale_errors.size(), map.nodes().size() - 2);
+  ASSERT_FALSE(scale_errors.empty());
+  EXPECT_LE(Median(scale_errors), 0.10);
   EXPECT_LE(Median(errors.rotation_deg), 0.3);
   EXPECT_LE(Median(errors.direction_deg), 3.0);
   EXPECT_LE(max_direction, 10.0);
@@ -115,6 +132,17 @@ TEST(TeachKitti, MapOfEvenFramesAgreesWithGroundTruth) {
   double sigma_threshold = 0;
   const Map map = TeachKitti(kitti, 2, &stats, &sigma_threshold);
   for (const MapNode& node : map.nodes()) EXPECT_EQ(node.source_frame % 2, 0) << "source frames are original indices";
+  CheckKittiMap(map, stats, sigma_threshold, ReadKittiPoses(kitti / "poses.txt"));
+}
+
+TEST(TeachKitti, MappingByMatchingAgreesWithGroundTruth) {
+  RETRACE_REQUIRE_SHARED_DATA(kitti, "kitti07");
+  TeachOptions options;
+  options.method = TeachOptions::Method::kMatching;
+  TeachStatistics stats;
+  double sigma_threshold = 0;
+  const Map map = TeachKitti(kitti, 1, &stats, &sigma_threshold, nullptr, options);
+  for (const MapArc& arc : map.arcs()) EXPECT_EQ(arc.kind, "matching");
   CheckKittiMap(map, stats, sigma_threshold, ReadKittiPoses(kitti / "poses.txt"));
 }
 
