@@ -85,7 +85,6 @@ bool TeachOptions::Check(std::string* error) const {
   if (min_loop_inliers < min_matched_inliers) return fail("min_loop_inliers must be at least min_matched_inliers");
   if (!(inlier_threshold_px > 0)) return fail("inlier_threshold_px must be positive");
   if (!(min_parallax_px >= 0)) return fail("min_parallax_px must not be negative");
-  if (!(gap_survival_fraction >= 0 && gap_survival_fraction < 1)) return fail("gap_survival_fraction must be in [0, 1)");
   if (matching_interval < 2) return fail("matching_interval must be at least 2");
   if (!tracker.Check()) return fail("invalid tracker options");
   if (!geometry.Check()) return fail("invalid geometry options");

@@ -83,8 +83,6 @@ struct TeachOptions {
   bool recover_gaps = true;
   // Match the first and last key-image after the last frame; a circular graph on success.
   bool close_loop = true;
-  // Tracking "fails at once" when fewer than this fraction of the previous frame's features survive a frame.
-  double gap_survival_fraction = 0.25;
 
   // Fewest geometry inliers for relating two images by wide-baseline matching (gap recovery, loop closing). Lower
   // than n: σ_p already penalises geometries supported by few points, and a gap arc keeps the graph connected.
