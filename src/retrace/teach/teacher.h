@@ -81,7 +81,7 @@ struct TeachOptions {
   double min_parallax_px = 0.5;
   // Relate a key-image and the current image by wide-baseline matching when tracking fails at once.
   bool recover_gaps = true;
-  // Match the first and last key-image after the last frame; a circular graph on success.
+  // Match the last key-image with the first ones after the last frame; a circular graph on success.
   bool close_loop = true;
 
   // Fewest geometry inliers for relating two images by wide-baseline matching (gap recovery, loop closing). Lower
