@@ -526,7 +526,8 @@ feature_t FeatureTracker::AddFeature(const ReferencePatch& reference, const Alig
 
 const std::vector<TrackedFeature>& FeatureTracker::Track(const ImagePyramid& pyramid) {
   last_results_.clear();
-  std::vector<AlignmentResult> results(features_.size());
+  std::vector<AlignmentResult>& results = scratch_results_;
+  results.assign(features_.size(), AlignmentResult());
   const auto align = [&](size_t i, const Vector2d& velocity) {
     const TrackedFeature& feature = features_[i];
     WarpState initial = feature.warp;
@@ -542,8 +543,12 @@ const std::vector<TrackedFeature>& FeatureTracker::Track(const ImagePyramid& pyr
   // Features with a velocity go first (constant-velocity guess). Features without one (new, or with a motion too
   // small to tell) start from the median displacement of the others in this frame: the image motion of a moving
   // camera is coherent enough for a first guess, and it matters in turns, where displacements are large.
-  std::vector<double> dx, dy;
-  std::vector<size_t> without_velocity;
+  std::vector<double>& dx = scratch_dx_;
+  std::vector<double>& dy = scratch_dy_;
+  std::vector<size_t>& without_velocity = scratch_without_velocity_;
+  dx.clear();
+  dy.clear();
+  without_velocity.clear();
   for (size_t i = 0; i < features_.size(); ++i) {
     if (!options_.constant_velocity || velocities_[i].squaredNorm() <= 0.25) {
       without_velocity.push_back(i);

@@ -285,6 +285,10 @@ class FeatureTracker {
 
   FeatureTrackerOptions options_;
   feature_t next_id_ = 0;
+  // Per-frame scratch space of Track(), kept to avoid allocations on the hot path.
+  std::vector<AlignmentResult> scratch_results_;
+  std::vector<double> scratch_dx_, scratch_dy_;
+  std::vector<size_t> scratch_without_velocity_;
   std::vector<TrackedFeature> features_;
   std::vector<ReferencePatch> references_;
   std::vector<Vector2d> velocities_;
