@@ -53,6 +53,7 @@ bool LocalizerOptions::Check(std::string* error) const {
   if (!(prediction_radius_px > 0) || !(prediction_scale_ratio >= 1)) return fail("invalid prediction acceptance");
   if (!(max_drift_px > 0)) return fail("max_drift_px must be positive");
   if (!(backward_margin >= 0)) return fail("backward_margin must be >= 0");
+  if (!(min_parallax_px >= 0)) return fail("min_parallax_px must be >= 0");
   if (!(max_progress_step > 0)) return fail("max_progress_step must be > 0");
   if (retry_interval < 1) return fail("retry_interval must be >= 1");
   if (min_features < 8) return fail("min_features must be >= 8");
@@ -149,6 +150,7 @@ Localizer::Localizer(const Map& map, const CameraModel& camera, const LocalizerO
   pyramid_options_ = TrackingPyramidOptions(camera.width(), options_.reference_width, options_.smoothing_sigma_px);
   geometry_options_ = options_.geometry;
   geometry_options_.ransac.max_error_px = options_.inlier_threshold_px * pixel_scale_;
+  geometry_options_.min_parallax_px = options_.min_parallax_px * pixel_scale_;
   FeatureTrackerOptions tracker_options = options_.tracker;
   tracker_options.alignment.max_residual = options_.max_residual;
   tracker_options.num_levels = pyramid_options_.num_levels;
@@ -766,7 +768,12 @@ void Localizer::ResumeFromNeighbours(const ArcData& arc, node_t node_id, ArcRole
     const double limit = std::max(3.0 * Median(errors), 2.0 / camera_->FocalLength());
     for (size_t i = 0; i < key.size(); ++i) use[i] = errors[i] <= limit;
   }
-  const double scale = Median(scales);
+  ResumeByRotation(arc, node_id, rotation, Median(scales), role, result);
+}
+
+void Localizer::ResumeByRotation(const ArcData& arc, node_t node_id, const Matrix3d& rotation, double scale,
+                                 ArcRole role, FrameResult* result) {
+  const NodeData& node = Node(node_id);
   const double margin = tracker_.Options().alignment.window_size / 2 + 2;
   // The rotation-only prediction is biased by the translation (tens of pixels in kitti07's turns), the same way for
   // neighbouring features. Each candidate is aligned freely; the median offset of the converged ones corrects the
@@ -957,15 +964,24 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
         if (tracker_.Find(id) != nullptr) continue;
         const auto position = node.positions.find(id);
         if (position == node.positions.end()) continue;
+        // The matched key-points within the radius (at least 2), else (distant structure, where SIFT finds little)
+        // within twice the radius (at least 3) or three times (at least 4).
         std::vector<double> dx, dy, ratios;
-        for (size_t i = 0; i < candidate.key_points.size(); ++i) {
-          if ((candidate.key_points[i] - position->second).norm() > neighbour_radius) continue;
-          const Vector2d d = candidate.current_points[i] - candidate.key_points[i];
-          dx.push_back(d.x());
-          dy.push_back(d.y());
-          ratios.push_back(candidate.size_ratios[i]);
+        bool enough = false;
+        for (int widening = 1; widening <= 3 && !enough; ++widening) {
+          dx.clear();
+          dy.clear();
+          ratios.clear();
+          for (size_t i = 0; i < candidate.key_points.size(); ++i) {
+            if ((candidate.key_points[i] - position->second).norm() > widening * neighbour_radius) continue;
+            const Vector2d d = candidate.current_points[i] - candidate.key_points[i];
+            dx.push_back(d.x());
+            dy.push_back(d.y());
+            ratios.push_back(candidate.size_ratios[i]);
+          }
+          enough = static_cast<int>(dx.size()) >= widening + 1;
         }
-        if (dx.size() < 2) continue;
+        if (!enough) continue;
         const Vector2d predicted = position->second + Vector2d(Median(dx), Median(dy));
         if (!camera_->InImage(predicted, tracker_.Options().alignment.window_size / 2 + 2)) continue;
         const ReferencePatch* reference = Reference(candidate.node, id);

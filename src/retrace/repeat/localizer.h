@@ -94,6 +94,10 @@ struct LocalizerOptions {
   double max_sigma_p_px = 4.0;
   // Sampson-error threshold of the current geometries' inliers (px at reference_width); teach uses the same.
   double inlier_threshold_px = 1.5;
+  // A current geometry needs this median parallax of its inliers (px at reference_width), as in teach. Mapped
+  // features are often distant (they are the ones that stay visible over an arc), so a stricter guard fails many
+  // current geometries in mid-arc: 2 px at 320x240 failed 110 of 480 in the simulated town.
+  double min_parallax_px = 0.5;
   // Segvic 2009, eq. (7): resume the next arc's features when (distance to b) / (arc length) < this.
   double next_arc_ratio = 0.5;
   // Segvic 2009, eq. (8): resume the previous arc's features when (distance to a) / (arc length) < this.
@@ -125,7 +129,7 @@ struct LocalizerOptions {
   // Frames before a rejected prediction of a feature is tried again (saves time on occluded features).
   int retry_interval = 3;
   // Fewest tracked features of the current arc for a good frame.
-  int min_features = 15;
+  int min_features = 10;
   // Bad frames in a row (too few features or no usable current geometry) after which the state is lost.
   int max_bad_frames = 3;
   // k of Segvic 2009, eq. (10), radians of steering per unit of normalised image coordinate.
@@ -298,6 +302,10 @@ class Localizer {
   // Resumes untracked features of `arc` seen in key-image `node`, predicted from the displacement (key-image ->
   // current image) of the tracked features seen there that lie nearby.
   void ResumeFromNeighbours(const ArcData& arc, node_t node, ArcRole role, FrameResult* result);
+  // Resumes untracked features of `arc` seen in key-image `node`, predicted by the rotation current_from_node (far
+  // points move with the rotation alone) and corrected by the median offset of the converged alignments.
+  void ResumeByRotation(const ArcData& arc, node_t node, const Matrix3d& rotation, double scale, ArcRole role,
+                        FrameResult* result);
   void ClearTracks();
   void FillCounts(FrameResult* result) const;
 

@@ -18,3 +18,14 @@ if [[ -d $data/kitti07 ]]; then
   expect repeat-bad-start-arc 1 "^retrace: error: start arc: the map has no arc 99$" -- \
     "$bin" repeat --map "$tmp/repeat_route.db" --sequence "$k" --start-arc 99 --output "$tmp/r.csv" --no-progress
 fi
+
+if [[ -d $data/kitti07 && -f $tmp/repeat_route.db ]]; then
+  # --evaluate writes the per-frame ground truth next to the run: one row per frame, every odd frame correct.
+  expect repeat-truth-csv 0 "^81 80$" -- \
+    bash -c "echo \$(wc -l < '$tmp/repeat_run.truth.csv') \$(awk -F, 'NR > 1 && \$5 == 1' '$tmp/repeat_run.truth.csv' | wc -l)"
+  # The map stores teach's pre-smoothing; a map whose stored value is garbage is rejected with the key named.
+  cp "$tmp/repeat_route.db" "$tmp/repeat_bad_meta.db"
+  sqlite3 "$tmp/repeat_bad_meta.db" "UPDATE metadata SET value = 'abc' WHERE key = 'smoothing_sigma_px'" 2>/dev/null &&
+    expect repeat-bad-metadata 1 "^retrace: error: .*repeat_bad_meta.db: metadata smoothing_sigma_px is not a number: 'abc'$" -- \
+      "$bin" repeat --map "$tmp/repeat_bad_meta.db" --sequence "$k" --every 2 --offset 1 --output "$tmp/r2.csv" --no-progress
+fi
