@@ -54,6 +54,17 @@ void ParallelFor(int n, int threads, const std::function<void(int)>& fn) {
   state->finished.wait(lock, [&]() { return state->done.load() == n; });
 }
 
+// Scratch arrays of one ray batch, one set per thread (static storage: no allocation per tile).
+struct Batch {
+  Vector3f dirs[kBatchSize], diff_x[kBatchSize], diff_y[kBatchSize], colors[kBatchSize];
+  uint32_t keys[kBatchSize];
+};
+
+Batch& ThreadBatch() {
+  static thread_local Batch batch;
+  return batch;
+}
+
 // 8-bit value of linear intensity v in [0, 1] through the gamma 1/2.2 response, tabulated.
 class ResponseCurve {
  public:
@@ -73,6 +84,14 @@ class ResponseCurve {
 const ResponseCurve& Response() {
   static const ResponseCurve curve;
   return curve;
+}
+
+// splitmix64's finalizer, inline (the per-pixel hashes of keys and noise).
+inline uint64_t Mix(uint64_t x) {
+  x += 0x9e3779b97f4a7c15ULL;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
 }
 
 // Approximately standard normal from one hash: the sum of four 16-bit uniforms (Irwin-Hall), scaled to unit
@@ -103,7 +122,9 @@ bool Lighting::Check() const {
 
 bool SensorOptions::Check() const { return exposure > 0.0 && gain > 0.0 && noise_sigma >= 0.0; }
 
-bool RenderOptions::Check() const { return antialiasing >= 1 && antialiasing <= 8 && num_threads >= 1; }
+bool RenderOptions::Check() const {
+  return antialiasing >= 1 && antialiasing <= 8 && edge_contrast >= 0.0 && num_threads >= 1;
+}
 
 struct Renderer::Frame {
   const Scene* scene;
@@ -114,21 +135,29 @@ struct Renderer::Frame {
   bool gray;  // grey output: textures are sampled on their luminance only
   float sun_irradiance;
   float sky_irradiance;
+  float exposure;  // exposure x gain
   int width, height, tiles_x, tiles_y;
+  // Per pixel: linear radiance, what was hit (object, face, shadow bit) and the noise-free 8-bit luminance.
   std::vector<Vector3f> color;
   std::vector<uint32_t> key;
+  std::vector<float> level;
+};
+
+// A pixel's ray in the camera frame: bearing and its differentials to the right and lower neighbours.
+struct Renderer::PixelRay {
+  Vector3f bearing, diff_x, diff_y;
+  int pixel;
 };
 
 Renderer::Renderer(const CameraModel& camera, const RenderOptions& options)
     : camera_(camera.Clone()), options_(options) {
   const int w = camera.width(), h = camera.height();
   const size_t n = static_cast<size_t>(w) * h;
-  bearings_.assign(n, Vector3f::Zero());
-  diff_x_.assign(n, Vector3f::Zero());
-  diff_y_.assign(n, Vector3f::Zero());
+  std::vector<PixelRay> rays(n);
   valid_.assign(n, 0);
   const int ss = options.antialiasing;
-  sub_bearings_.assign(ss > 1 ? n * ss * ss : 0, Vector3f::Zero());
+  const bool quincunx = ss == 2;
+  sub_bearings_.assign(ss > 2 ? n * ss * ss : 0, Vector3f::Zero());
   auto unproject = [&](double x, double y, Vector3f* out) {
     Vector3d b;
     if (!camera.Unproject(Vector2d(x, y), &b) || !b.allFinite()) return false;
@@ -138,17 +167,18 @@ Renderer::Renderer(const CameraModel& camera, const RenderOptions& options)
   ParallelFor(h, options.num_threads, [&](int y) {
     for (int x = 0; x < w; ++x) {
       const size_t i = static_cast<size_t>(y) * w + x;
-      Vector3f b, bx, by;
+      Vector3f b;
       if (!unproject(x, y, &b)) continue;
       valid_[i] = 1;
-      bearings_[i] = b;
+      rays[i].bearing = b;
+      rays[i].pixel = static_cast<int>(i);
       // Differentials by central differences of the model over one pixel (robust at image borders).
       Vector3f l = Vector3f::Zero(), r = l, u = l, d = l;
       const bool has_x = unproject(x - 0.5, y, &l) && unproject(x + 0.5, y, &r);
       const bool has_y = unproject(x, y - 0.5, &u) && unproject(x, y + 0.5, &d);
-      diff_x_[i] = has_x ? Vector3f(r - l) : Vector3f::Zero();
-      diff_y_[i] = has_y ? Vector3f(d - u) : Vector3f::Zero();
-      for (int sy = 0; sy < ss && ss > 1; ++sy) {
+      rays[i].diff_x = has_x ? Vector3f(r - l) : Vector3f::Zero();
+      rays[i].diff_y = has_y ? Vector3f(d - u) : Vector3f::Zero();
+      for (int sy = 0; sy < ss && ss > 2; ++sy) {
         for (int sx = 0; sx < ss; ++sx) {
           Vector3f s;
           const double ox = (sx + 0.5) / ss - 0.5, oy = (sy + 0.5) / ss - 0.5;
@@ -157,6 +187,35 @@ Renderer::Renderer(const CameraModel& camera, const RenderOptions& options)
       }
     }
   });
+  // Valid pixels tile by tile: each tile's rays are contiguous in memory.
+  const int tiles_x = (w + kTileSize - 1) / kTileSize, tiles_y = (h + kTileSize - 1) / kTileSize;
+  ray_of_pixel_.assign(n, -1);
+  tile_begin_.assign(1, 0);
+  for (int ty = 0; ty < tiles_y; ++ty) {
+    for (int tx = 0; tx < tiles_x; ++tx) {
+      for (int y = ty * kTileSize; y < std::min(h, (ty + 1) * kTileSize); ++y) {
+        for (int x = tx * kTileSize; x < std::min(w, (tx + 1) * kTileSize); ++x) {
+          const size_t i = static_cast<size_t>(y) * w + x;
+          if (!valid_[i]) continue;
+          ray_of_pixel_[i] = static_cast<int>(rays_.size());
+          rays_.push_back(rays[i]);
+        }
+      }
+      tile_begin_.push_back(static_cast<int>(rays_.size()));
+    }
+  }
+  if (quincunx) {
+    // Pixel corners: corner (x, y) is at pixel coordinates (x - 0.5, y - 0.5), shared by up to four pixels.
+    const size_t corners = static_cast<size_t>(w + 1) * (h + 1);
+    corner_bearings_.assign(corners, Vector3f::Zero());
+    corner_valid_.assign(corners, 0);
+    ParallelFor(h + 1, options.num_threads, [&](int y) {
+      for (int x = 0; x <= w; ++x) {
+        const size_t c = static_cast<size_t>(y) * (w + 1) + x;
+        corner_valid_[c] = unproject(x - 0.5, y - 0.5, &corner_bearings_[c]);
+      }
+    });
+  }
 }
 
 Renderer::~Renderer() = default;
@@ -218,7 +277,8 @@ void Renderer::TraceBatch(const Frame& frame, const Vector3f* directions, const 
           return Vector2f((d.x() * up - dir.x() * d.z()) * inv * inv * kScale,
                           (d.y() * up - dir.y() * d.z()) * inv * inv * kScale);
         };
-        const float cover = scene.clouds().SampleFiltered(uv.x(), uv.y(), axis(diff_x[i]), axis(diff_y[i])).x();
+        // The cloud texture is grey: its luminance is the cover.
+        const float cover = scene.clouds().SampleFilteredGray(uv.x(), uv.y(), axis(diff_x[i]), axis(diff_y[i]));
         const float amount = Smoothstep(0.45f, 0.75f, cover) * Smoothstep(0.02f, 0.25f, up);
         c = c * (1.0f - 0.85f * amount) + Vector3f(0.95f, 0.95f, 0.96f) * (0.85f * amount) * (0.9f + 0.2f * cover);
       }
@@ -256,7 +316,8 @@ void Renderer::TraceBatch(const Frame& frame, const Vector3f* directions, const 
       d_dot_n = -d_dot_n;
     }
     d_dot_n = std::min(d_dot_n, -1e-4f);
-    keys[i] = static_cast<uint32_t>(HashCombine(scene.ObjectKey(r.hit.geomID, r.hit.instID[0]), s.face)) | 1u;
+    keys[i] = static_cast<uint32_t>(Mix((static_cast<uint64_t>(scene.ObjectKey(r.hit.geomID, r.hit.instID[0])) << 32) |
+                                        static_cast<uint32_t>(s.face))) | 1u;
     if (material.emissive) {
       colors[i] = material.color;
       ambient[i] = -1.0f;
@@ -332,29 +393,30 @@ void Renderer::TraceBatch(const Frame& frame, const Vector3f* directions, const 
 }
 
 void Renderer::RenderTile(const Frame& frame, int tile) const {
-  const int tx = tile % frame.tiles_x, ty = tile / frame.tiles_x;
-  const int x0 = tx * kTileSize, y0 = ty * kTileSize;
-  const int x1 = std::min(frame.width, x0 + kTileSize), y1 = std::min(frame.height, y0 + kTileSize);
-  std::vector<Vector3f> dirs(kBatchSize), dxs(kBatchSize), dys(kBatchSize), colors(kBatchSize);
-  uint32_t keys[kBatchSize];
-  int index[kBatchSize];
-  int count = 0;
-  for (int y = y0; y < y1; ++y) {
-    for (int x = x0; x < x1; ++x) {
-      const int i = y * frame.width + x;
-      if (!valid_[i]) continue;
-      dirs[count] = frame.rotation * bearings_[i];
-      dxs[count] = frame.rotation * diff_x_[i];
-      dys[count] = frame.rotation * diff_y_[i];
-      index[count++] = i;
-    }
+  const PixelRay* rays = rays_.data() + tile_begin_[tile];
+  const int count = tile_begin_[tile + 1] - tile_begin_[tile];
+  Batch& batch = ThreadBatch();
+  Vector3f* dirs = batch.dirs;
+  Vector3f* dxs = batch.diff_x;
+  Vector3f* dys = batch.diff_y;
+  Vector3f* colors = batch.colors;
+  uint32_t* keys = batch.keys;
+  for (int k = 0; k < count; ++k) {
+    dirs[k] = frame.rotation * rays[k].bearing;
+    dxs[k] = frame.rotation * rays[k].diff_x;
+    dys[k] = frame.rotation * rays[k].diff_y;
   }
-  TraceBatch(frame, dirs.data(), dxs.data(), dys.data(), count, colors.data(), keys);
+  TraceBatch(frame, dirs, dxs, dys, count, colors, keys);
   auto& out_color = const_cast<std::vector<Vector3f>&>(frame.color);
   auto& out_key = const_cast<std::vector<uint32_t>&>(frame.key);
+  auto& out_level = const_cast<std::vector<float>&>(frame.level);
+  const ResponseCurve& response = Response();
   for (int k = 0; k < count; ++k) {
-    out_color[index[k]] = colors[k];
-    out_key[index[k]] = keys[k];
+    const int i = rays[k].pixel;
+    const Vector3f& c = colors[k];
+    out_color[i] = c;
+    out_key[i] = keys[k];
+    out_level[i] = response(frame.exposure * (0.2126f * c.x() + 0.7152f * c.y() + 0.0722f * c.z()));
   }
 }
 
@@ -363,8 +425,12 @@ void Renderer::SupersampleRange(const Frame& frame, const std::vector<int>& pixe
   const int ss = options_.antialiasing;
   const int per_pixel = ss * ss;
   const int pixels_per_batch = kBatchSize / per_pixel;
-  std::vector<Vector3f> dirs(kBatchSize), dxs(kBatchSize), dys(kBatchSize), colors(kBatchSize);
-  uint32_t keys[kBatchSize];
+  Batch& batch = ThreadBatch();
+  Vector3f* dirs = batch.dirs;
+  Vector3f* dxs = batch.diff_x;
+  Vector3f* dys = batch.diff_y;
+  Vector3f* colors = batch.colors;
+  uint32_t* keys = batch.keys;
   auto& out_color = const_cast<std::vector<Vector3f>&>(frame.color);
   const float inv_ss = 1.0f / ss;
   for (size_t start = begin; start < end; start += pixels_per_batch) {
@@ -372,8 +438,9 @@ void Renderer::SupersampleRange(const Frame& frame, const std::vector<int>& pixe
     int count = 0;
     for (size_t k = start; k < stop; ++k) {
       const int i = pixels[k];
-      const Vector3f dx = frame.rotation * diff_x_[i] * inv_ss;
-      const Vector3f dy = frame.rotation * diff_y_[i] * inv_ss;
+      const PixelRay& ray = rays_[ray_of_pixel_[i]];
+      const Vector3f dx = frame.rotation * ray.diff_x * inv_ss;
+      const Vector3f dy = frame.rotation * ray.diff_y * inv_ss;
       for (int s = 0; s < per_pixel; ++s) {
         dirs[count] = frame.rotation * sub_bearings_[static_cast<size_t>(i) * per_pixel + s];
         dxs[count] = dx;
@@ -381,12 +448,65 @@ void Renderer::SupersampleRange(const Frame& frame, const std::vector<int>& pixe
         ++count;
       }
     }
-    TraceBatch(frame, dirs.data(), dxs.data(), dys.data(), count, colors.data(), keys);
+    TraceBatch(frame, dirs, dxs, dys, count, colors, keys);
     for (size_t k = start; k < stop; ++k) {
       Vector3f sum = Vector3f::Zero();
       for (int s = 0; s < per_pixel; ++s) sum += colors[(k - start) * per_pixel + s];
       out_color[pixels[k]] = sum / static_cast<float>(per_pixel);
     }
+  }
+}
+
+void Renderer::QuincunxEdges(const Frame& frame, const std::vector<int>& edges) const {
+  const int w = frame.width, h = frame.height;
+  const int cw = w + 1;
+  // The corners of the edge pixels, each traced once even when several edge pixels share it.
+  std::vector<uint8_t> needed(static_cast<size_t>(cw) * (h + 1), 0);
+  for (const int i : edges) {
+    const int c = (i / w) * cw + i % w;
+    needed[c] = needed[c + 1] = needed[c + cw] = needed[c + cw + 1] = 1;
+  }
+  std::vector<int> corners;
+  corners.reserve(2 * edges.size() + 16);
+  for (size_t c = 0; c < needed.size(); ++c) {
+    if (needed[c] && corner_valid_[c]) corners.push_back(static_cast<int>(c));
+  }
+  std::vector<Vector3f> corner_color(needed.size(), Vector3f::Zero());
+  const int batches = static_cast<int>((corners.size() + kBatchSize - 1) / kBatchSize);
+  ParallelFor(batches, options_.num_threads, [&](int b) {
+    Batch& batch = ThreadBatch();
+    Vector3f* dirs = batch.dirs;
+    Vector3f* dxs = batch.diff_x;
+    Vector3f* dys = batch.diff_y;
+    Vector3f* colors = batch.colors;
+    uint32_t* keys = batch.keys;
+    const size_t begin = static_cast<size_t>(b) * kBatchSize;
+    const int count = static_cast<int>(std::min(corners.size() - begin, static_cast<size_t>(kBatchSize)));
+    for (int k = 0; k < count; ++k) {
+      const int c = corners[begin + k];
+      // Footprint for texture filtering: half the one of the nearest pixel (samples are half a pixel apart).
+      const int x = std::min(c % cw, w - 1), y = std::min(c / cw, h - 1);
+      const int r = ray_of_pixel_[y * w + x];
+      dirs[k] = frame.rotation * corner_bearings_[c];
+      dxs[k] = r >= 0 ? Vector3f(frame.rotation * rays_[r].diff_x * 0.5f) : Vector3f::Zero();
+      dys[k] = r >= 0 ? Vector3f(frame.rotation * rays_[r].diff_y * 0.5f) : Vector3f::Zero();
+    }
+    TraceBatch(frame, dirs, dxs, dys, count, colors, keys);
+    for (int k = 0; k < count; ++k) corner_color[corners[begin + k]] = colors[k];
+  });
+  // Quincunx: 1/2 the centre + 1/8 each corner (a tent filter sampled at the centre and the corners; an edge
+  // sweeping across the pixel changes it in steps of 1/4, 1/2, 1/4 along the pixel integral's linear ramp).
+  auto& out_color = const_cast<std::vector<Vector3f>&>(frame.color);
+  for (const int i : edges) {
+    const int c = (i / w) * cw + i % w;
+    Vector3f sum = 4.0f * frame.color[i];
+    float weight = 4.0f;
+    for (const int k : {c, c + 1, c + cw, c + cw + 1}) {
+      if (!corner_valid_[k]) continue;
+      sum += corner_color[k];
+      weight += 1.0f;
+    }
+    out_color[i] = sum / weight;
   }
 }
 
@@ -406,32 +526,46 @@ cv::Mat Renderer::Render(const Scene& scene, const Rigid3d& town_from_cam, const
   frame.tiles_x = (frame.width + kTileSize - 1) / kTileSize;
   frame.tiles_y = (frame.height + kTileSize - 1) / kTileSize;
   const size_t n = static_cast<size_t>(frame.width) * frame.height;
+  frame.exposure = static_cast<float>(sensor.exposure * sensor.gain);
   frame.color.assign(n, Vector3f::Zero());
   frame.key.assign(n, 0xffffffffu);
+  frame.level.assign(n, 0.0f);
   const int threads = options_.num_threads;
   ParallelFor(frame.tiles_x * frame.tiles_y, threads, [&](int tile) { RenderTile(frame, tile); });
 
-  // Edge pixels: a neighbour (right or below) sees another object, face or shadow state.
+  // Edge pixels: a 4-neighbour sees another object, face or shadow state AND the two differ visibly (by more than
+  // options_.edge_contrast grey levels after the sensor response). Low-contrast seams (between the facets of a tree,
+  // adjacent walls in the same light) gain nothing from sub-samples.
   std::vector<int> edges;
   if (options_.antialiasing > 1) {
-    std::vector<uint8_t> mark(n, 0);
     const int w = frame.width, h = frame.height;
-    for (int y = 0; y < h; ++y) {
+    const std::vector<float>& level = frame.level;
+    std::vector<uint8_t> mark(n, 0);
+    const float contrast = static_cast<float>(options_.edge_contrast);
+    ParallelFor(h, threads, [&](int y) {
       for (int x = 0; x < w; ++x) {
         const int i = y * w + x;
         if (!valid_[i]) continue;
-        if (x + 1 < w && valid_[i + 1] && frame.key[i] != frame.key[i + 1]) mark[i] = mark[i + 1] = 1;
-        if (y + 1 < h && valid_[i + w] && frame.key[i] != frame.key[i + w]) mark[i] = mark[i + w] = 1;
+        auto differs = [&](int j) {
+          return valid_[j] && frame.key[i] != frame.key[j] && std::abs(level[i] - level[j]) > contrast;
+        };
+        mark[i] = (x > 0 && differs(i - 1)) || (x + 1 < w && differs(i + 1)) || (y > 0 && differs(i - w)) ||
+                  (y + 1 < h && differs(i + w));
       }
-    }
+    });
+    edges.reserve(n / 4);
     for (size_t i = 0; i < n; ++i) {
       if (mark[i]) edges.push_back(static_cast<int>(i));
     }
-    constexpr size_t kChunk = 256;
-    const int chunks = static_cast<int>((edges.size() + kChunk - 1) / kChunk);
-    ParallelFor(chunks, threads, [&](int c) {
-      SupersampleRange(frame, edges, c * kChunk, std::min(edges.size(), (c + 1) * kChunk));
-    });
+    if (options_.antialiasing == 2) {
+      QuincunxEdges(frame, edges);
+    } else {
+      constexpr size_t kChunk = 256;
+      const int chunks = static_cast<int>((edges.size() + kChunk - 1) / kChunk);
+      ParallelFor(chunks, threads, [&](int c) {
+        SupersampleRange(frame, edges, c * kChunk, std::min(edges.size(), (c + 1) * kChunk));
+      });
+    }
   }
   last_supersampled_ = edges.size();
 
@@ -440,12 +574,13 @@ cv::Mat Renderer::Render(const Scene& scene, const Rigid3d& town_from_cam, const
   const float sigma = static_cast<float>(sensor.noise_sigma);
   const ResponseCurve& response = Response();
   cv::Mat image(frame.height, frame.width, sensor.color ? CV_8UC3 : CV_8UC1);
+  const uint64_t seed = HashMix(noise_seed);
   ParallelFor(frame.height, threads, [&](int y) {
     uint8_t* row = image.ptr<uint8_t>(y);
     for (int x = 0; x < frame.width; ++x) {
       const size_t i = static_cast<size_t>(y) * frame.width + x;
       const Vector3f c = frame.color[i] * scale;
-      const uint64_t h = HashCombine(noise_seed, i);
+      const uint64_t h = Mix(seed + i);
       auto quantize = [&](float linear, uint64_t hash) {
         const float value = response(linear) + (sigma > 0.0f ? sigma * HashGaussian(hash) : 0.0f);
         return static_cast<uint8_t>(std::min(255.0f, std::max(0.0f, value)) + 0.5f);

@@ -52,11 +52,13 @@ class Texture {
   struct Level {
     int width = 0;
     int height = 0;
-    std::vector<Vector3f> texels;  // row-major
+    int stride = 0;                // width + 1: texels and gray have one extra (wrapped) column and row
+    std::vector<Vector3f> texels;  // row-major, (width + 1) x (height + 1)
     std::vector<uint8_t> gray;     // luminance of `texels`, x 255 (compact: grey rendering is memory bound)
   };
+  // Mean of `taps` trilinear lookups at level `level`, spread evenly along (du, dv) around (u, v).
   template <typename T, typename S>
-  T Trilinear(const std::vector<S> Level::*channel, float u, float v, float level) const;
+  T Taps(const std::vector<S> Level::*channel, float u, float v, float du, float dv, int taps, float level) const;
   template <typename T, typename S>
   T Filtered(const std::vector<S> Level::*channel, float u, float v, const Vector2f& axis_a,
              const Vector2f& axis_b) const;
