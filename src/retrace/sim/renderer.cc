@@ -574,13 +574,12 @@ cv::Mat Renderer::Render(const Scene& scene, const Rigid3d& town_from_cam, const
   const float sigma = static_cast<float>(sensor.noise_sigma);
   const ResponseCurve& response = Response();
   cv::Mat image(frame.height, frame.width, sensor.color ? CV_8UC3 : CV_8UC1);
-  const uint64_t seed = HashMix(noise_seed);
   ParallelFor(frame.height, threads, [&](int y) {
     uint8_t* row = image.ptr<uint8_t>(y);
     for (int x = 0; x < frame.width; ++x) {
       const size_t i = static_cast<size_t>(y) * frame.width + x;
       const Vector3f c = frame.color[i] * scale;
-      const uint64_t h = Mix(seed + i);
+      const uint64_t h = HashCombine(noise_seed, i);
       auto quantize = [&](float linear, uint64_t hash) {
         const float value = response(linear) + (sigma > 0.0f ? sigma * HashGaussian(hash) : 0.0f);
         return static_cast<uint8_t>(std::min(255.0f, std::max(0.0f, value)) + 0.5f);
