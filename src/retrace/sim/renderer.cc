@@ -86,14 +86,6 @@ const ResponseCurve& Response() {
   return curve;
 }
 
-// splitmix64's finalizer, inline (the per-pixel hashes of keys and noise).
-inline uint64_t Mix(uint64_t x) {
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
-
 // Approximately standard normal from one hash: the sum of four 16-bit uniforms (Irwin-Hall), scaled to unit
 // variance. Cheap, deterministic, and bounded at +-3.46 sigma.
 float HashGaussian(uint64_t h) {
@@ -316,8 +308,8 @@ void Renderer::TraceBatch(const Frame& frame, const Vector3f* directions, const 
       d_dot_n = -d_dot_n;
     }
     d_dot_n = std::min(d_dot_n, -1e-4f);
-    keys[i] = static_cast<uint32_t>(Mix((static_cast<uint64_t>(scene.ObjectKey(r.hit.geomID, r.hit.instID[0])) << 32) |
-                                        static_cast<uint32_t>(s.face))) | 1u;
+    const uint64_t object = scene.ObjectKey(r.hit.geomID, r.hit.instID[0]);
+    keys[i] = static_cast<uint32_t>(HashMix((object << 32) | static_cast<uint32_t>(s.face))) | 1u;
     if (material.emissive) {
       colors[i] = material.color;
       ambient[i] = -1.0f;

@@ -229,7 +229,7 @@ TEST(RendererTest, EdgeAntialiasingMovesEdgesSmoothly) {
   SensorOptions sensor;
   sensor.noise_sigma = 0.0;
   struct Motion {
-    double max_jump = 0.0;          // largest change of one pixel between consecutive steps, grey levels
+    double max_jump = 0.0;            // largest change of one pixel between consecutive steps, grey levels
     double max_centroid_error = 0.0;  // px
     double contrast = 0.0;
   };
@@ -261,8 +261,8 @@ TEST(RendererTest, EdgeAntialiasingMovesEdgesSmoothly) {
   };
   const Motion point = slide(1), smooth = slide(2);
   std::cout << "0.1 px steps: largest pixel change " << point.max_jump << " (point sampled) vs " << smooth.max_jump
-            << " (edge anti-aliasing) of " << smooth.contrast << " grey levels; centroid error " << point.max_centroid_error
-            << " vs " << smooth.max_centroid_error << " px\n";
+            << " (edge anti-aliasing) of " << smooth.contrast << " grey levels; centroid error "
+            << point.max_centroid_error << " vs " << smooth.max_centroid_error << " px\n";
   ASSERT_GT(smooth.contrast, 150.0);
   EXPECT_GT(point.max_jump, 0.9 * point.contrast);  // the test can see shimmer
   EXPECT_LT(smooth.max_jump, 0.55 * smooth.contrast);

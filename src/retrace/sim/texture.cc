@@ -121,20 +121,25 @@ T Texture::Taps(const std::vector<S> Level::*channel, float u, float v, float du
   }
   level = std::max(0.0f, level);
   const int l0 = static_cast<int>(level);
-  const float a = level - l0;
-  const Level& la = levels_[l0];
-  const S* ta = (la.*channel).data();
-  // Taps at u + s (du, dv), s = (i + 0.5) / taps - 0.5.
+  // Blend weight of the coarser level: linear in the middle half of the octave only, one level alone in the outer
+  // quarters ("brilinear", as GPU drivers do): still continuous in the level of detail, so nothing pops as the
+  // camera moves, and half of the lookups read a single level.
+  const float a = std::min(1.0f, std::max(0.0f, 2.0f * (level - l0) - 0.5f));
+  // Taps at (u, v) + s (du, dv), s = (i + 0.5) / taps - 0.5.
   const float step = 1.0f / taps;
   float s = 0.5f * step - 0.5f;
   T sum_a = Zero<T>(), sum_b = Zero<T>();
-  if (a < 1e-3f) {
+  if (a <= 0.0f || a >= 1.0f) {
+    const Level& l = levels_[a <= 0.0f ? l0 : l0 + 1];
+    const S* t = (l.*channel).data();
     for (int i = 0; i < taps; ++i, s += step) {
-      sum_a += Bilinear<T>(ta, la.width, la.height, la.stride, Fraction(u + s * du), Fraction(v + s * dv));
+      sum_a += Bilinear<T>(t, l.width, l.height, l.stride, Fraction(u + s * du), Fraction(v + s * dv));
     }
     return sum_a * (step * kValueScale<S>);
   }
+  const Level& la = levels_[l0];
   const Level& lb = levels_[l0 + 1];
+  const S* ta = (la.*channel).data();
   const S* tb = (lb.*channel).data();
   for (int i = 0; i < taps; ++i, s += step) {
     const float fu = Fraction(u + s * du), fv = Fraction(v + s * dv);

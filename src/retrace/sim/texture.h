@@ -34,7 +34,8 @@ class Texture {
   int height() const { return levels_.empty() ? 0 : levels_[0].height; }
   int num_levels() const { return static_cast<int>(levels_.size()); }
 
-  // Bilinear lookup on mip level `level` (fractional levels blend two levels: trilinear).
+  // Bilinear lookup on mip level `level` (fractional levels in the middle half of an octave blend two levels:
+  // trilinear; near whole levels one level alone: "brilinear", continuous in `level` but cheaper).
   Vector3f SampleTrilinear(float u, float v, float level) const;
 
   // Filtered lookup for a pixel footprint with axes `axis_a` and `axis_b` in texture coordinates (the uv change
