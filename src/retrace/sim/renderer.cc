@@ -18,41 +18,90 @@ constexpr int kTileSize = 16;
 constexpr int kBatchSize = 256;
 constexpr float kInfinity = std::numeric_limits<float>::infinity();
 
-// Runs fn(i) for i in [0, n) on `threads` threads (work stealing by an atomic counter). The caller works too and
-// returns as soon as every item is done: it never waits for a helper thread that the OS has not scheduled yet (on
-// a busy machine that wait would cost more than the work). Late helpers find no work left and exit; they only touch
-// the shared state they own a reference to.
-void ParallelFor(int n, int threads, const std::function<void(int)>& fn) {
-  threads = std::max(1, std::min(threads, n));
-  if (threads == 1) {
-    for (int i = 0; i < n; ++i) fn(i);
-    return;
+}  // namespace
+
+// Persistent helper threads for Renderer (one pool per renderer, started once): a parallel loop costs a wake-up,
+// not a thread start. Run(n, fn) runs fn(i) for i in [0, n) with work stealing by an atomic counter. The caller
+// works too and returns as soon as every item is done: it never waits for a helper that the OS has not scheduled
+// yet (on a busy machine that wait would cost more than the work). A late helper finds the items taken and goes
+// back to sleep; it only touches the job it holds a reference to.
+class Renderer::WorkerPool {
+ public:
+  explicit WorkerPool(int threads) {
+    for (int t = 1; t < threads; ++t) workers_.emplace_back([this]() { WorkerLoop(); });
   }
-  struct State {
+  ~WorkerPool() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    for (std::thread& worker : workers_) worker.join();
+  }
+
+  void Run(int n, const std::function<void(int)>& fn) {
+    if (workers_.empty() || n <= 1) {
+      for (int i = 0; i < n; ++i) fn(i);
+      return;
+    }
+    auto job = std::make_shared<Job>();
+    job->n = n;
+    job->fn = &fn;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      job_ = job;
+      ++generation_;
+    }
+    wake_.notify_all();
+    Work(*job);
+    std::unique_lock<std::mutex> lock(job->mutex);
+    job->finished.wait(lock, [&]() { return job->done.load() == n; });
+  }
+
+ private:
+  struct Job {
     std::atomic<int> next{0};
     std::atomic<int> done{0};
     int n = 0;
-    std::function<void(int)> fn;
+    const std::function<void(int)>* fn = nullptr;  // valid while items are left (the caller waits for them)
     std::mutex mutex;
     std::condition_variable finished;
   };
-  auto state = std::make_shared<State>();
-  state->n = n;
-  state->fn = fn;
-  auto work = [](State& s) {
-    for (int i = s.next++; i < s.n; i = s.next++) {
-      s.fn(i);
-      if (++s.done == s.n) {
-        std::lock_guard<std::mutex> lock(s.mutex);
-        s.finished.notify_all();
+
+  static void Work(Job& job) {
+    for (int i = job.next++; i < job.n; i = job.next++) {
+      (*job.fn)(i);
+      if (++job.done == job.n) {
+        std::lock_guard<std::mutex> lock(job.mutex);
+        job.finished.notify_all();
       }
     }
-  };
-  for (int t = 1; t < threads; ++t) std::thread([state, work]() { work(*state); }).detach();
-  work(*state);
-  std::unique_lock<std::mutex> lock(state->mutex);
-  state->finished.wait(lock, [&]() { return state->done.load() == n; });
-}
+  }
+
+  void WorkerLoop() {
+    uint64_t seen = 0;
+    while (true) {
+      std::shared_ptr<Job> job;
+      {
+        std::unique_lock<std::mutex> lock(mutex_);
+        wake_.wait(lock, [&]() { return stop_ || generation_ != seen; });
+        if (stop_) return;
+        seen = generation_;
+        job = job_;
+      }
+      Work(*job);
+    }
+  }
+
+  std::vector<std::thread> workers_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::shared_ptr<Job> job_;
+  uint64_t generation_ = 0;
+  bool stop_ = false;
+};
+
+namespace {
 
 // Scratch arrays of one ray batch, one set per thread (static storage: no allocation per tile).
 struct Batch {
@@ -129,10 +178,11 @@ struct Renderer::Frame {
   float sky_irradiance;
   float exposure;  // exposure x gain
   int width, height, tiles_x, tiles_y;
-  // Per pixel: linear radiance, what was hit (object, face, shadow bit) and the noise-free 8-bit luminance.
-  std::vector<Vector3f> color;
-  std::vector<uint32_t> key;
-  std::vector<float> level;
+  // Per pixel: linear radiance, what was hit (object, face, shadow bit) and the noise-free 8-bit luminance (the
+  // renderer's buffers; pixels without a ray keep black, "nothing" and 0 from the constructor).
+  Vector3f* color;
+  uint32_t* key;
+  float* level;
 };
 
 // A pixel's ray in the camera frame: bearing and its differentials to the right and lower neighbours.
@@ -142,7 +192,7 @@ struct Renderer::PixelRay {
 };
 
 Renderer::Renderer(const CameraModel& camera, const RenderOptions& options)
-    : camera_(camera.Clone()), options_(options) {
+    : camera_(camera.Clone()), options_(options), pool_(std::make_unique<WorkerPool>(options.num_threads)) {
   const int w = camera.width(), h = camera.height();
   const size_t n = static_cast<size_t>(w) * h;
   std::vector<PixelRay> rays(n);
@@ -156,7 +206,7 @@ Renderer::Renderer(const CameraModel& camera, const RenderOptions& options)
     *out = b.cast<float>();
     return true;
   };
-  ParallelFor(h, options.num_threads, [&](int y) {
+  pool_->Run(h, [&](int y) {
     for (int x = 0; x < w; ++x) {
       const size_t i = static_cast<size_t>(y) * w + x;
       Vector3f b;
@@ -196,12 +246,18 @@ Renderer::Renderer(const CameraModel& camera, const RenderOptions& options)
       tile_begin_.push_back(static_cast<int>(rays_.size()));
     }
   }
+  color_.assign(n, Vector3f::Zero());
+  key_.assign(n, 0xffffffffu);
+  level_.assign(n, 0.0f);
+  mark_.assign(n, 0);
   if (quincunx) {
     // Pixel corners: corner (x, y) is at pixel coordinates (x - 0.5, y - 0.5), shared by up to four pixels.
     const size_t corners = static_cast<size_t>(w + 1) * (h + 1);
     corner_bearings_.assign(corners, Vector3f::Zero());
     corner_valid_.assign(corners, 0);
-    ParallelFor(h + 1, options.num_threads, [&](int y) {
+    corner_needed_.assign(corners, 0);
+    corner_color_.assign(corners, Vector3f::Zero());
+    pool_->Run(h + 1, [&](int y) {
       for (int x = 0; x <= w; ++x) {
         const size_t c = static_cast<size_t>(y) * (w + 1) + x;
         corner_valid_[c] = unproject(x - 0.5, y - 0.5, &corner_bearings_[c]);
@@ -240,7 +296,11 @@ void Renderer::TraceBatch(const Frame& frame, const Vector3f* directions, const 
     r.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     r.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   }
-  rtcIntersect1M(scene.embree_scene(), &context, rays, count, sizeof(RTCRayHit));
+  // Static geometry, then the moving objects (Embree keeps a hit only if it is nearer than tfar).
+  rtcIntersect1M(scene.static_embree_scene(), &context, rays, count, sizeof(RTCRayHit));
+  if (scene.num_moving_objects() > 0) {
+    rtcIntersect1M(scene.moving_embree_scene(), &context, rays, count, sizeof(RTCRayHit));
+  }
 
   int num_shadow = 0;
   const Vector3f sky_color = scene.sky_color();
@@ -369,7 +429,11 @@ void Renderer::TraceBatch(const Frame& frame, const Vector3f* directions, const 
     RTCIntersectContext shadow_context;
     rtcInitIntersectContext(&shadow_context);
     shadow_context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // parallel rays from neighbouring points
-    rtcOccluded1M(scene.embree_scene(), &shadow_context, shadow, num_shadow, sizeof(RTCRay));
+    // Rays already occluded by static geometry (tfar = -inf < tnear) are inactive in the second query.
+    rtcOccluded1M(scene.static_embree_scene(), &shadow_context, shadow, num_shadow, sizeof(RTCRay));
+    if (scene.num_moving_objects() > 0) {
+      rtcOccluded1M(scene.moving_embree_scene(), &shadow_context, shadow, num_shadow, sizeof(RTCRay));
+    }
     for (int k = 0; k < num_shadow; ++k) {
       if (shadow[k].tfar < 0.0f) {  // occluded: Embree sets tfar to -inf
         const int i = shadow_of[k];
@@ -399,9 +463,9 @@ void Renderer::RenderTile(const Frame& frame, int tile) const {
     dys[k] = frame.rotation * rays[k].diff_y;
   }
   TraceBatch(frame, dirs, dxs, dys, count, colors, keys);
-  auto& out_color = const_cast<std::vector<Vector3f>&>(frame.color);
-  auto& out_key = const_cast<std::vector<uint32_t>&>(frame.key);
-  auto& out_level = const_cast<std::vector<float>&>(frame.level);
+  Vector3f* out_color = frame.color;
+  uint32_t* out_key = frame.key;
+  float* out_level = frame.level;
   const ResponseCurve& response = Response();
   for (int k = 0; k < count; ++k) {
     const int i = rays[k].pixel;
@@ -423,7 +487,7 @@ void Renderer::SupersampleRange(const Frame& frame, const std::vector<int>& pixe
   Vector3f* dys = batch.diff_y;
   Vector3f* colors = batch.colors;
   uint32_t* keys = batch.keys;
-  auto& out_color = const_cast<std::vector<Vector3f>&>(frame.color);
+  Vector3f* out_color = frame.color;
   const float inv_ss = 1.0f / ss;
   for (size_t start = begin; start < end; start += pixels_per_batch) {
     const size_t stop = std::min(end, start + pixels_per_batch);
@@ -453,7 +517,7 @@ void Renderer::QuincunxEdges(const Frame& frame, const std::vector<int>& edges) 
   const int w = frame.width, h = frame.height;
   const int cw = w + 1;
   // The corners of the edge pixels, each traced once even when several edge pixels share it.
-  std::vector<uint8_t> needed(static_cast<size_t>(cw) * (h + 1), 0);
+  std::vector<uint8_t>& needed = corner_needed_;  // all 0 between frames
   for (const int i : edges) {
     const int c = (i / w) * cw + i % w;
     needed[c] = needed[c + 1] = needed[c + cw] = needed[c + cw + 1] = 1;
@@ -461,11 +525,13 @@ void Renderer::QuincunxEdges(const Frame& frame, const std::vector<int>& edges) 
   std::vector<int> corners;
   corners.reserve(2 * edges.size() + 16);
   for (size_t c = 0; c < needed.size(); ++c) {
-    if (needed[c] && corner_valid_[c]) corners.push_back(static_cast<int>(c));
+    if (!needed[c]) continue;
+    needed[c] = 0;
+    if (corner_valid_[c]) corners.push_back(static_cast<int>(c));
   }
-  std::vector<Vector3f> corner_color(needed.size(), Vector3f::Zero());
+  std::vector<Vector3f>& corner_color = corner_color_;  // read only where traced below
   const int batches = static_cast<int>((corners.size() + kBatchSize - 1) / kBatchSize);
-  ParallelFor(batches, options_.num_threads, [&](int b) {
+  pool_->Run(batches, [&](int b) {
     Batch& batch = ThreadBatch();
     Vector3f* dirs = batch.dirs;
     Vector3f* dxs = batch.diff_x;
@@ -488,7 +554,7 @@ void Renderer::QuincunxEdges(const Frame& frame, const std::vector<int>& edges) 
   });
   // Quincunx: 1/2 the centre + 1/8 each corner (a tent filter sampled at the centre and the corners; an edge
   // sweeping across the pixel changes it in steps of 1/4, 1/2, 1/4 along the pixel integral's linear ramp).
-  auto& out_color = const_cast<std::vector<Vector3f>&>(frame.color);
+  Vector3f* out_color = frame.color;
   for (const int i : edges) {
     const int c = (i / w) * cw + i % w;
     Vector3f sum = 4.0f * frame.color[i];
@@ -519,11 +585,10 @@ cv::Mat Renderer::Render(const Scene& scene, const Rigid3d& town_from_cam, const
   frame.tiles_y = (frame.height + kTileSize - 1) / kTileSize;
   const size_t n = static_cast<size_t>(frame.width) * frame.height;
   frame.exposure = static_cast<float>(sensor.exposure * sensor.gain);
-  frame.color.assign(n, Vector3f::Zero());
-  frame.key.assign(n, 0xffffffffu);
-  frame.level.assign(n, 0.0f);
-  const int threads = options_.num_threads;
-  ParallelFor(frame.tiles_x * frame.tiles_y, threads, [&](int tile) { RenderTile(frame, tile); });
+  frame.color = color_.data();
+  frame.key = key_.data();
+  frame.level = level_.data();
+  pool_->Run(frame.tiles_x * frame.tiles_y, [&](int tile) { RenderTile(frame, tile); });
 
   // Edge pixels: a 4-neighbour sees another object, face or shadow state AND the two differ visibly (by more than
   // options_.edge_contrast grey levels after the sensor response). Low-contrast seams (between the facets of a tree,
@@ -531,10 +596,10 @@ cv::Mat Renderer::Render(const Scene& scene, const Rigid3d& town_from_cam, const
   std::vector<int> edges;
   if (options_.antialiasing > 1) {
     const int w = frame.width, h = frame.height;
-    const std::vector<float>& level = frame.level;
-    std::vector<uint8_t> mark(n, 0);
+    const float* level = frame.level;
+    std::vector<uint8_t>& mark = mark_;  // pixels without a ray stay 0
     const float contrast = static_cast<float>(options_.edge_contrast);
-    ParallelFor(h, threads, [&](int y) {
+    pool_->Run(h, [&](int y) {
       for (int x = 0; x < w; ++x) {
         const int i = y * w + x;
         if (!valid_[i]) continue;
@@ -554,7 +619,7 @@ cv::Mat Renderer::Render(const Scene& scene, const Rigid3d& town_from_cam, const
     } else {
       constexpr size_t kChunk = 256;
       const int chunks = static_cast<int>((edges.size() + kChunk - 1) / kChunk);
-      ParallelFor(chunks, threads, [&](int c) {
+      pool_->Run(chunks, [&](int c) {
         SupersampleRange(frame, edges, c * kChunk, std::min(edges.size(), (c + 1) * kChunk));
       });
     }
@@ -566,7 +631,7 @@ cv::Mat Renderer::Render(const Scene& scene, const Rigid3d& town_from_cam, const
   const float sigma = static_cast<float>(sensor.noise_sigma);
   const ResponseCurve& response = Response();
   cv::Mat image(frame.height, frame.width, sensor.color ? CV_8UC3 : CV_8UC1);
-  ParallelFor(frame.height, threads, [&](int y) {
+  pool_->Run(frame.height, [&](int y) {
     uint8_t* row = image.ptr<uint8_t>(y);
     for (int x = 0; x < frame.width; ++x) {
       const size_t i = static_cast<size_t>(y) * frame.width + x;

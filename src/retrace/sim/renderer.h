@@ -28,7 +28,8 @@
 // noise of pixel (x, y) comes from a hash of (noise_seed, x, y), independent of threads and tiles.
 //
 // Speed: the camera's rays (bearings and differentials) are unprojected once in the constructor and stored tile by
-// tile; a frame only rotates them. Scratch arrays of a ray batch are per thread; nothing virtual per pixel.
+// tile; a frame only rotates them. Scratch arrays of a ray batch are per thread; nothing virtual per pixel. The
+// helper threads are started once per Renderer and woken per parallel pass.
 
 #include <cstdint>
 #include <memory>
@@ -106,6 +107,7 @@ class Renderer {
  private:
   struct PixelRay;
   struct Frame;
+  class WorkerPool;
   void RenderTile(const Frame& frame, int tile) const;
   void QuincunxEdges(const Frame& frame, const std::vector<int>& edges) const;
   void SupersampleRange(const Frame& frame, const std::vector<int>& pixels, size_t begin, size_t end) const;
@@ -126,6 +128,15 @@ class Renderer {
   std::vector<Vector3f> corner_bearings_;
   std::vector<uint8_t> corner_valid_;
   mutable size_t last_supersampled_ = 0;
+  // Helper threads (num_threads - 1 of them, started once) and per-frame buffers kept between frames (no allocation
+  // and page faults per frame). So one Renderer renders one frame at a time (Render() is not reentrant).
+  std::unique_ptr<WorkerPool> pool_;
+  mutable std::vector<Vector3f> color_;
+  mutable std::vector<uint32_t> key_;
+  mutable std::vector<float> level_;
+  mutable std::vector<uint8_t> mark_;
+  mutable std::vector<uint8_t> corner_needed_;
+  mutable std::vector<Vector3f> corner_color_;
 };
 
 }  // namespace retrace
