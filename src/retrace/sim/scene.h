@@ -129,7 +129,7 @@ class Scene {
   const Vector3f& sky_color() const { return sky_color_; }
 
   // Rays are traced against both Embree scenes (the static one first; a second query on the same rays keeps the
-  // nearer hit): the static triangles without an instance level (cheaper per ray), the moving objects as instances.
+  // nearer hit): the static triangles without an instance level, the moving objects as instances.
   RTCScene static_embree_scene() const { return static_scene_; }
   RTCScene moving_embree_scene() const { return scene_; }
   // Highest point of all geometry (town frame Z): rays towards the sun need not go further up.
