@@ -138,15 +138,6 @@ void DrawWindow(cv::Mat& img, int x0, int y0, int w, int h, double ppm, const Rg
 
 }  // namespace
 
-uint64_t HashMix(uint64_t x) {
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
-
-uint64_t HashCombine(uint64_t a, uint64_t b) { return HashMix(a ^ (HashMix(b) + 0x632be59bd9b4e019ULL + (a << 6))); }
-
 double HashToUnit(uint64_t h) { return static_cast<double>(h >> 11) * (1.0 / 9007199254740992.0); }
 
 double SimRandom::Normal() {

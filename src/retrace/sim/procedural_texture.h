@@ -19,8 +19,16 @@ namespace retrace {
 
 // Deterministic 64-bit hash (splitmix64 finalizer); the basis of every random choice in the simulator, so that a
 // seed reproduces the same world and the same images on every machine.
-uint64_t HashMix(uint64_t x);
-uint64_t HashCombine(uint64_t a, uint64_t b);
+// (Inline: the renderer hashes every pixel.)
+inline uint64_t HashMix(uint64_t x) {
+  x += 0x9e3779b97f4a7c15ULL;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+inline uint64_t HashCombine(uint64_t a, uint64_t b) {
+  return HashMix(a ^ (HashMix(b) + 0x632be59bd9b4e019ULL + (a << 6)));
+}
 // Uniform in [0, 1) from a hash value.
 double HashToUnit(uint64_t h);
 

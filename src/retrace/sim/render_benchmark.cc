@@ -1,4 +1,4 @@
-// Rendering speed of the built-in town at 320x240 with anti-aliasing (filtered textures + 2x2 edge
+// Rendering speed of the built-in town at 320x240 with anti-aliasing (filtered textures + quincunx edge
 // supersampling), sun shadows and noise: frames of the default teach drive, per thread count (the argument).
 //   build/src/retrace/sim/bench_sim_render --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 

@@ -18,40 +18,100 @@ constexpr int kTileSize = 16;
 constexpr int kBatchSize = 256;
 constexpr float kInfinity = std::numeric_limits<float>::infinity();
 
-// Runs fn(i) for i in [0, n) on `threads` threads (work stealing by an atomic counter). The caller works too and
-// returns as soon as every item is done: it never waits for a helper thread that the OS has not scheduled yet (on
-// a busy machine that wait would cost more than the work). Late helpers find no work left and exit; they only touch
-// the shared state they own a reference to.
-void ParallelFor(int n, int threads, const std::function<void(int)>& fn) {
-  threads = std::max(1, std::min(threads, n));
-  if (threads == 1) {
-    for (int i = 0; i < n; ++i) fn(i);
-    return;
+}  // namespace
+
+// Persistent helper threads for Renderer (one pool per renderer, started once): a parallel loop costs a wake-up,
+// not a thread start. Run(n, fn) runs fn(i) for i in [0, n) with work stealing by an atomic counter. The caller
+// works too and returns as soon as every item is done: it never waits for a helper that the OS has not scheduled
+// yet (on a busy machine that wait would cost more than the work). A late helper finds the items taken and goes
+// back to sleep; it only touches the job it holds a reference to.
+class Renderer::WorkerPool {
+ public:
+  explicit WorkerPool(int threads) {
+    for (int t = 1; t < threads; ++t) workers_.emplace_back([this]() { WorkerLoop(); });
   }
-  struct State {
+  ~WorkerPool() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    for (std::thread& worker : workers_) worker.join();
+  }
+
+  void Run(int n, const std::function<void(int)>& fn) {
+    if (workers_.empty() || n <= 1) {
+      for (int i = 0; i < n; ++i) fn(i);
+      return;
+    }
+    auto job = std::make_shared<Job>();
+    job->n = n;
+    job->fn = &fn;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      job_ = job;
+      ++generation_;
+    }
+    wake_.notify_all();
+    Work(*job);
+    std::unique_lock<std::mutex> lock(job->mutex);
+    job->finished.wait(lock, [&]() { return job->done.load() == n; });
+  }
+
+ private:
+  struct Job {
     std::atomic<int> next{0};
     std::atomic<int> done{0};
     int n = 0;
-    std::function<void(int)> fn;
+    const std::function<void(int)>* fn = nullptr;  // valid while items are left (the caller waits for them)
     std::mutex mutex;
     std::condition_variable finished;
   };
-  auto state = std::make_shared<State>();
-  state->n = n;
-  state->fn = fn;
-  auto work = [](State& s) {
-    for (int i = s.next++; i < s.n; i = s.next++) {
-      s.fn(i);
-      if (++s.done == s.n) {
-        std::lock_guard<std::mutex> lock(s.mutex);
-        s.finished.notify_all();
+
+  static void Work(Job& job) {
+    for (int i = job.next++; i < job.n; i = job.next++) {
+      (*job.fn)(i);
+      if (++job.done == job.n) {
+        std::lock_guard<std::mutex> lock(job.mutex);
+        job.finished.notify_all();
       }
     }
-  };
-  for (int t = 1; t < threads; ++t) std::thread([state, work]() { work(*state); }).detach();
-  work(*state);
-  std::unique_lock<std::mutex> lock(state->mutex);
-  state->finished.wait(lock, [&]() { return state->done.load() == n; });
+  }
+
+  void WorkerLoop() {
+    uint64_t seen = 0;
+    while (true) {
+      std::shared_ptr<Job> job;
+      {
+        std::unique_lock<std::mutex> lock(mutex_);
+        wake_.wait(lock, [&]() { return stop_ || generation_ != seen; });
+        if (stop_) return;
+        seen = generation_;
+        job = job_;
+      }
+      Work(*job);
+    }
+  }
+
+  std::vector<std::thread> workers_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::shared_ptr<Job> job_;
+  uint64_t generation_ = 0;
+  bool stop_ = false;
+};
+
+namespace {
+
+// Scratch arrays of one ray batch, one set per thread (static storage: no allocation per tile).
+struct Batch {
+  Vector3f dirs[kBatchSize], diff_x[kBatchSize], diff_y[kBatchSize], colors[kBatchSize];
+  uint32_t keys[kBatchSize];
+};
+
+Batch& ThreadBatch() {
+  static thread_local Batch batch;
+  return batch;
 }
 
 // 8-bit value of linear intensity v in [0, 1] through the gamma 1/2.2 response, tabulated.
@@ -103,7 +163,9 @@ bool Lighting::Check() const {
 
 bool SensorOptions::Check() const { return exposure > 0.0 && gain > 0.0 && noise_sigma >= 0.0; }
 
-bool RenderOptions::Check() const { return antialiasing >= 1 && antialiasing <= 8 && num_threads >= 1; }
+bool RenderOptions::Check() const {
+  return antialiasing >= 1 && antialiasing <= 8 && edge_contrast >= 0.0 && num_threads >= 1;
+}
 
 struct Renderer::Frame {
   const Scene* scene;
@@ -114,41 +176,51 @@ struct Renderer::Frame {
   bool gray;  // grey output: textures are sampled on their luminance only
   float sun_irradiance;
   float sky_irradiance;
+  float exposure;  // exposure x gain
   int width, height, tiles_x, tiles_y;
-  std::vector<Vector3f> color;
-  std::vector<uint32_t> key;
+  // Per pixel: linear radiance, what was hit (object, face, shadow bit) and the noise-free 8-bit luminance (the
+  // renderer's buffers; pixels without a ray keep black, "nothing" and 0 from the constructor).
+  Vector3f* color;
+  uint32_t* key;
+  float* level;
+};
+
+// A pixel's ray in the camera frame: bearing and its differentials to the right and lower neighbours.
+struct Renderer::PixelRay {
+  Vector3f bearing, diff_x, diff_y;
+  int pixel;
 };
 
 Renderer::Renderer(const CameraModel& camera, const RenderOptions& options)
-    : camera_(camera.Clone()), options_(options) {
+    : camera_(camera.Clone()), options_(options), pool_(std::make_unique<WorkerPool>(options.num_threads)) {
   const int w = camera.width(), h = camera.height();
   const size_t n = static_cast<size_t>(w) * h;
-  bearings_.assign(n, Vector3f::Zero());
-  diff_x_.assign(n, Vector3f::Zero());
-  diff_y_.assign(n, Vector3f::Zero());
+  std::vector<PixelRay> rays(n);
   valid_.assign(n, 0);
   const int ss = options.antialiasing;
-  sub_bearings_.assign(ss > 1 ? n * ss * ss : 0, Vector3f::Zero());
+  const bool quincunx = ss == 2;
+  sub_bearings_.assign(ss > 2 ? n * ss * ss : 0, Vector3f::Zero());
   auto unproject = [&](double x, double y, Vector3f* out) {
     Vector3d b;
     if (!camera.Unproject(Vector2d(x, y), &b) || !b.allFinite()) return false;
     *out = b.cast<float>();
     return true;
   };
-  ParallelFor(h, options.num_threads, [&](int y) {
+  pool_->Run(h, [&](int y) {
     for (int x = 0; x < w; ++x) {
       const size_t i = static_cast<size_t>(y) * w + x;
-      Vector3f b, bx, by;
+      Vector3f b;
       if (!unproject(x, y, &b)) continue;
       valid_[i] = 1;
-      bearings_[i] = b;
+      rays[i].bearing = b;
+      rays[i].pixel = static_cast<int>(i);
       // Differentials by central differences of the model over one pixel (robust at image borders).
       Vector3f l = Vector3f::Zero(), r = l, u = l, d = l;
       const bool has_x = unproject(x - 0.5, y, &l) && unproject(x + 0.5, y, &r);
       const bool has_y = unproject(x, y - 0.5, &u) && unproject(x, y + 0.5, &d);
-      diff_x_[i] = has_x ? Vector3f(r - l) : Vector3f::Zero();
-      diff_y_[i] = has_y ? Vector3f(d - u) : Vector3f::Zero();
-      for (int sy = 0; sy < ss && ss > 1; ++sy) {
+      rays[i].diff_x = has_x ? Vector3f(r - l) : Vector3f::Zero();
+      rays[i].diff_y = has_y ? Vector3f(d - u) : Vector3f::Zero();
+      for (int sy = 0; sy < ss && ss > 2; ++sy) {
         for (int sx = 0; sx < ss; ++sx) {
           Vector3f s;
           const double ox = (sx + 0.5) / ss - 0.5, oy = (sy + 0.5) / ss - 0.5;
@@ -157,6 +229,41 @@ Renderer::Renderer(const CameraModel& camera, const RenderOptions& options)
       }
     }
   });
+  // Valid pixels tile by tile: each tile's rays are contiguous in memory.
+  const int tiles_x = (w + kTileSize - 1) / kTileSize, tiles_y = (h + kTileSize - 1) / kTileSize;
+  ray_of_pixel_.assign(n, -1);
+  tile_begin_.assign(1, 0);
+  for (int ty = 0; ty < tiles_y; ++ty) {
+    for (int tx = 0; tx < tiles_x; ++tx) {
+      for (int y = ty * kTileSize; y < std::min(h, (ty + 1) * kTileSize); ++y) {
+        for (int x = tx * kTileSize; x < std::min(w, (tx + 1) * kTileSize); ++x) {
+          const size_t i = static_cast<size_t>(y) * w + x;
+          if (!valid_[i]) continue;
+          ray_of_pixel_[i] = static_cast<int>(rays_.size());
+          rays_.push_back(rays[i]);
+        }
+      }
+      tile_begin_.push_back(static_cast<int>(rays_.size()));
+    }
+  }
+  color_.assign(n, Vector3f::Zero());
+  key_.assign(n, 0xffffffffu);
+  level_.assign(n, 0.0f);
+  mark_.assign(n, 0);
+  if (quincunx) {
+    // Pixel corners: corner (x, y) is at pixel coordinates (x - 0.5, y - 0.5), shared by up to four pixels.
+    const size_t corners = static_cast<size_t>(w + 1) * (h + 1);
+    corner_bearings_.assign(corners, Vector3f::Zero());
+    corner_valid_.assign(corners, 0);
+    corner_needed_.assign(corners, 0);
+    corner_color_.assign(corners, Vector3f::Zero());
+    pool_->Run(h + 1, [&](int y) {
+      for (int x = 0; x <= w; ++x) {
+        const size_t c = static_cast<size_t>(y) * (w + 1) + x;
+        corner_valid_[c] = unproject(x - 0.5, y - 0.5, &corner_bearings_[c]);
+      }
+    });
+  }
 }
 
 Renderer::~Renderer() = default;
@@ -189,7 +296,11 @@ void Renderer::TraceBatch(const Frame& frame, const Vector3f* directions, const 
     r.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     r.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   }
-  rtcIntersect1M(scene.embree_scene(), &context, rays, count, sizeof(RTCRayHit));
+  // Static geometry, then the moving objects (Embree keeps a hit only if it is nearer than tfar).
+  rtcIntersect1M(scene.static_embree_scene(), &context, rays, count, sizeof(RTCRayHit));
+  if (scene.num_moving_objects() > 0) {
+    rtcIntersect1M(scene.moving_embree_scene(), &context, rays, count, sizeof(RTCRayHit));
+  }
 
   int num_shadow = 0;
   const Vector3f sky_color = scene.sky_color();
@@ -218,7 +329,8 @@ void Renderer::TraceBatch(const Frame& frame, const Vector3f* directions, const 
           return Vector2f((d.x() * up - dir.x() * d.z()) * inv * inv * kScale,
                           (d.y() * up - dir.y() * d.z()) * inv * inv * kScale);
         };
-        const float cover = scene.clouds().SampleFiltered(uv.x(), uv.y(), axis(diff_x[i]), axis(diff_y[i])).x();
+        // The cloud texture is grey: its luminance is the cover.
+        const float cover = scene.clouds().SampleFilteredGray(uv.x(), uv.y(), axis(diff_x[i]), axis(diff_y[i]));
         const float amount = Smoothstep(0.45f, 0.75f, cover) * Smoothstep(0.02f, 0.25f, up);
         c = c * (1.0f - 0.85f * amount) + Vector3f(0.95f, 0.95f, 0.96f) * (0.85f * amount) * (0.9f + 0.2f * cover);
       }
@@ -256,7 +368,8 @@ void Renderer::TraceBatch(const Frame& frame, const Vector3f* directions, const 
       d_dot_n = -d_dot_n;
     }
     d_dot_n = std::min(d_dot_n, -1e-4f);
-    keys[i] = static_cast<uint32_t>(HashCombine(scene.ObjectKey(r.hit.geomID, r.hit.instID[0]), s.face)) | 1u;
+    const uint64_t object = scene.ObjectKey(r.hit.geomID, r.hit.instID[0]);
+    keys[i] = static_cast<uint32_t>(HashMix((object << 32) | static_cast<uint32_t>(s.face))) | 1u;
     if (material.emissive) {
       colors[i] = material.color;
       ambient[i] = -1.0f;
@@ -316,7 +429,11 @@ void Renderer::TraceBatch(const Frame& frame, const Vector3f* directions, const 
     RTCIntersectContext shadow_context;
     rtcInitIntersectContext(&shadow_context);
     shadow_context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;  // parallel rays from neighbouring points
-    rtcOccluded1M(scene.embree_scene(), &shadow_context, shadow, num_shadow, sizeof(RTCRay));
+    // Rays already occluded by static geometry (tfar = -inf < tnear) are inactive in the second query.
+    rtcOccluded1M(scene.static_embree_scene(), &shadow_context, shadow, num_shadow, sizeof(RTCRay));
+    if (scene.num_moving_objects() > 0) {
+      rtcOccluded1M(scene.moving_embree_scene(), &shadow_context, shadow, num_shadow, sizeof(RTCRay));
+    }
     for (int k = 0; k < num_shadow; ++k) {
       if (shadow[k].tfar < 0.0f) {  // occluded: Embree sets tfar to -inf
         const int i = shadow_of[k];
@@ -332,29 +449,30 @@ void Renderer::TraceBatch(const Frame& frame, const Vector3f* directions, const 
 }
 
 void Renderer::RenderTile(const Frame& frame, int tile) const {
-  const int tx = tile % frame.tiles_x, ty = tile / frame.tiles_x;
-  const int x0 = tx * kTileSize, y0 = ty * kTileSize;
-  const int x1 = std::min(frame.width, x0 + kTileSize), y1 = std::min(frame.height, y0 + kTileSize);
-  std::vector<Vector3f> dirs(kBatchSize), dxs(kBatchSize), dys(kBatchSize), colors(kBatchSize);
-  uint32_t keys[kBatchSize];
-  int index[kBatchSize];
-  int count = 0;
-  for (int y = y0; y < y1; ++y) {
-    for (int x = x0; x < x1; ++x) {
-      const int i = y * frame.width + x;
-      if (!valid_[i]) continue;
-      dirs[count] = frame.rotation * bearings_[i];
-      dxs[count] = frame.rotation * diff_x_[i];
-      dys[count] = frame.rotation * diff_y_[i];
-      index[count++] = i;
-    }
-  }
-  TraceBatch(frame, dirs.data(), dxs.data(), dys.data(), count, colors.data(), keys);
-  auto& out_color = const_cast<std::vector<Vector3f>&>(frame.color);
-  auto& out_key = const_cast<std::vector<uint32_t>&>(frame.key);
+  const PixelRay* rays = rays_.data() + tile_begin_[tile];
+  const int count = tile_begin_[tile + 1] - tile_begin_[tile];
+  Batch& batch = ThreadBatch();
+  Vector3f* dirs = batch.dirs;
+  Vector3f* dxs = batch.diff_x;
+  Vector3f* dys = batch.diff_y;
+  Vector3f* colors = batch.colors;
+  uint32_t* keys = batch.keys;
   for (int k = 0; k < count; ++k) {
-    out_color[index[k]] = colors[k];
-    out_key[index[k]] = keys[k];
+    dirs[k] = frame.rotation * rays[k].bearing;
+    dxs[k] = frame.rotation * rays[k].diff_x;
+    dys[k] = frame.rotation * rays[k].diff_y;
+  }
+  TraceBatch(frame, dirs, dxs, dys, count, colors, keys);
+  Vector3f* out_color = frame.color;
+  uint32_t* out_key = frame.key;
+  float* out_level = frame.level;
+  const ResponseCurve& response = Response();
+  for (int k = 0; k < count; ++k) {
+    const int i = rays[k].pixel;
+    const Vector3f& c = colors[k];
+    out_color[i] = c;
+    out_key[i] = keys[k];
+    out_level[i] = response(frame.exposure * (0.2126f * c.x() + 0.7152f * c.y() + 0.0722f * c.z()));
   }
 }
 
@@ -363,17 +481,22 @@ void Renderer::SupersampleRange(const Frame& frame, const std::vector<int>& pixe
   const int ss = options_.antialiasing;
   const int per_pixel = ss * ss;
   const int pixels_per_batch = kBatchSize / per_pixel;
-  std::vector<Vector3f> dirs(kBatchSize), dxs(kBatchSize), dys(kBatchSize), colors(kBatchSize);
-  uint32_t keys[kBatchSize];
-  auto& out_color = const_cast<std::vector<Vector3f>&>(frame.color);
+  Batch& batch = ThreadBatch();
+  Vector3f* dirs = batch.dirs;
+  Vector3f* dxs = batch.diff_x;
+  Vector3f* dys = batch.diff_y;
+  Vector3f* colors = batch.colors;
+  uint32_t* keys = batch.keys;
+  Vector3f* out_color = frame.color;
   const float inv_ss = 1.0f / ss;
   for (size_t start = begin; start < end; start += pixels_per_batch) {
     const size_t stop = std::min(end, start + pixels_per_batch);
     int count = 0;
     for (size_t k = start; k < stop; ++k) {
       const int i = pixels[k];
-      const Vector3f dx = frame.rotation * diff_x_[i] * inv_ss;
-      const Vector3f dy = frame.rotation * diff_y_[i] * inv_ss;
+      const PixelRay& ray = rays_[ray_of_pixel_[i]];
+      const Vector3f dx = frame.rotation * ray.diff_x * inv_ss;
+      const Vector3f dy = frame.rotation * ray.diff_y * inv_ss;
       for (int s = 0; s < per_pixel; ++s) {
         dirs[count] = frame.rotation * sub_bearings_[static_cast<size_t>(i) * per_pixel + s];
         dxs[count] = dx;
@@ -381,12 +504,67 @@ void Renderer::SupersampleRange(const Frame& frame, const std::vector<int>& pixe
         ++count;
       }
     }
-    TraceBatch(frame, dirs.data(), dxs.data(), dys.data(), count, colors.data(), keys);
+    TraceBatch(frame, dirs, dxs, dys, count, colors, keys);
     for (size_t k = start; k < stop; ++k) {
       Vector3f sum = Vector3f::Zero();
       for (int s = 0; s < per_pixel; ++s) sum += colors[(k - start) * per_pixel + s];
       out_color[pixels[k]] = sum / static_cast<float>(per_pixel);
     }
+  }
+}
+
+void Renderer::QuincunxEdges(const Frame& frame, const std::vector<int>& edges) const {
+  const int w = frame.width, h = frame.height;
+  const int cw = w + 1;
+  // The corners of the edge pixels, each traced once even when several edge pixels share it.
+  std::vector<uint8_t>& needed = corner_needed_;  // all 0 between frames
+  for (const int i : edges) {
+    const int c = (i / w) * cw + i % w;
+    needed[c] = needed[c + 1] = needed[c + cw] = needed[c + cw + 1] = 1;
+  }
+  std::vector<int> corners;
+  corners.reserve(2 * edges.size() + 16);
+  for (size_t c = 0; c < needed.size(); ++c) {
+    if (!needed[c]) continue;
+    needed[c] = 0;
+    if (corner_valid_[c]) corners.push_back(static_cast<int>(c));
+  }
+  std::vector<Vector3f>& corner_color = corner_color_;  // read only where traced below
+  const int batches = static_cast<int>((corners.size() + kBatchSize - 1) / kBatchSize);
+  pool_->Run(batches, [&](int b) {
+    Batch& batch = ThreadBatch();
+    Vector3f* dirs = batch.dirs;
+    Vector3f* dxs = batch.diff_x;
+    Vector3f* dys = batch.diff_y;
+    Vector3f* colors = batch.colors;
+    uint32_t* keys = batch.keys;
+    const size_t begin = static_cast<size_t>(b) * kBatchSize;
+    const int count = static_cast<int>(std::min(corners.size() - begin, static_cast<size_t>(kBatchSize)));
+    for (int k = 0; k < count; ++k) {
+      const int c = corners[begin + k];
+      // Footprint for texture filtering: half the one of the nearest pixel (samples are half a pixel apart).
+      const int x = std::min(c % cw, w - 1), y = std::min(c / cw, h - 1);
+      const int r = ray_of_pixel_[y * w + x];
+      dirs[k] = frame.rotation * corner_bearings_[c];
+      dxs[k] = r >= 0 ? Vector3f(frame.rotation * rays_[r].diff_x * 0.5f) : Vector3f::Zero();
+      dys[k] = r >= 0 ? Vector3f(frame.rotation * rays_[r].diff_y * 0.5f) : Vector3f::Zero();
+    }
+    TraceBatch(frame, dirs, dxs, dys, count, colors, keys);
+    for (int k = 0; k < count; ++k) corner_color[corners[begin + k]] = colors[k];
+  });
+  // Quincunx: 1/2 the centre + 1/8 each corner (a tent filter sampled at the centre and the corners; an edge
+  // sweeping across the pixel changes it in steps of 1/4, 1/2, 1/4 along the pixel integral's linear ramp).
+  Vector3f* out_color = frame.color;
+  for (const int i : edges) {
+    const int c = (i / w) * cw + i % w;
+    Vector3f sum = 4.0f * frame.color[i];
+    float weight = 4.0f;
+    for (const int k : {c, c + 1, c + cw, c + cw + 1}) {
+      if (!corner_valid_[k]) continue;
+      sum += corner_color[k];
+      weight += 1.0f;
+    }
+    out_color[i] = sum / weight;
   }
 }
 
@@ -406,32 +584,45 @@ cv::Mat Renderer::Render(const Scene& scene, const Rigid3d& town_from_cam, const
   frame.tiles_x = (frame.width + kTileSize - 1) / kTileSize;
   frame.tiles_y = (frame.height + kTileSize - 1) / kTileSize;
   const size_t n = static_cast<size_t>(frame.width) * frame.height;
-  frame.color.assign(n, Vector3f::Zero());
-  frame.key.assign(n, 0xffffffffu);
-  const int threads = options_.num_threads;
-  ParallelFor(frame.tiles_x * frame.tiles_y, threads, [&](int tile) { RenderTile(frame, tile); });
+  frame.exposure = static_cast<float>(sensor.exposure * sensor.gain);
+  frame.color = color_.data();
+  frame.key = key_.data();
+  frame.level = level_.data();
+  pool_->Run(frame.tiles_x * frame.tiles_y, [&](int tile) { RenderTile(frame, tile); });
 
-  // Edge pixels: a neighbour (right or below) sees another object, face or shadow state.
+  // Edge pixels: a 4-neighbour sees another object, face or shadow state AND the two differ visibly (by more than
+  // options_.edge_contrast grey levels after the sensor response). Low-contrast seams (between the facets of a tree,
+  // adjacent walls in the same light) gain nothing from sub-samples.
   std::vector<int> edges;
   if (options_.antialiasing > 1) {
-    std::vector<uint8_t> mark(n, 0);
     const int w = frame.width, h = frame.height;
-    for (int y = 0; y < h; ++y) {
+    const float* level = frame.level;
+    std::vector<uint8_t>& mark = mark_;  // pixels without a ray stay 0
+    const float contrast = static_cast<float>(options_.edge_contrast);
+    pool_->Run(h, [&](int y) {
       for (int x = 0; x < w; ++x) {
         const int i = y * w + x;
         if (!valid_[i]) continue;
-        if (x + 1 < w && valid_[i + 1] && frame.key[i] != frame.key[i + 1]) mark[i] = mark[i + 1] = 1;
-        if (y + 1 < h && valid_[i + w] && frame.key[i] != frame.key[i + w]) mark[i] = mark[i + w] = 1;
+        auto differs = [&](int j) {
+          return valid_[j] && frame.key[i] != frame.key[j] && std::abs(level[i] - level[j]) > contrast;
+        };
+        mark[i] = (x > 0 && differs(i - 1)) || (x + 1 < w && differs(i + 1)) || (y > 0 && differs(i - w)) ||
+                  (y + 1 < h && differs(i + w));
       }
-    }
+    });
+    edges.reserve(n / 4);
     for (size_t i = 0; i < n; ++i) {
       if (mark[i]) edges.push_back(static_cast<int>(i));
     }
-    constexpr size_t kChunk = 256;
-    const int chunks = static_cast<int>((edges.size() + kChunk - 1) / kChunk);
-    ParallelFor(chunks, threads, [&](int c) {
-      SupersampleRange(frame, edges, c * kChunk, std::min(edges.size(), (c + 1) * kChunk));
-    });
+    if (options_.antialiasing == 2) {
+      QuincunxEdges(frame, edges);
+    } else {
+      constexpr size_t kChunk = 256;
+      const int chunks = static_cast<int>((edges.size() + kChunk - 1) / kChunk);
+      pool_->Run(chunks, [&](int c) {
+        SupersampleRange(frame, edges, c * kChunk, std::min(edges.size(), (c + 1) * kChunk));
+      });
+    }
   }
   last_supersampled_ = edges.size();
 
@@ -440,7 +631,7 @@ cv::Mat Renderer::Render(const Scene& scene, const Rigid3d& town_from_cam, const
   const float sigma = static_cast<float>(sensor.noise_sigma);
   const ResponseCurve& response = Response();
   cv::Mat image(frame.height, frame.width, sensor.color ? CV_8UC3 : CV_8UC1);
-  ParallelFor(frame.height, threads, [&](int y) {
+  pool_->Run(frame.height, [&](int y) {
     uint8_t* row = image.ptr<uint8_t>(y);
     for (int x = 0; x < frame.width; ++x) {
       const size_t i = static_cast<size_t>(y) * frame.width + x;

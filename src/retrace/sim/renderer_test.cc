@@ -207,6 +207,68 @@ TEST(RendererTest, MovingOccluderCrossesInFrontOfTheCamera) {
   EXPECT_NEAR(path.PoseAt(6.0).rotation(1, 0), -1.0, 1e-9);  // now walking towards -y
 }
 
+// Edge anti-aliasing against shimmer: a bright square, tilted by 10 degrees, on a black sky; the camera slides
+// sideways in steps of 0.1 px. With point sampling an edge pixel flips from black to full brightness within one step
+// (the shimmer of a moving camera); with the quincunx edge samples no pixel changes by much more than half the
+// contrast per step, and the square's centroid follows the motion.
+TEST(RendererTest, EdgeAntialiasingMovesEdgesSmoothly) {
+  Scene scene;
+  Material glow;
+  glow.emissive = true;
+  glow.color = Vector3f::Constant(0.8f);
+  const int material = scene.AddMaterial(glow);
+  Mesh mesh;
+  const Eigen::Matrix3f tilt = Eigen::AngleAxisf(0.1745f, Vector3f::UnitZ()).toRotationMatrix();
+  auto corner = [&](float x, float y) { return Vector3f(tilt * Vector3f(x, y, 0.0f) + Vector3f(0.0f, 0.0f, 10.0f)); };
+  mesh.AddQuad(corner(-1.5f, -1.5f), corner(1.5f, -1.5f), corner(1.5f, 1.5f), corner(-1.5f, 1.5f), Vector2f(0, 0),
+               Vector2f(1, 0), Vector2f(1, 1), Vector2f(0, 1), material);
+  scene.AddStaticMesh(mesh);
+  scene.set_sky(SkyType::kUniform, Vector3f::Zero());
+  scene.Commit();
+  const PerspectiveCamera camera(160, 120, 100, 100, 79.5, 59.5);  // 0.01 m at 10 m = 0.1 px
+  SensorOptions sensor;
+  sensor.noise_sigma = 0.0;
+  struct Motion {
+    double max_jump = 0.0;            // largest change of one pixel between consecutive steps, grey levels
+    double max_centroid_error = 0.0;  // px
+    double contrast = 0.0;
+  };
+  auto slide = [&](int antialiasing) {
+    RenderOptions options;
+    options.antialiasing = antialiasing;
+    const Renderer renderer(camera, options);
+    Motion motion;
+    cv::Mat previous;
+    double x0 = 0.0;
+    for (int k = 0; k <= 10; ++k) {
+      const Rigid3d town_from_cam(Matrix3d::Identity(), Vector3d(0.01 * k, 0.0, 0.0));
+      cv::Mat image;
+      renderer.Render(scene, town_from_cam, Lighting(), sensor, 0).convertTo(image, CV_64F);
+      const cv::Moments m = cv::moments(image);
+      const double x = m.m10 / m.m00;
+      if (k == 0) {
+        x0 = x;
+        cv::minMaxLoc(image, nullptr, &motion.contrast);
+      } else {
+        double jump = 0.0;
+        cv::minMaxLoc(cv::abs(image - previous), nullptr, &jump);
+        motion.max_jump = std::max(motion.max_jump, jump);
+      }
+      motion.max_centroid_error = std::max(motion.max_centroid_error, std::abs(x - (x0 - 0.1 * k)));
+      previous = image;
+    }
+    return motion;
+  };
+  const Motion point = slide(1), smooth = slide(2);
+  std::cout << "0.1 px steps: largest pixel change " << point.max_jump << " (point sampled) vs " << smooth.max_jump
+            << " (edge anti-aliasing) of " << smooth.contrast << " grey levels; centroid error "
+            << point.max_centroid_error << " vs " << smooth.max_centroid_error << " px\n";
+  ASSERT_GT(smooth.contrast, 150.0);
+  EXPECT_GT(point.max_jump, 0.9 * point.contrast);  // the test can see shimmer
+  EXPECT_LT(smooth.max_jump, 0.55 * smooth.contrast);
+  EXPECT_LT(smooth.max_centroid_error, 0.05);  // the square follows the motion
+}
+
 Scenario SmallTown() {
   Scenario s;
   s.town.blocks_x = 2;
@@ -300,10 +362,12 @@ TEST(RendererTest, FilteredRenderApproximatesThePixelIntegral) {
              0, 0, cv::INTER_AREA);
   const double filtered = cv::norm(render(*camera, true, 2), reference, cv::NORM_L1) / reference.total();
   const double point_sampled = cv::norm(render(*camera, false, 1), reference, cv::NORM_L1) / reference.total();
+  const double no_edge_samples = cv::norm(render(*camera, true, 1), reference, cv::NORM_L1) / reference.total();
   std::cout << "mean |render - pixel integral|: filtered " << filtered << ", point sampled " << point_sampled
-            << " grey levels\n";
+            << ", filtered textures without edge samples " << no_edge_samples << " grey levels\n";
   EXPECT_LT(filtered, 0.6 * point_sampled);
   EXPECT_LT(filtered, 6.0);
+  EXPECT_LT(filtered, 0.92 * no_edge_samples);  // the edge samples do their share
 }
 
 }  // namespace

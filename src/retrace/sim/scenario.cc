@@ -52,7 +52,7 @@ std::string Scenario::Validate() const {
   if (!drive.Check()) return "drive: invalid driving parameters";
   if (!lighting.Check()) return "lighting: invalid sun or sky values";
   if (!sensor.Check()) return "sensor: exposure and gain must be > 0, noise_sigma >= 0";
-  if (!render.Check()) return "render: antialiasing must be 1..8 and threads >= 1";
+  if (!render.Check()) return "render: antialiasing must be 1..8, edge_contrast >= 0 and threads >= 1";
   if (!(frame_rate > 0.0)) return "frame_rate must be > 0";
   if (num_frames < 0) return "frames must be >= 0";
   if (!markers.empty() && !(marker_radius > 0.0)) return "marker_radius must be > 0";

@@ -210,8 +210,9 @@ Scenario ParseNode(const YAML::Node& root, const Reader& r) {
     r.Bool(n, "sensor", "color", &s.sensor.color);
   }
   if (const YAML::Node n = root["render"]) {
-    r.CheckMap(n, "render", {"antialiasing", "filter_textures", "shadows", "threads"});
+    r.CheckMap(n, "render", {"antialiasing", "edge_contrast", "filter_textures", "shadows", "threads"});
     r.Integer(n, "render", "antialiasing", &s.render.antialiasing);
+    r.Number(n, "render", "edge_contrast", &s.render.edge_contrast);
     r.Bool(n, "render", "filter_textures", &s.render.filter_textures);
     r.Bool(n, "render", "shadows", &s.render.shadows);
     r.Integer(n, "render", "threads", &s.render.num_threads);
@@ -351,8 +352,10 @@ std::string ScenarioToYaml(const Scenario& s) {
   line(fmt::format("  noise_sigma: {}          # grey levels of Gaussian noise", s.sensor.noise_sigma));
   line(fmt::format("  color: {}            # colour PNGs instead of grey", b(s.sensor.color)));
   line("render:");
-  line(fmt::format("  antialiasing: {}         # n x n sub-samples on geometric and shadow edges; 1 = off",
+  line(fmt::format("  antialiasing: {}         # edge samples: 1 = off, 2 = pixel corners (quincunx), n = n x n grid",
                    s.render.antialiasing));
+  line(fmt::format("  edge_contrast: {}        # grey levels an edge must show to get edge samples",
+                   s.render.edge_contrast));
   line(fmt::format("  filter_textures: {}   # mip-mapped anisotropic texture filtering", b(s.render.filter_textures)));
   line(fmt::format("  shadows: {}", b(s.render.shadows)));
   line(fmt::format("  threads: {}", s.render.num_threads));

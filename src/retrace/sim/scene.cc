@@ -314,30 +314,22 @@ void Scene::UpdateTopLevel(double time) {
     rtcCommitGeometry(object.instance);
   }
   rtcCommitScene(scene_);
-  RTCBounds bounds;
-  rtcGetSceneBounds(scene_, &bounds);
-  top_ = bounds.upper_z + 0.01f;
+  RTCBounds static_bounds, moving_bounds;
+  rtcGetSceneBounds(static_scene_, &static_bounds);
+  rtcGetSceneBounds(scene_, &moving_bounds);
+  // An empty scene reports inverted (-inf upper) bounds; max() ignores it.
+  top_ = std::max(static_bounds.upper_z, moving_bounds.upper_z) + 0.01f;
 }
 
 void Scene::Commit() {
   rtcCommitScene(static_scene_);
-  if (static_instance_id_ == RTC_INVALID_GEOMETRY_ID) {
-    static_instance_ = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
-    rtcSetGeometryInstancedScene(static_instance_, static_scene_);
-    static_instance_id_ = rtcAttachGeometry(scene_, static_instance_);
-    rtcReleaseGeometry(static_instance_);
-    if (moving_of_geom_.size() <= static_instance_id_) moving_of_geom_.resize(static_instance_id_ + 1, -1);
-  }
-  const float identity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
-  rtcSetGeometryTransform(static_instance_, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, identity);
-  rtcCommitGeometry(static_instance_);
   committed_ = true;
   UpdateTopLevel(time_);
 }
 
 const TriangleShading& Scene::Shading(unsigned geom_id, unsigned inst_id, unsigned prim_id,
                                       const Rigid3d** town_from_object) const {
-  if (inst_id != static_instance_id_) {
+  if (inst_id != RTC_INVALID_GEOMETRY_ID) {
     const MovingObject& object = moving_[moving_of_geom_[inst_id]];
     *town_from_object = &object.town_from_object;
     return object.shading[prim_id];
@@ -347,7 +339,7 @@ const TriangleShading& Scene::Shading(unsigned geom_id, unsigned inst_id, unsign
 }
 
 unsigned Scene::ObjectKey(unsigned geom_id, unsigned inst_id) const {
-  return inst_id != static_instance_id_ ? 0x10000u + inst_id : geom_id + 1;
+  return inst_id != RTC_INVALID_GEOMETRY_ID ? 0x10000u + inst_id : geom_id + 1;
 }
 
 }  // namespace retrace

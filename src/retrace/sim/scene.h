@@ -128,7 +128,10 @@ class Scene {
   const Texture& clouds() const { return clouds_; }
   const Vector3f& sky_color() const { return sky_color_; }
 
-  RTCScene embree_scene() const { return scene_; }
+  // Rays are traced against both Embree scenes (the static one first; a second query on the same rays keeps the
+  // nearer hit): the static triangles without an instance level, the moving objects as instances.
+  RTCScene static_embree_scene() const { return static_scene_; }
+  RTCScene moving_embree_scene() const { return scene_; }
   // Highest point of all geometry (town frame Z): rays towards the sun need not go further up.
   float top() const { return top_; }
   const std::vector<Texture>& textures() const { return textures_; }
@@ -157,12 +160,10 @@ class Scene {
   static std::vector<TriangleShading> ComputeShading(const Mesh& mesh);
 
   RTCDevice device_ = nullptr;
-  // Top-level scene: one instance of static_scene_ plus one instance per moving object, so that moving objects
-  // only rebuild this tiny top-level structure.
+  // Moving objects: one instance per object in a scene of its own, so that motion only rebuilds this tiny
+  // structure. The static geometry is a separate scene, built once.
   RTCScene scene_ = nullptr;
   RTCScene static_scene_ = nullptr;
-  RTCGeometry static_instance_ = nullptr;
-  unsigned static_instance_id_ = RTC_INVALID_GEOMETRY_ID;
   std::vector<Texture> textures_;
   std::vector<Material> materials_;
   std::vector<std::vector<TriangleShading>> static_shading_;  // indexed by geometry id in static_scene_

@@ -246,6 +246,7 @@ TEST(SimulatorTest, ScenarioRoundTripsThroughYaml) {
   s.lighting.sun_azimuth_deg = 210;
   s.sensor.color = true;
   s.render.num_threads = 1;
+  s.render.edge_contrast = 9.5;
   s.repeat.lateral_offset = -1.0;
   s.markers = {{1, -2, 10}};
   const Scenario r = ParseScenario(ScenarioToYaml(s), "round trip");
@@ -262,6 +263,7 @@ TEST(SimulatorTest, ScenarioRoundTripsThroughYaml) {
   EXPECT_DOUBLE_EQ(r.lighting.sun_azimuth_deg, 210);
   EXPECT_TRUE(r.sensor.color);
   EXPECT_EQ(r.render.num_threads, 1);
+  EXPECT_DOUBLE_EQ(r.render.edge_contrast, 9.5);
   EXPECT_DOUBLE_EQ(r.repeat.lateral_offset, -1.0);
   ASSERT_EQ(r.markers.size(), 1u);
   EXPECT_DOUBLE_EQ(r.markers[0].z(), 10.0);

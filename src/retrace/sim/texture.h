@@ -34,7 +34,8 @@ class Texture {
   int height() const { return levels_.empty() ? 0 : levels_[0].height; }
   int num_levels() const { return static_cast<int>(levels_.size()); }
 
-  // Bilinear lookup on mip level `level` (fractional levels blend two levels: trilinear).
+  // Bilinear lookup on mip level `level` (fractional levels in the middle half of an octave blend two levels:
+  // trilinear; near whole levels one level alone: "brilinear", continuous in `level` but cheaper).
   Vector3f SampleTrilinear(float u, float v, float level) const;
 
   // Filtered lookup for a pixel footprint with axes `axis_a` and `axis_b` in texture coordinates (the uv change
@@ -52,11 +53,13 @@ class Texture {
   struct Level {
     int width = 0;
     int height = 0;
-    std::vector<Vector3f> texels;  // row-major
+    int stride = 0;                // width + 1: texels and gray have one extra (wrapped) column and row
+    std::vector<Vector3f> texels;  // row-major, (width + 1) x (height + 1)
     std::vector<uint8_t> gray;     // luminance of `texels`, x 255 (compact: grey rendering is memory bound)
   };
+  // Mean of `taps` trilinear lookups at level `level`, spread evenly along (du, dv) around (u, v).
   template <typename T, typename S>
-  T Trilinear(const std::vector<S> Level::*channel, float u, float v, float level) const;
+  T Taps(const std::vector<S> Level::*channel, float u, float v, float du, float dv, int taps, float level) const;
   template <typename T, typename S>
   T Filtered(const std::vector<S> Level::*channel, float u, float v, const Vector2f& axis_a,
              const Vector2f& axis_b) const;
