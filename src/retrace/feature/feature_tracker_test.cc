@@ -212,22 +212,20 @@ WarpErrors RunSyntheticWarps(const WarpRenderer& render, int num_cases, uint64_t
   return errors;
 }
 
-// Target of issue 3: position error < 0.1 px and scale error < 1 %. Measured, the position target holds for
-// more than 90 % of the corners but the per-corner scale target does not hold everywhere at the extremes of
-// the range (scale 0.8 / 1.25): the fixed pre-smoothing blurs the two images differently once the scale
-// differs, and on cluttered windows the scale trades off against interpolation error, which biases the scale
-// by 1-3 % (at most ~8 %) on a minority of windows. Checked here: >= 90 % of the centre corners tracked, >=
-// 90 % of them within 0.1 px, median position error < 0.05 px and median scale error < 0.5 %; every miss is
-// printed.
+// Target of issue 3, per corner: every tracked case corner (the corner the warp is centred on, so that its
+// motion is exactly the tracker's warp model) has a position error < 0.1 px and a scale error < 1 %, and at
+// least 90 % of the case corners are tracked. The scale of a 15x15 window around a corner is weakly observable
+// (a corner is self-similar under scaling about its apex), so these figures rely on the final refinement on
+// the wider level-0 window (AlignmentOptions::scale_window_stride); every miss is printed.
 void ExpectAccurate(const WarpErrors& errors) {
   int position_within = 0;
   for (double e : errors.centre_position) position_within += e < 0.1;
   std::printf("  centre corners tracked %d / %d; within 0.1 px: %d; within 0.1 px and 1 %% scale: %d\n",
               errors.centre_tracked, errors.centre_cases, position_within, errors.centre_within);
   EXPECT_GE(errors.centre_tracked, 0.9 * errors.centre_cases);
-  EXPECT_GE(position_within, 0.9 * errors.centre_tracked);
-  EXPECT_LT(Percentile(errors.centre_position, 0.5), 0.05);
-  EXPECT_LT(Percentile(errors.centre_scale, 0.5), 0.005);
+  EXPECT_EQ(errors.centre_within, errors.centre_tracked);
+  EXPECT_LT(Percentile(errors.centre_position, 1.0), 0.1);
+  EXPECT_LT(Percentile(errors.centre_scale, 1.0), 0.01);
   EXPECT_GE(errors.position.size(), 300u);
 }
 
