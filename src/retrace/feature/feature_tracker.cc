@@ -314,10 +314,42 @@ double CenteredSquareSum(const float* x, int n, float m) {
   return sum;
 }
 
+// RMS of the errors e - d_lambda t - d_delta over the window (w x w, row-major) and the RMS of its worst 3x3
+// block, divided by `lambda` (reference grey levels): the residual after a contrast step (d_lambda, d_delta)
+// applied to the error image e = I - lambda t - delta of the last iteration.
+void ErrorImageResiduals(const float* e, const float* t, int w, double d_lambda, double d_delta, double lambda,
+                         double* rms, double* block_rms) {
+  double block_sse[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+  int block_count[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+  const float dl = static_cast<float>(d_lambda), dd = static_cast<float>(d_delta);
+  for (int r = 0; r < w; ++r) {
+    const int block_row = (r * 3 / w) * 3;
+    for (int c = 0; c < w; ++c) {
+      const int k = r * w + c;
+      const float v = e[k] - dl * t[k] - dd;
+      const int block = block_row + c * 3 / w;
+      block_sse[block] += static_cast<double>(v) * v;
+      ++block_count[block];
+    }
+  }
+  double sse = 0.0, worst = 0.0;
+  for (int b = 0; b < 9; ++b) {
+    sse += block_sse[b];
+    worst = std::max(worst, block_sse[b] / std::max(1, block_count[b]));
+  }
+  *rms = std::sqrt(sse / (w * w)) / lambda;
+  *block_rms = std::sqrt(worst) / lambda;
+}
+
 // Gauss-Newton iterations of (1) on one level (inverse compositional, see the header). On kConverged the
-// state is the converged one (the window has not been re-sampled there).
+// state is the converged one (the window has not been re-sampled there). If `converged_rms` is given, on
+// kConverged it receives the RMS residual of the window and `converged_block_rms` that of its worst 3x3 block
+// (as Residuals() below), computed from the error image of the last iteration with the last contrast step
+// applied: the geometry is then the one before the last step, which moved no window corner by more than
+// `epsilon`, and no extra sampling of the window is needed.
 LevelOutcome IterateLevel(const cv::Mat& image, const WindowView& window, bool estimate_scale,
-                          const LevelSettings& settings, GaussNewtonState* state, int* iterations) {
+                          const LevelSettings& settings, GaussNewtonState* state, int* iterations,
+                          double* converged_rms = nullptr, double* converged_block_rms = nullptr) {
   const int w = window.size, n = w * w;
   const double half = 0.5 * (w - 1) * window.stride;  // half extent in reference pixels
   const float* t = window.t;
@@ -354,6 +386,7 @@ LevelOutcome IterateLevel(const cv::Mat& image, const WindowView& window, bool e
     for (; k + kLanes <= n; k += kLanes) {
       for (int l = 0; l < kLanes; ++l) {
         const float e = values[k + l] - lam * t[k + l] - del;
+        values[k + l] = e;  // kept for the residual at convergence
         acc[0][l] += gx[k + l] * e;
         acc[1][l] += gy[k + l] * e;
         acc[2][l] += gs[k + l] * e;
@@ -364,6 +397,7 @@ LevelOutcome IterateLevel(const cv::Mat& image, const WindowView& window, bool e
     }
     for (; k < n; ++k) {
       const float e = values[k] - lam * t[k] - del;
+      values[k] = e;
       acc[0][0] += gx[k] * e;
       acc[1][0] += gy[k] * e;
       acc[2][0] += gs[k] * e;
@@ -419,11 +453,19 @@ LevelOutcome IterateLevel(const cv::Mat& image, const WindowView& window, bool e
     // displacements) the contrast step can be wild; it is then skipped for this iteration, and the final
     // gain is checked against its range after convergence.
     const double new_lambda = s.lambda + step(3);
-    if (new_lambda > 1.0 / settings.max_gain && new_lambda < 1.0 / settings.min_gain) {
+    const bool contrast_step = new_lambda > 1.0 / settings.max_gain && new_lambda < 1.0 / settings.min_gain;
+    if (contrast_step) {
       s.delta += step(4) - step(3) * mean;
       s.lambda = new_lambda;
     }
-    if (corner_shift < settings.epsilon) return LevelOutcome::kConverged;
+    if (corner_shift < settings.epsilon) {
+      if (converged_rms != nullptr) {
+        // The offset lambda * mean + delta of the centred template changes by step(4) in a contrast step.
+        ErrorImageResiduals(values, t, w, contrast_step ? step(3) : 0.0, contrast_step ? step(4) : 0.0, s.lambda,
+                            converged_rms, converged_block_rms);
+      }
+      return LevelOutcome::kConverged;
+    }
   }
   return LevelOutcome::kMaxIterations;
 }
@@ -569,7 +611,8 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
     // (occlusion, wrong basin): stop early instead of spending the remaining iterations.
     settings.give_up_rms = fine ? kGiveUpResidualFactor * options.max_residual
                                 : std::numeric_limits<double>::infinity();
-    const LevelOutcome outcome = IterateLevel(image, window, estimate_scale, settings, &state, &result.iterations);
+    const LevelOutcome outcome = IterateLevel(image, window, estimate_scale, settings, &state, &result.iterations,
+                                              &result.residual, &result.block_residual);
     settings.init_contrast = false;
     if (!fine) {
       // kOutOfImage: the window does not fit on this coarse level; continue on the finer one.
@@ -604,7 +647,6 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
     }
     result.converged = true;
     if (!WindowFits(image, state, w / 2, settings.cubic)) return finish(TrackStatus::kOutOfImage, state, 1.0);
-    Residuals(image, window, w, settings.cubic, state, &result.residual, &result.block_residual);
     // Final refinement of scale, position and contrast on the larger level-0 window (see the header), for
     // windows that match. It is adopted only when it converges and the larger window is consistent with the
     // model (its RMS within R, its worst 3x3 block within the block limit: an occluder or a depth
@@ -629,12 +671,13 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
       refine.give_up_rms = kWideGiveUpResidualFactor * options.max_residual;
       refine.give_up_iteration = 2;
       int iterations = 0;
+      double wide_rms = 0.0, wide_block = 0.0;
       if (WindowFits(image, refined, wide_half, settings.cubic) &&
-          IterateLevel(image, wide, true, refine, &refined, &iterations) == LevelOutcome::kConverged &&
+          IterateLevel(image, wide, true, refine, &refined, &iterations, &wide_rms, &wide_block) ==
+              LevelOutcome::kConverged &&
           std::hypot(refined.x - state.x, refined.y - state.y) <= options.max_scale_window_shift &&
           WindowFits(image, refined, wide_half, settings.cubic)) {
-        double wide_rms = 0.0, wide_block = 0.0, core_rms = 0.0, core_block = 0.0;
-        Residuals(image, wide, w, settings.cubic, refined, &wide_rms, &wide_block);
+        double core_rms = 0.0, core_block = 0.0;
         Residuals(image, window, w, settings.cubic, refined, &core_rms, &core_block);
         if (wide_rms <= options.max_residual && wide_block <= options.max_residual) {
           state = refined;

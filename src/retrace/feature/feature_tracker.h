@@ -54,7 +54,9 @@
 // RESIDUAL. The reported residual is the RMS over the window of the compensated error in (1),
 //     r = sqrt( (1/N) sum_u [alpha I(s u + d) + beta - T(u)]^2 ),
 // measured at level 0 after convergence, in grey levels of the pre-smoothed REFERENCE (input images are
-// 0..255). A track is rejected when r exceeds `max_residual` (R; the paper uses R = 6 at 320x240 with its
+// 0..255). It is taken from the error image of the last Gauss-Newton iteration (with its contrast step
+// applied), i.e. at the geometry before the last step, which moved no window corner by more than
+// `convergence_epsilon`: re-sampling the window at the final state would cost as much as an iteration. A track is rejected when r exceeds `max_residual` (R; the paper uses R = 6 at 320x240 with its
 // smoothing; with the default pre-smoothing sigma = 0.5 px, accepted tracks on KITTI 07 have a median r
 // of 2.9 grey levels), when the RMS of the worst 3x3 block of the window exceeds `max_block_residual` (a
 // partial occluder), or when the optimisation fails (not converged, window leaves the image, scale or gain
