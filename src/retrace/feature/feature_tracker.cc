@@ -322,12 +322,14 @@ void ErrorImageResiduals(const float* e, const float* t, int w, double d_lambda,
   double block_sse[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
   int block_count[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
   const float dl = static_cast<float>(d_lambda), dd = static_cast<float>(d_delta);
+  int column_block[kMaxWindowSize];
+  for (int c = 0; c < w; ++c) column_block[c] = c * 3 / w;
   for (int r = 0; r < w; ++r) {
     const int block_row = (r * 3 / w) * 3;
     for (int c = 0; c < w; ++c) {
       const int k = r * w + c;
       const float v = e[k] - dl * t[k] - dd;
-      const int block = block_row + c * 3 / w;
+      const int block = block_row + column_block[c];
       block_sse[block] += static_cast<double>(v) * v;
       ++block_count[block];
     }
@@ -470,33 +472,17 @@ LevelOutcome IterateLevel(const cv::Mat& image, const WindowView& window, bool e
   return LevelOutcome::kMaxIterations;
 }
 
-// RMS residual of (1) over the central `core` x `core` part of the window sampled at `state`, and the RMS of
-// the worst of its 3x3 blocks (reference grey levels).
-void Residuals(const cv::Mat& image, const WindowView& window, int core, bool cubic,
-               const GaussNewtonState& state, double* rms, double* block_rms) {
-  const int w = window.size, n = w * w, skip = (w - core) / 2;
+// RMS residual of (1) over the window sampled at `state`, and the RMS of the worst of its 3x3 blocks
+// (reference grey levels).
+void Residuals(const cv::Mat& image, const WindowView& window, bool cubic, const GaussNewtonState& state,
+               double* rms, double* block_rms) {
+  const int n = window.size * window.size;
   float values[kMaxWindowSize * kMaxWindowSize];
   SampleWindow(image, state, window, cubic, values);
   const float lam = static_cast<float>(state.lambda);
   const float del = static_cast<float>(state.delta + state.lambda * window.mean);
-  double block_sse[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-  int block_count[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-  double sse = 0.0;
-  for (int r = 0; r < core; ++r) {
-    for (int c = 0; c < core; ++c) {
-      const int k = (r + skip) * w + c + skip;
-      const double e = values[k] - lam * window.t[k] - del;
-      const int block = (r * 3 / core) * 3 + c * 3 / core;
-      block_sse[block] += e * e;
-      ++block_count[block];
-      sse += e * e;
-    }
-  }
-  (void)n;
-  double worst = 0.0;
-  for (int b = 0; b < 9; ++b) worst = std::max(worst, block_sse[b] / std::max(1, block_count[b]));
-  *rms = std::sqrt(sse / (core * core)) / state.lambda;
-  *block_rms = std::sqrt(worst) / state.lambda;
+  for (int k = 0; k < n; ++k) values[k] -= lam * window.t[k] + del;
+  ErrorImageResiduals(values, window.t, window.size, 0.0, 0.0, state.lambda, rms, block_rms);
 }
 
 }  // namespace
@@ -634,14 +620,14 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
       case LevelOutcome::kGiveUp: {
         // Report the residual of the state where the alignment gave up.
         if (WindowFits(image, state, w / 2, settings.cubic)) {
-          Residuals(image, window, w, settings.cubic, state, &result.residual, &result.block_residual);
+          Residuals(image, window, settings.cubic, state, &result.residual, &result.block_residual);
         }
         return finish(TrackStatus::kResidualTooLarge, state, 1.0);
       }
       case LevelOutcome::kBadStep:
       case LevelOutcome::kMaxIterations:
         if (WindowFits(image, state, w / 2, settings.cubic)) {
-          Residuals(image, window, w, settings.cubic, state, &result.residual, &result.block_residual);
+          Residuals(image, window, settings.cubic, state, &result.residual, &result.block_residual);
         }
         return finish(TrackStatus::kNotConverged, state, 1.0);
     }
@@ -678,7 +664,7 @@ AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePat
           std::hypot(refined.x - state.x, refined.y - state.y) <= options.max_scale_window_shift &&
           WindowFits(image, refined, wide_half, settings.cubic)) {
         double core_rms = 0.0, core_block = 0.0;
-        Residuals(image, window, w, settings.cubic, refined, &core_rms, &core_block);
+        Residuals(image, window, settings.cubic, refined, &core_rms, &core_block);
         if (wide_rms <= options.max_residual && wide_block <= options.max_residual) {
           state = refined;
           result.residual = core_rms;
