@@ -374,25 +374,29 @@ double CenteredSquareSum(const float* x, int n, float m) {
 // applied to the error image e = I - lambda t - delta of the last iteration.
 void ErrorImageResiduals(const float* e, const float* t, int w, double d_lambda, double d_delta, double lambda,
                          double* rms, double* block_rms) {
+  // Pixel (r, c) belongs to block (3 r / w, 3 c / w): columns [bound[j], bound[j + 1]) form block column j.
+  int bound[4];
+  for (int j = 0; j <= 3; ++j) bound[j] = (j * w + 2) / 3;
   double block_sse[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-  int block_count[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
   const float dl = static_cast<float>(d_lambda), dd = static_cast<float>(d_delta);
-  int column_block[kMaxWindowSize];
-  for (int c = 0; c < w; ++c) column_block[c] = c * 3 / w;
   for (int r = 0; r < w; ++r) {
     const int block_row = (r * 3 / w) * 3;
-    for (int c = 0; c < w; ++c) {
-      const int k = r * w + c;
-      const float v = e[k] - dl * t[k] - dd;
-      const int block = block_row + column_block[c];
-      block_sse[block] += static_cast<double>(v) * v;
-      ++block_count[block];
+    const float* er = e + r * w;
+    const float* tr = t + r * w;
+    for (int j = 0; j < 3; ++j) {
+      float sum = 0.0f;
+      for (int c = bound[j]; c < bound[j + 1]; ++c) {
+        const float v = er[c] - dl * tr[c] - dd;
+        sum += v * v;
+      }
+      block_sse[block_row + j] += sum;
     }
   }
   double sse = 0.0, worst = 0.0;
   for (int b = 0; b < 9; ++b) {
+    const int rows = bound[b / 3 + 1] - bound[b / 3], columns = bound[b % 3 + 1] - bound[b % 3];
     sse += block_sse[b];
-    worst = std::max(worst, block_sse[b] / std::max(1, block_count[b]));
+    worst = std::max(worst, block_sse[b] / std::max(1, rows * columns));
   }
   *rms = std::sqrt(sse / (w * w)) / lambda;
   *block_rms = std::sqrt(worst) / lambda;
@@ -499,7 +503,8 @@ LevelOutcome IterateLevel(const cv::Mat& image, const WindowView& window, bool e
     const double new_x = s.x - s.scale * step_x / (1.0 + step_s);
     const double new_y = s.y - s.scale * step_y / (1.0 + step_s);
     const double corner_shift =
-        std::hypot(new_x - s.x, new_y - s.y) + std::abs(new_scale - s.scale) * half * 1.4142135623730951;
+        std::sqrt((new_x - s.x) * (new_x - s.x) + (new_y - s.y) * (new_y - s.y)) +
+        std::abs(new_scale - s.scale) * half * 1.4142135623730951;
     s.x = new_x;
     s.y = new_y;
     s.scale = new_scale;
