@@ -265,6 +265,15 @@ struct FeatureTrackerOptions {
   int num_levels = 3;
   // Start each frame from position + (last frame-to-frame displacement) instead of the last position.
   bool constant_velocity = true;
+  // Features tracked in the previous frame, whose guess comes from their own velocity, start the alignment at
+  // this pyramid level instead of the coarsest. Unless that alignment converges (accepted, or rejected for a
+  // residual above R: the window does not match), the full coarse-to-fine alignment is run: a guess outside
+  // the basin of the start level (abrupt change of motion) ends in a give-up, not in a converged mismatch.
+  // Negative: always coarse to fine. Level 0 by default: on KITTI 07 at 320x240 this cuts the instructions
+  // spent in tracking by 12 % and on the synthetic benchmark sequence by 25 %, with as many tracked features
+  // (87.7 against 87.5 per frame) and slightly longer tracks in feature_tracker_kitti_test (full resolution).
+  // On KITTI, of the fallbacks after a give-up half succeed; after a converged mismatch 0.3 % would.
+  int predicted_start_level = 0;
 
   bool Check() const { return alignment.Check() && num_levels >= 1; }
 };

@@ -422,5 +422,48 @@ TEST(FeatureTracker, AddRemoveSetReference) {
   EXPECT_EQ(tracker.NumFeatures(), 1);
 }
 
+// Features tracked in the previous frame start the alignment at level 0 from their constant-velocity guess
+// (FeatureTrackerOptions::predicted_start_level); when the motion reverses abruptly, the guess is 15 px off,
+// outside the basin of level 0, and the fallback to the full coarse-to-fine alignment must keep the tracks.
+TEST(FeatureTracker, AbruptMotionChangeFallsBackToCoarseToFine) {
+  const SyntheticTexture texture = SmallTexture(4);
+  const std::vector<double> shifts = {0.0, 3.0, 6.0, 9.0, -3.0};  // x translation of each frame
+  CornerDetectorOptions detector;
+  detector.max_corners = 60;
+  detector.min_distance = 10.0;
+  for (const int start_level : {0, -1}) {
+    FeatureTrackerOptions options;
+    options.predicted_start_level = start_level;
+    FeatureTracker tracker(options);
+    std::map<feature_t, Vector2d> initial;
+    for (size_t f = 0; f < shifts.size(); ++f) {
+      const ImagePyramid pyramid(Quantise(texture.Render(320, 240, 1.0, Vector2d(shifts[f], 0.0))));
+      if (f == 0) {
+        std::vector<Vector2d> positions;
+        for (const Corner& c : DetectCorners(pyramid, detector)) {
+          // Away from the border, so that no window leaves the image during the motion.
+          if (c.position.x() > 40.0 && c.position.x() < 280.0 && c.position.y() > 30.0 && c.position.y() < 210.0)
+            positions.push_back(c.position);
+        }
+        const std::vector<feature_t> ids = tracker.AddFeatures(pyramid, positions);
+        for (size_t i = 0; i < ids.size(); ++i) {
+          if (ids[i] != kInvalidFeatureId) initial[ids[i]] = positions[i];
+        }
+        ASSERT_GE(initial.size(), 20u);
+        continue;
+      }
+      tracker.Track(pyramid);
+    }
+    double max_error = 0.0;
+    for (const TrackedFeature& feature : tracker.Features()) {
+      max_error = std::max(max_error, (feature.warp.position - initial[feature.id] - Vector2d(-3.0, 0.0)).norm());
+    }
+    std::printf("  start level %d: %d of %zu features tracked through the reversal, max error %.4f px\n",
+                start_level, tracker.NumFeatures(), initial.size(), max_error);
+    EXPECT_GE(tracker.NumFeatures(), static_cast<int>(0.9 * initial.size()));
+    EXPECT_LT(max_error, 0.1);
+  }
+}
+
 }  // namespace
 }  // namespace retrace
