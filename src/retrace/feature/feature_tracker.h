@@ -46,8 +46,9 @@
 // same cost per iteration as the 15x15 window). The refinement is adopted only when it converges, moves the
 // position by at most `max_scale_window_shift` and the wide window matches (its RMS and the RMS of its worst
 // 3x3 block within R: an occluder or a depth edge in the outer ring rejects it); otherwise the 15x15 result
-// stands (AlignmentResult::scale_window_used says which). The reported residual is always that of the
-// central 15x15 window. Measured on synthetic warps (translation up to 15 px, scale 0.8-1.25, gain 0.6-1.5,
+// stands (AlignmentResult::scale_window_used says which). The refinement gives up when the wide window's
+// RMS is still above 1.5 R after two iterations (it would not be adopted). The reported residual is always
+// that of the central 15x15 window. Measured on synthetic warps (translation up to 15 px, scale 0.8-1.25, gain 0.6-1.5,
 // bias +-30): max position error 0.09 px and max scale error 0.4 % on the case corners, against 0.2 px and
 // 8 % with the 15x15 window alone.
 
