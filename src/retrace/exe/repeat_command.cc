@@ -7,10 +7,12 @@
 // node ids and arc -1 when not tracking, σ_p columns -1 when not estimated, ms = processing time of the frame.
 
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <string>
 
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
@@ -31,6 +33,16 @@
 
 namespace retrace {
 namespace {
+
+double ParseMetadataNumber(const std::string& text, const std::string& key, const std::filesystem::path& map) {
+  try {
+    size_t used = 0;
+    const double value = std::stod(text, &used);
+    if (used == text.size() && std::isfinite(value)) return value;
+  } catch (const std::exception&) {
+  }
+  throw InputError(map.string(), "metadata " + key + " is not a number: '" + text + "'");
+}
 
 struct RepeatArguments {
   std::filesystem::path map;
@@ -70,6 +82,42 @@ cv::Mat DrawOverlay(const cv::Mat& gray, const FrameResult& result) {
   cv::putText(image, text, cv::Point(8, 20), cv::FONT_HERSHEY_SIMPLEX, 0.55, cv::Scalar(0, 0, 0), 3);
   cv::putText(image, text, cv::Point(8, 20), cv::FONT_HERSHEY_SIMPLEX, 0.55, cv::Scalar(255, 255, 255), 1);
   return image;
+}
+
+// The reported arc against the true one per frame (indices along the route): where a person sees at a glance
+// whether the localizer followed the route, where it was lost and where it was wrong.
+void WriteTruthPlot(const std::vector<FrameResult>& results, const TopologicalEvaluation& evaluation,
+                    const std::filesystem::path& path) {
+  PlotSeries truth, correct, wrong, lost;
+  truth.label = "true arc";
+  truth.color = cv::Scalar(160, 160, 160);
+  truth.thickness = 6;
+  correct.label = "reported, correct";
+  wrong.label = "reported, wrong";
+  lost.label = "lost / relocalizing";
+  correct.color = cv::Scalar(60, 160, 40);
+  wrong.color = cv::Scalar(0, 0, 220);
+  lost.color = cv::Scalar(0, 140, 255);
+  for (PlotSeries* s : {&correct, &wrong, &lost}) {
+    s->style = PlotSeries::Style::kPoints;
+    s->thickness = 2;
+  }
+  for (size_t i = 0; i < results.size() && i < evaluation.per_frame.size(); ++i) {
+    const FrameTruth& t = evaluation.per_frame[i];
+    const double x = static_cast<double>(results[i].frame_index);
+    truth.x.push_back(x);
+    truth.y.push_back(t.true_arc_index);
+    PlotSeries& s = t.lost ? lost : (t.correct ? correct : wrong);
+    s.x.push_back(x);
+    s.y.push_back(t.lost ? -1.0 : t.estimated_arc_index);
+  }
+  PlotOptions options;
+  options.title = "repeat: reported arc against topological ground truth (lost drawn at -1)";
+  options.x_label = "frame";
+  options.y_label = "arc index along the route";
+  if (!cv::imwrite(path.string(), RenderPlot({truth, correct, wrong, lost}, options))) {
+    throw InputError(path.string(), "cannot be written");
+  }
 }
 
 void WriteTrackedPlot(const std::vector<FrameResult>& results, const std::filesystem::path& path) {
@@ -123,12 +171,23 @@ void RunRepeat(const RepeatArguments& args) {
   const int key_width = map.nodes().front().image.cols;
   if (camera->width() != key_width) camera = camera->Scaled(static_cast<double>(key_width) / camera->width());
   const std::optional<std::string> source = database->Metadata("source_sequence");
+  // The tracker must pre-smooth frames as teach smoothed the key-images (maps written before this was stored
+  // used the current default).
+  LocalizerOptions options = args.options;
+  if (const auto value = database->Metadata("smoothing_sigma_px")) {
+    options.smoothing_sigma_px = ParseMetadataNumber(*value, "smoothing_sigma_px", args.map);
+  }
+  if (const auto value = database->Metadata("reference_width")) {
+    options.reference_width = static_cast<int>(ParseMetadataNumber(*value, "reference_width", args.map));
+  }
+  std::string error;
+  if (!options.Check(&error)) throw InputError(args.map.string(), "tracking settings stored in the map: " + error);
   database.reset();
 
   if (args.every > 1 || args.offset > 0) {
     sequence = std::make_unique<SubsampledSequence>(std::move(sequence), std::max<size_t>(1, args.every), args.offset);
   }
-  Localizer localizer(map, *camera, args.options);
+  Localizer localizer(map, *camera, options);
   if (args.start_arc != kInvalidArcId) localizer.SetStartArc(args.start_arc);
 
   std::ofstream csv(args.output);
@@ -200,6 +259,19 @@ void RunRepeat(const RepeatArguments& args) {
     const TopologicalEvaluation evaluation =
         EvaluateTopological(map, ReadKittiPoses(*key_truth_file), ReadKittiPoses(*repeat_truth_file), records);
     std::cout << "topological ground truth: " << evaluation.Summary() << "\n";
+    // Per frame, next to the run: which arc was true, which was reported (indices along the route).
+    std::filesystem::path truth_path = args.output;
+    truth_path.replace_extension(".truth.csv");
+    std::ofstream truth(truth_path);
+    truth << "frame,true_arc_index,tolerated_arc_index,estimated_arc_index,correct,lost,error\n";
+    for (size_t i = 0; i < results.size(); ++i) {
+      const FrameTruth& t = evaluation.per_frame[i];
+      truth << fmt::format("{},{},{},{},{},{},{}\n", results[i].frame_index, t.true_arc_index, t.tolerated_arc_index,
+                           t.estimated_arc_index, t.correct ? 1 : 0, t.lost ? 1 : 0, t.error);
+    }
+    if (!truth) throw InputError(truth_path.string(), "cannot be written");
+    std::cout << "per-frame ground truth: " << truth_path.string() << "\n";
+    if (!args.overlay.empty()) WriteTruthPlot(results, evaluation, args.overlay / "arcs_vs_truth.png");
   }
 }
 
@@ -224,6 +296,8 @@ void RegisterRepeatCommand(CLI::App& app) {
   cmd->add_option("--max-sigma-p", args->options.max_sigma_p_px, "sigma_p gate of current geometries, px at 320 px")
       ->capture_default_str();
   cmd->add_option("--steering-gain", args->options.steering_gain, "k of eq. (10)")->capture_default_str();
+  cmd->add_flag("!--keep-references", args->options.redefine_references,
+                "Do not redefine feature references at topological transitions (Segvic 2009 5.2.2 does)");
   cmd->callback([args]() {
     std::string error;
     if (!args->options.Check(&error)) throw InputError("repeat options", error);

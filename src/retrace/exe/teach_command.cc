@@ -71,6 +71,9 @@ void RunTeach(const TeachArguments& args) {
   database->SetMetadata("r_p", fmt::format("{:.3f}", teacher.sigma_p_threshold_px()));
   database->SetMetadata("min_features", std::to_string(args.options.min_features));
   database->SetMetadata("max_residual", fmt::format("{:.2f}", args.options.max_residual));
+  // Repeat must pre-smooth its images exactly as teach did, or R means something else against the key-images.
+  database->SetMetadata("reference_width", std::to_string(args.options.reference_width));
+  database->SetMetadata("smoothing_sigma_px", fmt::format("{}", args.options.smoothing_sigma_px));
 
   const auto start = std::chrono::steady_clock::now();
   double seconds_reading = 0.0;

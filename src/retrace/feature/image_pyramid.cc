@@ -11,6 +11,16 @@ ImagePyramid::ImagePyramid(const cv::Mat& image, const ImagePyramidOptions& opti
   Build(image, options);
 }
 
+ImagePyramid ImagePyramid::FinestLevels(int num_levels) const {
+  ImagePyramid view;
+  view.options_ = options_;
+  if (levels_.empty()) return view;
+  const int kept = std::clamp(num_levels, 1, NumLevels());
+  view.options_.num_levels = kept;
+  view.levels_.assign(levels_.begin(), levels_.begin() + kept);
+  return view;
+}
+
 void ImagePyramid::Build(const cv::Mat& image, const ImagePyramidOptions& options) {
   if (!options.Check()) throw std::invalid_argument("ImagePyramid: invalid options");
   if (image.empty() || image.channels() != 1 || (image.depth() != CV_8U && image.depth() != CV_32F)) {

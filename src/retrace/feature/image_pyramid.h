@@ -34,7 +34,11 @@ struct ImagePyramidOptions {
 // (`smoothing_sigma_px` at the reference width), and there is one more level per doubling of the resolution so
 // that the coarsest level sees the same motion. Teach and repeat must use the same settings, so that the tracker's
 // residuals (and thus R) mean the same in both phases.
-ImagePyramidOptions TrackingPyramidOptions(int width, int reference_width = 320, double smoothing_sigma_px = 0.4);
+// The default pre-smoothing of teach and repeat (pixels at 320 px width): fine texture that the paper's 320x240
+// images did not resolve would otherwise count as appearance change against R.
+inline constexpr double kTrackingSmoothingPx = 0.7;
+ImagePyramidOptions TrackingPyramidOptions(int width, int reference_width = 320,
+                                           double smoothing_sigma_px = kTrackingSmoothingPx);
 
 class ImagePyramid {
  public:
@@ -54,6 +58,9 @@ class ImagePyramid {
   int Height() const { return levels_.empty() ? 0 : levels_[0].rows; }
   bool Empty() const { return levels_.empty(); }
   const ImagePyramidOptions& Options() const { return options_; }
+  // The first `num_levels` levels (at least 1) as a pyramid of their own, sharing the image data (no copy): to
+  // align a feature whose position is already known to a few pixels without the coarsest levels.
+  ImagePyramid FinestLevels(int num_levels) const;
 
  private:
   ImagePyramidOptions options_;

@@ -53,10 +53,13 @@ bool LocalizerOptions::Check(std::string* error) const {
   if (!(prediction_radius_px > 0) || !(prediction_scale_ratio >= 1)) return fail("invalid prediction acceptance");
   if (!(max_drift_px > 0)) return fail("max_drift_px must be positive");
   if (!(backward_margin >= 0)) return fail("backward_margin must be >= 0");
+  if (!(max_progress_step > 0)) return fail("max_progress_step must be > 0");
   if (retry_interval < 1) return fail("retry_interval must be >= 1");
   if (min_features < 8) return fail("min_features must be >= 8");
   if (max_bad_frames < 1) return fail("max_bad_frames must be >= 1");
   if (min_bootstrap_inliers < 8 || min_bootstrap_features < 8) return fail("bootstrap minima must be >= 8");
+  if (prediction_skipped_levels < 0) return fail("prediction_skipped_levels must be >= 0");
+  if (relocalization_neighbourhood < 0) return fail("relocalization_neighbourhood must be >= 0");
   if (!(bootstrap_neighbour_radius_px > 0) || !(bootstrap_radius_px > 0)) return fail("invalid bootstrap radii");
   if (!tracker.Check()) return fail("invalid tracker options");
   if (!geometry.Check()) return fail("invalid geometry options");
@@ -263,6 +266,7 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
   FrameResult result;
   result.frame_index = frame.index;
   pyramid_.Build(frame.image, pyramid_options_);
+  prediction_pyramid_ = pyramid_.FinestLevels(pyramid_.NumLevels() - options_.prediction_skipped_levels);
 
   if (state_ == LocalizerState::kTracking) {
     const int before = tracker_.NumFeatures();
@@ -540,7 +544,7 @@ void Localizer::Localize(FrameResult* result) {
       if (reference == nullptr) continue;
       // Segvic 2009 §5.2.1: initial scale = |Q - C_ref| / |Q - C_t| (the feature looks larger when nearer).
       const AlignmentResult refined =
-          RefinePrediction(pyramid_, *reference, predicted.pixel, 1.0 / predicted.distance_ratio, refine_options_);
+          RefinePrediction(prediction_pyramid_, *reference, predicted.pixel, 1.0 / predicted.distance_ratio, refine_options_);
       if (refined.ok() && tracker_.AddFeature(*reference, refined, id) != kInvalidFeatureId) {
         reference_node_[id] = reference_node;
         retry_after_.erase(id);
@@ -582,39 +586,83 @@ void Localizer::Localize(FrameResult* result) {
     }
   }
 
-  // Health: enough features of the current arc and a trustworthy current geometry, else lost after a few frames.
+  // Continuity: the camera moves steadily along the arc, so a position that jumps from the last accepted one (a
+  // current geometry right after a transition or a bootstrap, estimated from few features, can place the camera
+  // far ahead) is not believed: it decides no transition and makes the frame a bad one.
+  ArcPosition position_a, position_b;
+  if (transfer_a) position_a = LocateOnArc(transfer_a->current_from_a(), arc->arc->to_from_from);
+  if (transfer_b) position_b = LocateOnArc(transfer_b->current_from_a(), arc->arc->to_from_from);
+  const bool had_progress = progress_.has_value();
+  const bool continuous_a = position_a.valid && UpdateProgressCheck(position_a.along);
+  const bool continuous_b = position_b.valid && UpdateProgressCheck(position_b.along);
+  const double last_progress = progress_.value_or(0.0);
+  const bool continuous = AcceptProgress(position.valid ? std::optional<double>(position.along) : std::nullopt);
+
+  // Health: enough features of the current arc, a trustworthy current geometry and a continuous position, else
+  // lost after a few frames.
   int current_tracked = 0;
   for (const TrackedFeature& f : tracker_.Features()) current_tracked += arc->points.count(f.id) ? 1 : 0;
-  const bool good = current_tracked >= options_.min_features && (geometry_a.usable || geometry_b.usable);
+  const bool good =
+      current_tracked >= options_.min_features && (geometry_a.usable || geometry_b.usable) && continuous;
   bad_frames_ = good ? 0 : bad_frames_ + 1;
   if (bad_frames_ >= options_.max_bad_frames) {
-    spdlog::debug("repeat: lost at frame {} ({} features of arc {}, W_t:a {}, W_t:b {})", result->frame_index,
-                  current_tracked, arc_, geometry_a.usable, geometry_b.usable);
+    spdlog::debug("repeat: lost at frame {} ({} features of arc {}, W_t:a {}, W_t:b {}, position {:.2f} after {:.2f})",
+                  result->frame_index, current_tracked, arc_, geometry_a.usable, geometry_b.usable, position.along,
+                  last_progress);
     state_ = LocalizerState::kLost;
     ClearTracks();
+    progress_.reset();
+    last_arc_ = arc_;
     arc_ = kInvalidArcId;
     return;
   }
+  if (!continuous) return;
 
-  // Topological transition (Segvic 2009 §5.2.2, eq. (9)).
-  ArcPosition position_a;
-  if (transfer_a) position_a = LocateOnArc(transfer_a->current_from_a(), arc->arc->to_from_from);
-  int direction = DecideTransition(geometry_b.estimated ? &geometry_b.geometry : nullptr, position_a,
-                                   geometry_a.estimated ? &geometry_a.geometry : nullptr, arc->arc->to_from_from,
-                                   max_sigma_p_px_, options_.backward_margin);
-  // W_t:b fails (no parallax) when the camera is at b: the same plane test with the camera placed by W_t:a.
-  if (direction == 0 && !geometry_b.usable && geometry_a.usable && position_a.valid && position_a.along > 1.0) {
-    direction = +1;
+  // Topological transition (Segvic 2009 §5.2.2, eq. (9)), from the second frame on this arc.
+  int direction = 0;
+  if (had_progress) {
+    direction = DecideTransition(geometry_b.estimated && continuous_b ? &geometry_b.geometry : nullptr, position_a,
+                                 geometry_a.estimated && continuous_a ? &geometry_a.geometry : nullptr,
+                                 arc->arc->to_from_from, max_sigma_p_px_, options_.backward_margin);
+    // W_t:b fails (no parallax) when the camera is at b: the same plane test with the camera placed by W_t:a.
+    if (direction == 0 && !geometry_b.usable && geometry_a.usable && continuous_a && position_a.along > 1.0) {
+      direction = +1;
+    }
   }
   if ((direction > 0 && next == nullptr) || (direction < 0 && previous == nullptr)) direction = 0;
-  if (direction != 0) ApplyTransition(direction, result);
-  // Short arcs (dense key-images, dropped frames): the camera may have passed the next arc's end too. Its position on
-  // that arc comes from the same transfer chained into the next arc's frame (eq. (9) as a plane test there).
-  if (direction > 0 && predict_next && next != nullptr && next->next != kInvalidArcId &&
-      LocateOnArc(predict_next->current_from_a, next->arc->to_from_from).along > 1.0) {
+  if (direction == 0) return;
+  // The position on the new arc, from the same transfer chained into its frame (0 / 1 at the node passed when
+  // that is unknown).
+  std::optional<double> along_next;
+  if (direction > 0 && predict_next && next != nullptr) {
+    along_next = LocateOnArc(predict_next->current_from_a, next->arc->to_from_from).along;
+  }
+  ApplyTransition(direction, result);
+  progress_ = direction > 0 ? along_next.value_or(0.0) : 1.0;
+  // Short arcs (dense key-images, dropped frames): the camera may have passed the next arc's end too (eq. (9) as a
+  // plane test in that arc's frame).
+  if (direction > 0 && along_next && *along_next > 1.0 && next->next != kInvalidArcId) {
     ApplyTransition(+1, result);
     result->transition = 2;
+    progress_ = 0.0;
   }
+}
+
+bool PositionContinuous(const std::optional<double>& last_along, double along, double max_step) {
+  return !last_along || std::abs(along - *last_along) <= max_step;
+}
+
+bool Localizer::UpdateProgressCheck(double along) const {
+  return PositionContinuous(progress_, along, options_.max_progress_step);
+}
+
+bool Localizer::AcceptProgress(std::optional<double> along) {
+  if (!along) return true;
+  if (UpdateProgressCheck(*along)) {
+    progress_ = *along;
+    return true;
+  }
+  return false;
 }
 
 void Localizer::ApplyTransition(int direction, FrameResult* result) {
@@ -629,10 +677,7 @@ void Localizer::ApplyTransition(int direction, FrameResult* result) {
   spdlog::debug("repeat: frame {}: {} transition to arc {} ({} -> {})", result->frame_index,
                 direction > 0 ? "forward" : "backward", arc_, arc->arc->from, arc->arc->to);
 
-  // Features of no arc around the new location are dropped (Segvic 2009 §5.2.2). The others keep tracking with
-  // their references: those were cut from the key-image nearest to the camera when the feature was (re)started
-  // (the paper redefines them from the farther key-image at this point; re-cutting them here restarts their
-  // alignment without a motion prior, which lost most of them in kitti07's turns).
+  // Features of no arc around the new location are dropped (Segvic 2009 §5.2.2).
   for (const TrackedFeature& f : std::vector<TrackedFeature>(tracker_.Features())) {
     bool kept = false;
     for (const ArcData* candidate : {arc, next, previous}) kept |= candidate != nullptr && candidate->points.count(f.id);
@@ -643,6 +688,49 @@ void Localizer::ApplyTransition(int direction, FrameResult* result) {
     }
   }
   retry_after_.clear();
+  if (!options_.redefine_references) return;
+  // References are redefined (§5.2.2): the new current arc's features take theirs from the key-image the camera
+  // now approaches, those of the arc just left from the key-image just passed.
+  const node_t approached = direction > 0 ? arc->arc->to : arc->arc->from;
+  RedefineReferences(*arc, approached, result);
+  if (const ArcData* left = direction > 0 ? previous : next) RedefineReferences(*left, last_passed_, result);
+}
+
+void Localizer::RedefineReferences(const ArcData& arc, node_t node_id, FrameResult* result) {
+  const NodeData& node = Node(node_id);
+  // Camera centres of the arc's key-images in its frame (from = origin).
+  const Vector3d centre_from = Vector3d::Zero();
+  const Vector3d centre_to = CameraCentre(arc.arc->to_from_from);
+  for (const TrackedFeature& f : std::vector<TrackedFeature>(tracker_.Features())) {
+    const auto point = arc.points.find(f.id);
+    const auto old_node = reference_node_.find(f.id);
+    if (point == arc.points.end() || old_node == reference_node_.end() || old_node->second == node_id ||
+        !node.positions.count(f.id)) {
+      continue;
+    }
+    const ReferencePatch* reference = Reference(node_id, f.id);
+    if (reference == nullptr) continue;
+    // The apparent size relative to the new reference: the current scale times the ratio of the point's distances
+    // to the old and the new reference viewpoints (1 when the old one is not on this arc).
+    double ratio = 1.0;
+    const auto centre = [&](node_t n) { return n == arc.arc->from ? centre_from : centre_to; };
+    if (old_node->second == arc.arc->from || old_node->second == arc.arc->to) {
+      const double to_old = (point->second - centre(old_node->second)).norm();
+      const double to_new = (point->second - centre(node_id)).norm();
+      if (to_old > 0 && to_new > 0) ratio = to_new / to_old;
+    }
+    const AlignmentResult aligned =
+        RefinePrediction(prediction_pyramid_, *reference, f.warp.position, f.warp.scale * ratio, refine_options_);
+    if (!aligned.ok()) continue;  // keeps tracking against its old reference
+    tracker_.Remove(f.id);
+    if (tracker_.AddFeature(*reference, aligned, f.id) != kInvalidFeatureId) {
+      reference_node_[f.id] = node_id;
+      ++result->redefined;
+    } else {
+      reference_node_.erase(f.id);
+      ++result->dropped;
+    }
+  }
 }
 
 void Localizer::ResumeFromNeighbours(const ArcData& arc, node_t node_id, ArcRole role, FrameResult* result) {
@@ -733,31 +821,14 @@ void Localizer::ResumeFromNeighbours(const ArcData& arc, node_t node_id, ArcRole
   }
 }
 
-bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
-  std::vector<node_t> candidates;
-  const bool use_start_arc = start_arc_ != kInvalidArcId;
-  if (use_start_arc) {
-    const MapArc* arc = Arc(start_arc_)->arc;
-    candidates = {arc->from, arc->to};
-  } else {
-    for (const MapNode& node : map_.nodes()) candidates.push_back(node.id);
-  }
-  ClearTracks();
-  arc_ = kInvalidArcId;
-
-  const WideBaselineFeatures current = ExtractWideBaselineFeatures(frame.image, options_.matching);
-  struct Candidate {
-    node_t node = kInvalidNodeId;
-    TwoViewGeometry geometry;
-    std::vector<Vector2d> key_points, current_points;  // inlier matches
-    std::vector<double> size_ratios;
-  };
-  std::vector<Candidate> verified;
+std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBaselineFeatures& current,
+                                                                 const std::vector<node_t>& candidates) {
+  std::vector<MatchedKeyImage> verified;
   for (const node_t node : candidates) {
     const WideBaselineFeatures& key = NodeWideBaseline(node);
     const std::vector<cv::DMatch> matches = MatchWideBaseline(key, current, options_.matching);
     if (static_cast<int>(matches.size()) < options_.min_bootstrap_inliers) continue;
-    Candidate candidate;
+    MatchedKeyImage candidate;
     candidate.node = node;
     std::vector<Vector3d> bearings_key, bearings_current;
     std::vector<const cv::DMatch*> used;
@@ -787,10 +858,60 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
     }
     verified.push_back(std::move(candidate));
   }
+  return verified;
+}
+
+std::vector<node_t> Localizer::NodesNear(arc_t arc_id, int arcs) const {
+  std::vector<node_t> nodes;
+  const auto add = [&nodes](node_t node) {
+    if (std::find(nodes.begin(), nodes.end(), node) == nodes.end()) nodes.push_back(node);
+  };
+  const ArcData* forward = Arc(arc_id);
+  const ArcData* backward = forward;
+  for (int k = 0; k <= arcs && (forward != nullptr || backward != nullptr); ++k) {
+    for (const ArcData* arc : {forward, backward}) {
+      if (arc == nullptr) continue;
+      add(arc->arc->from);
+      add(arc->arc->to);
+    }
+    forward = forward != nullptr ? Arc(forward->next) : nullptr;
+    backward = backward != nullptr ? Arc(backward->previous) : nullptr;
+  }
+  return nodes;
+}
+
+bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
+  const bool use_start_arc = start_arc_ != kInvalidArcId;
+  const arc_t last_arc = last_arc_;
+  ClearTracks();
+  arc_ = kInvalidArcId;
+
+  const WideBaselineFeatures current = ExtractWideBaselineFeatures(frame.image, options_.matching);
+  std::vector<MatchedKeyImage> verified;
+  if (use_start_arc) {
+    const MapArc* arc = Arc(start_arc_)->arc;
+    verified = MatchKeyImages(current, {arc->from, arc->to});
+  } else {
+    // After a loss the robot is most likely still near where it was lost: the key-images around the last arc are
+    // tried first, and retrieval over the whole map runs only when none of them verifies.
+    std::vector<node_t> tried;
+    if (last_arc != kInvalidArcId) {
+      tried = NodesNear(last_arc, options_.relocalization_neighbourhood);
+      verified = MatchKeyImages(current, tried);
+    }
+    if (verified.empty()) {
+      std::vector<node_t> rest;
+      for (const MapNode& node : map_.nodes()) {
+        if (std::find(tried.begin(), tried.end(), node.id) == tried.end()) rest.push_back(node.id);
+      }
+      verified = MatchKeyImages(current, rest);
+    }
+  }
   if (verified.empty()) return false;
-  const auto best = std::max_element(verified.begin(), verified.end(), [](const Candidate& x, const Candidate& y) {
-    return x.geometry.num_inliers < y.geometry.num_inliers;
-  });
+  const auto best = std::max_element(verified.begin(), verified.end(),
+                                     [](const MatchedKeyImage& x, const MatchedKeyImage& y) {
+                                       return x.geometry.num_inliers < y.geometry.num_inliers;
+                                     });
 
   // The arc: the given one, or the one on the side of the best key-image where the camera is (eq. (9)'s sign).
   arc_t chosen = start_arc_;
@@ -819,42 +940,48 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   if (chosen == kInvalidArcId) return false;
   const ArcData* arc = Arc(chosen);
 
-  // Locate the arc's mapped features in the frame: predicted from the displacement of the nearest matched
-  // key-points in each matched key-image of the arc, then refined against the reference cut there.
+  // Locate the mapped features of the arc and of its neighbours (all three are tracked from now on) in the frame:
+  // each feature seen in a matched key-image is predicted from the displacement of the nearest matched key-points
+  // there, then refined against the reference cut in that key-image.
   const double neighbour_radius = options_.bootstrap_neighbour_radius_px * pixel_scale_;
   RefinePredictionOptions refine = refine_options_;
   refine.max_distance = options_.bootstrap_radius_px * pixel_scale_;
   refine.max_scale_ratio = 1.5;
-  for (const Candidate& candidate : verified) {
-    if (candidate.node != arc->arc->from && candidate.node != arc->arc->to) continue;
+  for (const MatchedKeyImage& candidate : verified) {
     const NodeData& node = Node(candidate.node);
-    for (const auto& [id, point] : arc->points) {
-      if (tracker_.Find(id) != nullptr) continue;
-      const auto position = node.positions.find(id);
-      if (position == node.positions.end()) continue;
-      std::vector<double> dx, dy, ratios;
-      for (size_t i = 0; i < candidate.key_points.size(); ++i) {
-        if ((candidate.key_points[i] - position->second).norm() > neighbour_radius) continue;
-        const Vector2d d = candidate.current_points[i] - candidate.key_points[i];
-        dx.push_back(d.x());
-        dy.push_back(d.y());
-        ratios.push_back(candidate.size_ratios[i]);
+    for (const ArcData* located : {arc, Arc(arc->previous), Arc(arc->next)}) {
+      if (located == nullptr || (candidate.node != located->arc->from && candidate.node != located->arc->to)) {
+        continue;
       }
-      if (dx.size() < 2) continue;
-      const Vector2d predicted = position->second + Vector2d(Median(dx), Median(dy));
-      if (!camera_->InImage(predicted, tracker_.Options().alignment.window_size / 2 + 2)) continue;
-      const ReferencePatch* reference = Reference(candidate.node, id);
-      if (reference == nullptr) continue;
-      const AlignmentResult refined = RefinePrediction(pyramid_, *reference, predicted, Median(ratios), refine);
-      if (refined.ok() && tracker_.AddFeature(*reference, refined, id) != kInvalidFeatureId) {
-        reference_node_[id] = candidate.node;
-        ++result->resumed;
+      for (const auto& [id, point] : located->points) {
+        if (tracker_.Find(id) != nullptr) continue;
+        const auto position = node.positions.find(id);
+        if (position == node.positions.end()) continue;
+        std::vector<double> dx, dy, ratios;
+        for (size_t i = 0; i < candidate.key_points.size(); ++i) {
+          if ((candidate.key_points[i] - position->second).norm() > neighbour_radius) continue;
+          const Vector2d d = candidate.current_points[i] - candidate.key_points[i];
+          dx.push_back(d.x());
+          dy.push_back(d.y());
+          ratios.push_back(candidate.size_ratios[i]);
+        }
+        if (dx.size() < 2) continue;
+        const Vector2d predicted = position->second + Vector2d(Median(dx), Median(dy));
+        if (!camera_->InImage(predicted, tracker_.Options().alignment.window_size / 2 + 2)) continue;
+        const ReferencePatch* reference = Reference(candidate.node, id);
+        if (reference == nullptr) continue;
+        const AlignmentResult refined = RefinePrediction(prediction_pyramid_, *reference, predicted, Median(ratios), refine);
+        if (refined.ok() && tracker_.AddFeature(*reference, refined, id) != kInvalidFeatureId) {
+          reference_node_[id] = candidate.node;
+          ++result->resumed;
+        }
       }
     }
   }
+  progress_.reset();
   if (tracker_.NumFeatures() < options_.min_bootstrap_features) {
-    spdlog::debug("repeat: bootstrap at frame {} failed: {} features located for arc {}", frame.index,
-                  tracker_.NumFeatures(), chosen);
+    spdlog::debug("repeat: bootstrap at frame {} failed: {} features located around arc {} (key-image {}, {} inliers)",
+                  frame.index, tracker_.NumFeatures(), chosen, best->node, best->geometry.num_inliers);
     ClearTracks();
     return false;
   }

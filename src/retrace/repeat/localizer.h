@@ -34,10 +34,13 @@
 //  7. topological transition (eq. (9)): forward when the camera centre passes the plane through b's centre
 //     perpendicular to the arc's direction of travel, decided with W_t:b (with W_t:a's position when W_t:b has no
 //     parallax, i.e. the camera is at b); backward symmetrically with W_t:a (with a small margin against
-//     flicker); cancelled when the geometry's σ_p is too large. After a transition the features of the arc two
-//     behind are dropped. Deviation from the paper: references are NOT redefined from the farther key-image at a
-//     transition — re-cutting them restarts the alignment without its motion prior, which lost most tracks in
-//     kitti07's turns; features keep the reference of the key-image nearest to them when they were (re)started;
+//     flicker); cancelled when the geometry's σ_p is too large, and when the position along the arc jumped by more
+//     than `max_progress_step` from the last accepted one (continuity: such a jump is a bad frame, several of them
+//     make the localizer lost — right after a transition a geometry from few far features once placed the camera a
+//     whole arc ahead). After a transition the features of the arc two behind are dropped and the references are
+//     redefined (§5.2.2): the new current arc's features are re-aligned against the key-image now approached, the
+//     previous arc's against the key-image just passed; a feature whose new reference does not align at its
+//     current position keeps the old one (re-cutting blindly lost most tracks in kitti07's turns);
 //  8. steering (eq. (10)): w = k * mean(x_t - x*) over the current arc's features, x the horizontal normalised
 //     coordinate in the current image and x* in key-image b.
 //
@@ -46,12 +49,15 @@
 // cleared and the following frames re-initialise (kRelocalizing) by wide-baseline matching against the
 // key-images, exactly as the bootstrap.
 //
-// Bootstrap (§3.3): the frame is matched (SIFT, ratio 0.6) against the key-images of a given start arc, or —
-// without one, or after a loss — against every key-image (retrieval); each candidate is verified geometrically
-// (relative pose on the matches) and the key-image with most inliers wins. Its arc is chosen by which side of the
-// key-image the camera is on (the sign test of eq. (9), which needs no scale). The arc's mapped features of the
-// matched key-images are then located in the frame from the displacement of the nearest matched key-points and
-// refined against their references; the regular transfer predicts the remaining ones from the next frame on.
+// Bootstrap (§3.3): the frame is matched (SIFT, ratio 0.8) against the key-images of a given start arc, or —
+// without one — against every key-image (retrieval); after a loss the key-images within
+// `relocalization_neighbourhood` arcs of where it was lost are tried first and the whole map only when none of them
+// verifies. Each candidate is verified geometrically (relative pose on the matches) and the key-image with most
+// inliers wins. Its arc is chosen by which side of the key-image the camera is on (the sign test of eq. (9), which
+// needs no scale). The mapped features of that arc and of its two neighbours seen in the matched key-images are then
+// located in the frame from the displacement of the nearest matched key-points and refined against their
+// references (without the coarsest pyramid level, like every refined prediction); the regular transfer predicts the
+// remaining ones from the next frame on.
 
 #include <array>
 #include <memory>
@@ -78,8 +84,9 @@ struct LocalizerOptions {
   // Pixel quantities below are given for images of this width and scaled by (image width / reference_width),
   // as in teach.
   int reference_width = 320;
-  // Gaussian pre-smoothing of the tracker's images (pixels at reference_width); must equal teach's.
-  double smoothing_sigma_px = 0.4;
+  // Gaussian pre-smoothing of the tracker's images (pixels at reference_width); must equal teach's (the map
+  // stores teach's value, `retrace repeat` takes it from there).
+  double smoothing_sigma_px = kTrackingSmoothingPx;
   // R: largest RMS residual of a track against its reference (grey levels). Segvic 2009: 6.
   double max_residual = 6.0;
   // σ_p gate (px at reference_width): predictions, consistency checks and transitions use a current geometry only
@@ -93,6 +100,10 @@ struct LocalizerOptions {
   double previous_arc_ratio = 0.3;
   // A refined prediction is accepted within this distance of the prediction (px at reference_width).
   double prediction_radius_px = 2.0;
+  // Predictions (point transfer, bootstrap) are refined on the tracking pyramid without this many of its coarsest
+  // levels: they are already within a few pixels, and the coarsest windows (60 px wide at 320 px) slide onto
+  // other structures — in the simulated town most bootstrap refinements ended 20-40 px from a good prediction.
+  int prediction_skipped_levels = 1;
   // ... and with converged scale / initial scale within [1 / ratio, ratio].
   double prediction_scale_ratio = 1.25;
   // Consistency: a tracked feature farther than max(this, 3 σ_p) from its prediction is discontinued (px at
@@ -104,6 +115,13 @@ struct LocalizerOptions {
   // Backward transitions need the camera this far (arc lengths) behind a: hysteresis against flicker right after
   // a forward transition, where W_t:a has almost no baseline.
   double backward_margin = 0.1;
+  // Largest change of the position along the arc (arc lengths) between two frames that is believed; a larger
+  // jump decides no transition and counts as a bad frame (see Localize step 7).
+  double max_progress_step = 0.75;
+  // Segvic 2009 §5.2.2: after a transition, redefine the references of the new current arc's features from the
+  // key-image approached and of the arc just left from the key-image passed (a feature whose new reference does not
+  // align at its current position keeps the old one).
+  bool redefine_references = true;
   // Frames before a rejected prediction of a feature is tried again (saves time on occluded features).
   int retry_interval = 3;
   // Fewest tracked features of the current arc for a good frame.
@@ -116,6 +134,9 @@ struct LocalizerOptions {
   int min_bootstrap_inliers = 30;
   // ... and fewest mapped features located in the frame for the bootstrap to succeed.
   int min_bootstrap_features = 20;
+  // Relocalization after a loss first matches the key-images of the arcs up to this many arcs around the arc
+  // where it was lost, and all key-images only when none of those verifies.
+  int relocalization_neighbourhood = 3;
   // Bootstrap: matched key-points nearer than this (px at reference_width) predict a mapped feature's position.
   double bootstrap_neighbour_radius_px = 30.0;
   // Bootstrap: accept a located feature within this distance of its local prediction (px at reference_width).
@@ -125,7 +146,15 @@ struct LocalizerOptions {
   // The current geometries W_t:a, W_t:b are estimated every frame from tracked features (inlier ratios ~90 %), so
   // the adaptive sampler's floor is lowered from 100 to 30 samples (at 90 % inliers the adaptive bound is ~12).
   TwoViewOptions geometry = CurrentGeometryOptions();
-  WideBaselineOptions matching;
+  // Wide-baseline matching for the bootstrap and relocalization. The ratio is looser than the paper's 0.6 (§4.1),
+  // as in teach's gap recovery: every match must also agree with a robustly estimated relative pose, and under
+  // another sun 0.6 kept 26 matches between two nearly identical 320x240 views of the simulated town (too few to
+  // verify a key-image).
+  WideBaselineOptions matching = [] {
+    WideBaselineOptions o;
+    o.ratio = 0.8;
+    return o;
+  }();
 
   static TwoViewOptions CurrentGeometryOptions() {
     TwoViewOptions options;
@@ -159,6 +188,7 @@ struct FrameResult {
   int rejected = 0;                      // predictions refined but not accepted (drawn as crosses)
   int dropped = 0;                       // features lost by the tracker or discontinued by the consistency check
   int drifted = 0;                       // ... of which discontinued for drifting from their prediction
+  int redefined = 0;                     // features whose reference was redefined at a transition
   double sigma_p_from = -1.0;            // σ_p of W_t:a, px; -1 when not estimated / failed
   double sigma_p_to = -1.0;              // σ_p of W_t:b
   double sigma_p = -1.0;                 // σ_p of the geometry used for the current arc's transfer
@@ -204,6 +234,10 @@ int DecideTransition(const TwoViewGeometry* current_from_b, const ArcPosition& p
                      const TwoViewGeometry* current_from_a, const Rigid3d& arc_b_from_a, double max_sigma_p_px,
                      double backward_margin);
 
+// Continuity of the position along an arc (arc lengths): a new position is believed when no earlier one is known
+// on this arc or when it moved by at most `max_step` from the last accepted one.
+bool PositionContinuous(const std::optional<double>& last_along, double along, double max_step);
+
 class Localizer {
  public:
   // `map` must hold its key-images (MapDatabase::ReadMap(true)); it is copied (images are shared, not
@@ -239,10 +273,28 @@ class Localizer {
   // nearest to the camera) when the feature is seen there, else the other one; invalid when seen in neither.
   node_t ReferenceNode(const ArcData& arc, feature_t feature, node_t preferred) const;
 
+  // A key-image verified against the current frame by wide-baseline matching and a relative pose.
+  struct MatchedKeyImage {
+    node_t node = kInvalidNodeId;
+    TwoViewGeometry geometry;  // key-image = a, current frame = b
+    std::vector<Vector2d> key_points, current_points;  // inlier matches
+    std::vector<double> size_ratios;                   // key-point size in the frame / in the key-image
+  };
+  std::vector<MatchedKeyImage> MatchKeyImages(const WideBaselineFeatures& current,
+                                              const std::vector<node_t>& candidates);
+  // The key-images of the arcs up to `arcs` arcs before and after `arc`, nearest first.
+  std::vector<node_t> NodesNear(arc_t arc, int arcs) const;
   bool Bootstrap(const Frame& frame, FrameResult* result);
   void Localize(FrameResult* result);
   CurrentGeometry EstimateCurrentGeometry(node_t node);
   void ApplyTransition(int direction, FrameResult* result);
+  // Re-aligns the tracked features of `arc` against references cut from key-image `node`; a feature that does not
+  // align there keeps its old reference.
+  void RedefineReferences(const ArcData& arc, node_t node, FrameResult* result);
+  // Continuity of the position along the current arc: true when `along` is within max_progress_step of the last
+  // accepted position (or none is known yet); AcceptProgress records a measurement.
+  bool UpdateProgressCheck(double along) const;
+  bool AcceptProgress(std::optional<double> along);
   // Resumes untracked features of `arc` seen in key-image `node`, predicted from the displacement (key-image ->
   // current image) of the tracked features seen there that lie nearby.
   void ResumeFromNeighbours(const ArcData& arc, node_t node, ArcRole role, FrameResult* result);
@@ -263,11 +315,14 @@ class Localizer {
   FeatureTracker tracker_;
 
   ImagePyramid pyramid_;
+  ImagePyramid prediction_pyramid_;  // pyramid_ without its coarsest levels (refinement of predictions)
   size_t frame_counter_ = 0;
   LocalizerState state_ = LocalizerState::kRelocalizing;
   arc_t arc_ = kInvalidArcId;
   arc_t start_arc_ = kInvalidArcId;
   int bad_frames_ = 0;
+  arc_t last_arc_ = kInvalidArcId;       // the arc where the localizer was last lost
+  std::optional<double> progress_;       // last accepted position along the current arc (arc lengths)
   node_t last_passed_ = kInvalidNodeId;  // the key-image passed by the last transition
   // Key-image each tracked feature takes its reference from.
   std::unordered_map<feature_t, node_t> reference_node_;

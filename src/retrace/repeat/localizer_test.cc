@@ -142,6 +142,20 @@ TEST(DecideTransition, ForwardBackwardAndCancelled) {
   EXPECT_EQ(DecideTransition(&gb, position(-0.2), &ga, arc.b_from_a, max_sigma, margin), 0);
 }
 
+TEST(PositionContinuous, BelievesSteadyMotionNotJumps) {
+  // Nothing known yet on this arc (after a bootstrap): any position.
+  EXPECT_TRUE(PositionContinuous(std::nullopt, 0.8, 0.75));
+  // Steady progress, also backwards (noise) and with dropped frames.
+  EXPECT_TRUE(PositionContinuous(0.30, 0.45, 0.75));
+  EXPECT_TRUE(PositionContinuous(0.30, 0.25, 0.75));
+  EXPECT_TRUE(PositionContinuous(0.30, 1.05, 0.75));
+  // Right after a transition (0 on the new arc) a geometry from few far features placed the camera at 0.82
+  // of the new arc in the simulated town: not believed.
+  EXPECT_FALSE(PositionContinuous(0.0, 0.82, 0.75));
+  EXPECT_FALSE(PositionContinuous(0.72, 2.0, 0.75));
+  EXPECT_FALSE(PositionContinuous(0.9, 0.1, 0.75));
+}
+
 TEST(LocalizerOptions, CheckRejectsBadValues) {
   LocalizerOptions options;
   EXPECT_TRUE(options.Check());
@@ -151,6 +165,12 @@ TEST(LocalizerOptions, CheckRejectsBadValues) {
   EXPECT_FALSE(error.empty());
   options = LocalizerOptions();
   options.max_bad_frames = 0;
+  EXPECT_FALSE(options.Check());
+  options = LocalizerOptions();
+  options.max_progress_step = 0.0;
+  EXPECT_FALSE(options.Check());
+  options = LocalizerOptions();
+  options.prediction_skipped_levels = -1;
   EXPECT_FALSE(options.Check());
 }
 

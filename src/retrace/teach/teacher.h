@@ -73,7 +73,7 @@ struct TeachOptions {
   // Gaussian pre-smoothing of the tracker's images (pixels at reference_width). Scaling it with the image keeps
   // the residual R meaningful at any resolution: fine texture that the paper's 320x240 images did not resolve
   // would otherwise count as appearance change.
-  double smoothing_sigma_px = 0.7;
+  double smoothing_sigma_px = kTrackingSmoothingPx;
   // Sampson-error threshold of the geometry's inliers (pixels at reference_width).
   double inlier_threshold_px = 1.5;
   // A geometry needs this median parallax (pixels at reference_width) before it is trusted; below it the camera has
