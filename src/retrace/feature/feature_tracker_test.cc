@@ -422,16 +422,16 @@ TEST(FeatureTracker, AddRemoveSetReference) {
   EXPECT_EQ(tracker.NumFeatures(), 1);
 }
 
-// Features tracked in the previous frame start the alignment at level 0 from their constant-velocity guess
+// Features tracked in the previous frame start the alignment at a finer level from their constant-velocity guess
 // (FeatureTrackerOptions::predicted_start_level); when the motion reverses abruptly, the guess is 15 px off,
-// outside the basin of level 0, and the fallback to the full coarse-to-fine alignment must keep the tracks.
+// outside the basin of the start level, and the fallback to the full coarse-to-fine alignment must keep the tracks.
 TEST(FeatureTracker, AbruptMotionChangeFallsBackToCoarseToFine) {
   const SyntheticTexture texture = SmallTexture(4);
   const std::vector<double> shifts = {0.0, 2.7, 5.4, 8.1, -4.3};  // x translation of each frame
   CornerDetectorOptions detector;
   detector.max_corners = 60;
   detector.min_distance = 10.0;
-  for (const int start_level : {0, -1}) {
+  for (const int start_level : {0, 1, -1}) {
     FeatureTrackerOptions options;
     options.predicted_start_level = start_level;
     FeatureTracker tracker(options);
