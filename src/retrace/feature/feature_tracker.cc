@@ -6,6 +6,11 @@
 #include <limits>
 #include <stdexcept>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#include <xmmintrin.h>
+#endif
+
 namespace retrace {
 namespace {
 
@@ -17,8 +22,15 @@ constexpr double kMinStdDev = 0.5;
 // Alignment stops early at level 0 when the RMS residual is still above this multiple of R after 3
 // iterations.
 constexpr double kGiveUpResidualFactor = 3.0;
+// The final refinement on the wide window stops early when its RMS residual is still above this multiple of R
+// after 2 iterations.
+constexpr double kWideGiveUpResidualFactor = 1.5;
 // Largest window size supported by the stack buffers of the alignment.
 constexpr int kMaxWindowSize = 63;
+// Largest sample spacing of the window of the final refinement.
+constexpr int kMaxScaleWindowStride = 3;
+// Largest side of a sampled grid (the dense grid from which a strided reference window is cut).
+constexpr int kMaxSampledSide = (kMaxWindowSize - 1) * kMaxScaleWindowStride + 3;
 
 // Bilinear sample of a CV_32FC1 image; the caller guarantees 0 <= x < cols - 1 and 0 <= y < rows - 1.
 inline float SampleBilinear(const cv::Mat& image, double x, double y) {
@@ -41,31 +53,61 @@ inline void CubicWeights(float f, float* w) {
 }
 
 // Samples the window x = (dx, dy) + scale * u (u integer offsets in [-half, half]^2) of a CV_32FC1 image into
-// `out` (row-major w*w), bilinearly. The caller checks that the samples are inside the image.
+// `out` (row-major w*w), bilinearly. The caller checks that the samples are inside the image. Separable: the
+// warp is axis-aligned, so every image row touched is interpolated once at the w sample columns, then the rows
+// are combined vertically.
 void SampleWindowBilinear(const cv::Mat& image, double dx, double dy, double scale, int w, float* out) {
   const int half = w / 2;
-  int ix[kMaxWindowSize], iy[kMaxWindowSize];
-  float fx[kMaxWindowSize], fy[kMaxWindowSize];
+  // Columns padded to a multiple of 4 (the padding columns repeat the last one with zero weights).
+  const int w4 = (w + 3) & ~3;
+  int ix[kMaxSampledSide + 3], iy[kMaxSampledSide];
+  alignas(16) float wx[kMaxSampledSide + 3][2];
+  float fy[kMaxSampledSide];
   for (int k = 0; k < w; ++k) {
     const double x = dx + scale * (k - half), y = dy + scale * (k - half);
     ix[k] = static_cast<int>(x);
     iy[k] = static_cast<int>(y);
-    fx[k] = static_cast<float>(x - ix[k]);
+    const float fx = static_cast<float>(x - ix[k]);
+    wx[k][0] = 1.0f - fx;
+    wx[k][1] = fx;
     fy[k] = static_cast<float>(y - iy[k]);
   }
+  for (int k = w; k < w4; ++k) {
+    ix[k] = ix[w - 1];
+    wx[k][0] = wx[k][1] = 0.0f;
+  }
+  const int row_min = iy[0];
+  const int num_rows = iy[w - 1] + 2 - row_min;
+  thread_local std::vector<float> rows;
+  if (rows.size() < static_cast<size_t>(num_rows) * w4) rows.resize(static_cast<size_t>(num_rows) * w4);
   const size_t stride = image.step1();
   const float* base = image.ptr<float>(0);
-  for (int r = 0; r < w; ++r) {
-    const float* row0 = base + iy[r] * stride;
-    const float* row1 = row0 + stride;
-    const float wy = fy[r];
-    float* o = out + r * w;
-    for (int c = 0; c < w; ++c) {
-      const int i = ix[c];
-      const float top = row0[i] + fx[c] * (row0[i + 1] - row0[i]);
-      const float bottom = row1[i] + fx[c] * (row1[i + 1] - row1[i]);
-      o[c] = top + wy * (bottom - top);
+  for (int r = 0; r < num_rows; ++r) {
+    const float* row = base + (row_min + r) * stride;
+    float* h = rows.data() + static_cast<size_t>(r) * w4;
+#if defined(__SSE2__)
+    // Four output columns at a time: the two taps of two columns in one register, multiplied by their
+    // weights, then the even and odd lanes added.
+    for (int c = 0; c < w4; c += 4) {
+      __m128 a = _mm_loadl_pi(_mm_setzero_ps(), reinterpret_cast<const __m64*>(row + ix[c]));
+      a = _mm_loadh_pi(a, reinterpret_cast<const __m64*>(row + ix[c + 1]));
+      __m128 b = _mm_loadl_pi(_mm_setzero_ps(), reinterpret_cast<const __m64*>(row + ix[c + 2]));
+      b = _mm_loadh_pi(b, reinterpret_cast<const __m64*>(row + ix[c + 3]));
+      a = _mm_mul_ps(a, _mm_load_ps(wx[c]));
+      b = _mm_mul_ps(b, _mm_load_ps(wx[c + 2]));
+      _mm_storeu_ps(h + c, _mm_add_ps(_mm_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0)),
+                                      _mm_shuffle_ps(a, b, _MM_SHUFFLE(3, 1, 3, 1))));
     }
+#else
+    for (int c = 0; c < w4; ++c) h[c] = wx[c][0] * row[ix[c]] + wx[c][1] * row[ix[c] + 1];
+#endif
+  }
+  for (int r = 0; r < w; ++r) {
+    const float* h0 = rows.data() + static_cast<size_t>(iy[r] - row_min) * w4;
+    const float* h1 = h0 + w4;
+    const float f = fy[r];
+    float* o = out + r * w;
+    for (int c = 0; c < w; ++c) o[c] = h0[c] + f * (h1[c] - h0[c]);
   }
 }
 
@@ -75,8 +117,11 @@ void SampleWindowBilinear(const cv::Mat& image, double dx, double dy, double sca
 // position by several hundredths of a pixel; cubic interpolation removes most of it.
 void SampleWindowCubic(const cv::Mat& image, double dx, double dy, double scale, int w, float* out) {
   const int half = w / 2;
-  int ix[kMaxWindowSize], iy[kMaxWindowSize];
-  float wx[kMaxWindowSize][4], wy[kMaxWindowSize][4];
+  // Columns padded to a multiple of 4 (the padding columns repeat the last one with zero weights).
+  const int w4 = (w + 3) & ~3;
+  int ix[kMaxSampledSide + 3], iy[kMaxSampledSide];
+  alignas(16) float wx[kMaxSampledSide + 3][4];
+  float wy[kMaxSampledSide][4];
   for (int k = 0; k < w; ++k) {
     const double x = dx + scale * (k - half), y = dy + scale * (k - half);
     const int fx = static_cast<int>(x), fy = static_cast<int>(y);
@@ -85,25 +130,42 @@ void SampleWindowCubic(const cv::Mat& image, double dx, double dy, double scale,
     CubicWeights(static_cast<float>(x - fx), wx[k]);
     CubicWeights(static_cast<float>(y - fy), wy[k]);
   }
+  for (int k = w; k < w4; ++k) {
+    ix[k] = ix[w - 1];
+    wx[k][0] = wx[k][1] = wx[k][2] = wx[k][3] = 0.0f;
+  }
   const int row_min = iy[0];
   const int num_rows = iy[w - 1] + 4 - row_min;
   thread_local std::vector<float> rows;
-  if (rows.size() < static_cast<size_t>(num_rows) * w) rows.resize(static_cast<size_t>(num_rows) * w);
+  if (rows.size() < static_cast<size_t>(num_rows) * w4) rows.resize(static_cast<size_t>(num_rows) * w4);
   const size_t stride = image.step1();
   const float* base = image.ptr<float>(0);
   for (int r = 0; r < num_rows; ++r) {
     const float* row = base + (row_min + r) * stride;
-    float* h = rows.data() + static_cast<size_t>(r) * w;
-    for (int c = 0; c < w; ++c) {
+    float* h = rows.data() + static_cast<size_t>(r) * w4;
+#if defined(__SSE2__)
+    // Four output columns at a time: the four taps of each are one unaligned load, multiplied by its weights;
+    // a 4x4 transpose turns the four dot products into one vertical sum.
+    for (int c = 0; c < w4; c += 4) {
+      __m128 a0 = _mm_mul_ps(_mm_loadu_ps(row + ix[c]), _mm_load_ps(wx[c]));
+      __m128 a1 = _mm_mul_ps(_mm_loadu_ps(row + ix[c + 1]), _mm_load_ps(wx[c + 1]));
+      __m128 a2 = _mm_mul_ps(_mm_loadu_ps(row + ix[c + 2]), _mm_load_ps(wx[c + 2]));
+      __m128 a3 = _mm_mul_ps(_mm_loadu_ps(row + ix[c + 3]), _mm_load_ps(wx[c + 3]));
+      _MM_TRANSPOSE4_PS(a0, a1, a2, a3);
+      _mm_storeu_ps(h + c, _mm_add_ps(_mm_add_ps(a0, a1), _mm_add_ps(a2, a3)));
+    }
+#else
+    for (int c = 0; c < w4; ++c) {
       const float* p = row + ix[c];
       h[c] = wx[c][0] * p[0] + wx[c][1] * p[1] + wx[c][2] * p[2] + wx[c][3] * p[3];
     }
+#endif
   }
   for (int r = 0; r < w; ++r) {
-    const float* h0 = rows.data() + static_cast<size_t>(iy[r] - row_min) * w;
-    const float* h1 = h0 + w;
-    const float* h2 = h1 + w;
-    const float* h3 = h2 + w;
+    const float* h0 = rows.data() + static_cast<size_t>(iy[r] - row_min) * w4;
+    const float* h1 = h0 + w4;
+    const float* h2 = h1 + w4;
+    const float* h3 = h2 + w4;
     const float w0 = wy[r][0], w1 = wy[r][1], w2 = wy[r][2], w3 = wy[r][3];
     float* o = out + r * w;
     for (int c = 0; c < w; ++c) o[c] = w0 * h0[c] + w1 * h1[c] + w2 * h2[c] + w3 * h3[c];
@@ -116,7 +178,9 @@ bool AlignmentOptions::Check() const {
   return window_size >= 3 && window_size <= kMaxWindowSize && window_size % 2 == 1 &&
          max_iterations_coarse >= 0 && max_iterations_fine >= 1 && convergence_epsilon > 0.0 &&
          max_residual > 0.0 && min_scale > 0.0 && min_scale < 1.0 && max_scale > 1.0 && min_gain > 0.0 &&
-         min_gain < 1.0 && max_gain > 1.0 && scale_prior_sigma >= 0.0 && max_block_residual > 0.0;
+         min_gain < 1.0 && max_gain > 1.0 && scale_prior_sigma >= 0.0 && max_block_residual > 0.0 &&
+         convergence_epsilon_coarse > 0.0 && max_scale_window_shift > 0.0 && scale_window_stride >= 0 &&
+         scale_window_stride <= kMaxScaleWindowStride && max_iterations_scale_window >= 1;
 }
 
 std::string TrackStatusName(TrackStatus status) {
@@ -141,91 +205,370 @@ std::string TrackStatusName(TrackStatus status) {
   return "unknown";
 }
 
+namespace {
+
+// Cuts a `w` x `w` window centred at (px, py) of `image` (one level) and fills `data` (centred values, Tx,
+// Ty, u.grad T; w^2 floats each). Sampling is cubic when `cubic` (level 0: a reference cut at a sub-pixel
+// position is then not blurred by a phase-dependent amount, which would bias the scale), bilinear otherwise.
+// Returns false when the window does not fit or is too flat; otherwise sets the mean, standard deviation and
+// the inverse Gauss-Newton matrices (full and without the scale).
+bool CutWindow(const cv::Mat& image, double px, double py, int w, int stride, bool cubic, float* data,
+               double* mean_out, double* std_dev_out, Eigen::Matrix<float, 5, 5>* inverse_hessian,
+               Eigen::Matrix<float, 5, 5>* inverse_hessian_translation) {
+  const int half = w / 2;
+  const int n = w * w;
+  // The dense grid covered by the window plus a one-pixel border for the central-difference gradients.
+  const int ext = (w - 1) * stride + 3;
+  const int ext_half = ext / 2;
+  const double margin = cubic ? 1.0 : 0.0;
+  if (!(px - ext_half - margin >= 0.0 && py - ext_half - margin >= 0.0 &&
+        px + ext_half + margin < image.cols - 1 && py + ext_half + margin < image.rows - 1)) {
+    return false;
+  }
+  thread_local std::vector<float> sampled;
+  sampled.resize(static_cast<size_t>(ext) * ext);
+  if (cubic) {
+    SampleWindowCubic(image, px, py, 1.0, ext, sampled.data());
+  } else {
+    SampleWindowBilinear(image, px, py, 1.0, ext, sampled.data());
+  }
+  float* t = data;
+  float* gx = t + n;
+  float* gy = t + 2 * n;
+  float* gs = t + 3 * n;
+  double sum = 0.0, sum_sq = 0.0;
+  for (int r = 0; r < w; ++r) {
+    for (int c = 0; c < w; ++c) {
+      const int k = r * w + c;
+      const float* s = &sampled[(r * stride + 1) * ext + (c * stride + 1)];
+      t[k] = s[0];
+      gx[k] = 0.5f * (s[1] - s[-1]);
+      gy[k] = 0.5f * (s[ext] - s[-ext]);
+      // u.grad T with u the offset in reference pixels.
+      gs[k] = static_cast<float>((c - half) * stride) * gx[k] + static_cast<float>((r - half) * stride) * gy[k];
+      sum += t[k];
+      sum_sq += static_cast<double>(t[k]) * t[k];
+    }
+  }
+  // Centre the values: the contrast columns (T - mean, 1) are then orthogonal and the normal equations well
+  // conditioned in float.
+  const double mean = sum / n;
+  Eigen::Matrix<double, 5, 5> hessian = Eigen::Matrix<double, 5, 5>::Zero();
+  for (int k = 0; k < n; ++k) {
+    t[k] = static_cast<float>(t[k] - mean);
+    const double j[5] = {gx[k], gy[k], gs[k], t[k], 1.0};
+    for (int a = 0; a < 5; ++a) {
+      for (int b = 0; b <= a; ++b) hessian(a, b) += j[a] * j[b];
+    }
+  }
+  hessian.triangularView<Eigen::StrictlyUpper>() = hessian.transpose();
+  *mean_out = mean;
+  const double std_dev = std::sqrt(std::max(0.0, sum_sq / n - mean * mean));
+  *std_dev_out = std_dev;
+  if (std_dev < kMinStdDev) return false;
+  // Conditioning of the geometric parameters with the contrast parameters projected out (Schur complement).
+  const Eigen::Matrix3d schur =
+      hessian.topLeftCorner<3, 3>() - hessian.topRightCorner<3, 2>() *
+                                          hessian.bottomRightCorner<2, 2>().inverse() *
+                                          hessian.bottomLeftCorner<2, 3>();
+  // Compare in units where the scale column is a corner displacement (scale step * half window).
+  const Eigen::Vector3d unit(1.0, 1.0, 1.0 / (half * stride));
+  const Eigen::Matrix3d normalised = unit.asDiagonal() * schur * unit.asDiagonal();
+  const double min_eigenvalue = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(normalised).eigenvalues()(0);
+  if (!(min_eigenvalue / n > kMinEigenvaluePerPixel)) return false;
+  *inverse_hessian = hessian.inverse().cast<float>();
+  // Without the scale parameter (coarse levels): invert the 4x4 system of (dx, dy, lambda, delta).
+  Eigen::Matrix4d reduced;
+  const int keep[4] = {0, 1, 3, 4};
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j) reduced(i, j) = hessian(keep[i], keep[j]);
+  }
+  const Eigen::Matrix4d reduced_inverse = reduced.inverse();
+  inverse_hessian_translation->setZero();
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j) (*inverse_hessian_translation)(keep[i], keep[j]) = static_cast<float>(reduced_inverse(i, j));
+  }
+  return true;
+}
+
+// One reference window as seen by the Gauss-Newton iterations.
+struct WindowView {
+  int size = 0;
+  int stride = 1;  // spacing of the samples in reference pixels
+  const float* t = nullptr;  // centred values, then Tx, Ty, u.grad T (size^2 floats each)
+  double mean = 0.0;
+  const Eigen::Matrix<float, 5, 5>* inverse_hessian = nullptr;
+  const Eigen::Matrix<float, 5, 5>* inverse_hessian_translation = nullptr;  // scale fixed
+};
+
+// The warp being estimated, in pixels of the current level; contrast on the template side
+// (I ~ lambda T + delta).
+struct GaussNewtonState {
+  double x = 0.0, y = 0.0, scale = 1.0, lambda = 1.0, delta = 0.0;
+};
+
+enum class LevelOutcome { kConverged, kMaxIterations, kOutOfImage, kBadStep, kScaleOutOfRange, kGiveUp };
+
+struct LevelSettings {
+  bool cubic = false;
+  bool fine = false;  // level 0: out of image and give-up are final
+  int max_iterations = 0;
+  double epsilon = 0.01;
+  // Scale prior (0 = none): weight mu of mu (log s - log s0)^2.
+  double prior_weight = 0.0;
+  double prior_scale = 1.0;
+  // Stop with kGiveUp when, from iteration `give_up_iteration` on (0-based), the RMS residual (reference grey
+  // levels) exceeds this.
+  double give_up_rms = std::numeric_limits<double>::infinity();
+  int give_up_iteration = 3;
+  bool init_contrast = false;  // start the contrast from the first two moments of the first sampled window
+  double min_gain = 0.25, max_gain = 4.0, min_scale = 0.5, max_scale = 2.0;
+};
+
+bool WindowFits(const cv::Mat& image, const GaussNewtonState& s, double half_extent, bool cubic) {
+  const double extent = s.scale * half_extent;
+  // Cubic sampling needs one more pixel on each side than bilinear sampling.
+  const double margin = cubic ? 1.0 : 0.0;
+  return s.x - extent >= margin && s.y - extent >= margin && s.x + extent < image.cols - 1 - margin &&
+         s.y + extent < image.rows - 1 - margin;
+}
+
+void SampleWindow(const cv::Mat& image, const GaussNewtonState& s, const WindowView& window, bool cubic,
+                  float* values) {
+  const double spacing = s.scale * window.stride;
+  if (cubic) {
+    SampleWindowCubic(image, s.x, s.y, spacing, window.size, values);
+  } else {
+    SampleWindowBilinear(image, s.x, s.y, spacing, window.size, values);
+  }
+}
+
+// Sum of x[0..n) and sum of (x - m)^2, in independent float partial sums (vectorisable; a serial double sum
+// costs as much as a Gauss-Newton iteration).
+constexpr int kLanes = 8;
+double LaneSum(const float* x, int n) {
+  float acc[kLanes] = {};
+  int k = 0;
+  for (; k + kLanes <= n; k += kLanes) {
+    for (int l = 0; l < kLanes; ++l) acc[l] += x[k + l];
+  }
+  double sum = 0.0;
+  for (; k < n; ++k) sum += x[k];
+  for (int l = 0; l < kLanes; ++l) sum += acc[l];
+  return sum;
+}
+double CenteredSquareSum(const float* x, int n, float m) {
+  float acc[kLanes] = {};
+  int k = 0;
+  for (; k + kLanes <= n; k += kLanes) {
+    for (int l = 0; l < kLanes; ++l) acc[l] += (x[k + l] - m) * (x[k + l] - m);
+  }
+  double sum = 0.0;
+  for (; k < n; ++k) sum += static_cast<double>(x[k] - m) * (x[k] - m);
+  for (int l = 0; l < kLanes; ++l) sum += acc[l];
+  return sum;
+}
+
+// RMS of the errors e - d_lambda t - d_delta over the window (w x w, row-major) and the RMS of its worst 3x3
+// block, divided by `lambda` (reference grey levels): the residual after a contrast step (d_lambda, d_delta)
+// applied to the error image e = I - lambda t - delta of the last iteration.
+void ErrorImageResiduals(const float* e, const float* t, int w, double d_lambda, double d_delta, double lambda,
+                         double* rms, double* block_rms) {
+  // Pixel (r, c) belongs to block (3 r / w, 3 c / w): columns [bound[j], bound[j + 1]) form block column j.
+  int bound[4];
+  for (int j = 0; j <= 3; ++j) bound[j] = (j * w + 2) / 3;
+  double block_sse[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+  const float dl = static_cast<float>(d_lambda), dd = static_cast<float>(d_delta);
+  for (int r = 0; r < w; ++r) {
+    const int block_row = (r * 3 / w) * 3;
+    const float* er = e + r * w;
+    const float* tr = t + r * w;
+    for (int j = 0; j < 3; ++j) {
+      float sum = 0.0f;
+      for (int c = bound[j]; c < bound[j + 1]; ++c) {
+        const float v = er[c] - dl * tr[c] - dd;
+        sum += v * v;
+      }
+      block_sse[block_row + j] += sum;
+    }
+  }
+  double sse = 0.0, worst = 0.0;
+  for (int b = 0; b < 9; ++b) {
+    const int rows = bound[b / 3 + 1] - bound[b / 3], columns = bound[b % 3 + 1] - bound[b % 3];
+    sse += block_sse[b];
+    worst = std::max(worst, block_sse[b] / std::max(1, rows * columns));
+  }
+  *rms = std::sqrt(sse / (w * w)) / lambda;
+  *block_rms = std::sqrt(worst) / lambda;
+}
+
+// Gauss-Newton iterations of (1) on one level (inverse compositional, see the header). On kConverged the
+// state is the converged one (the window has not been re-sampled there). If `converged_rms` is given, on
+// kConverged it receives the RMS residual of the window and `converged_block_rms` that of its worst 3x3 block
+// (as Residuals() below), computed from the error image of the last iteration with the last contrast step
+// applied: the geometry is then the one before the last step, which moved no window corner by more than
+// `epsilon`, and no extra sampling of the window is needed.
+LevelOutcome IterateLevel(const cv::Mat& image, const WindowView& window, bool estimate_scale,
+                          const LevelSettings& settings, GaussNewtonState* state, int* iterations,
+                          double* converged_rms = nullptr, double* converged_block_rms = nullptr) {
+  const int w = window.size, n = w * w;
+  const double half = 0.5 * (w - 1) * window.stride;  // half extent in reference pixels
+  const float* t = window.t;
+  const float* gx = t + n;
+  const float* gy = t + 2 * n;
+  const float* gs = t + 3 * n;
+  const double mean = window.mean;
+  const Eigen::Matrix<float, 5, 5>& inverse_hessian =
+      estimate_scale ? *window.inverse_hessian : *window.inverse_hessian_translation;
+  float values[kMaxWindowSize * kMaxWindowSize];
+  bool init_contrast = settings.init_contrast;
+  GaussNewtonState& s = *state;
+  for (int iteration = 0; iteration < settings.max_iterations; ++iteration) {
+    if (!WindowFits(image, s, half, settings.cubic)) return LevelOutcome::kOutOfImage;
+    SampleWindow(image, s, window, settings.cubic, values);
+    if (init_contrast) {
+      // Start the contrast from the first two moments of the window: lambda = std(I) / std(T),
+      // delta = mean(I) - lambda mean(T); robust to large gain and bias changes and cheap.
+      init_contrast = false;
+      const double mean_i = LaneSum(values, n) / n;
+      const double var_i = CenteredSquareSum(values, n, static_cast<float>(mean_i)) / n;
+      const double var_t = CenteredSquareSum(t, n, 0.0f) / n;  // the template is centred
+      if (var_i > 0.0 && var_t > 0.0) {
+        s.lambda = std::clamp(std::sqrt(var_i / var_t), 1.0 / settings.max_gain, 1.0 / settings.min_gain);
+        s.delta = mean_i - s.lambda * mean;
+      }
+    }
+    // Error image and J0^T e (Segvic 2009 §4.2 warp; inverse compositional, see the header).
+    const float lam = static_cast<float>(s.lambda), del = static_cast<float>(s.delta + s.lambda * mean);
+    // Eight independent partial sums per quantity so that the compiler can keep them in SIMD registers
+    // (float additions are not reassociated otherwise).
+    float acc[6][kLanes] = {};
+    int k = 0;
+    for (; k + kLanes <= n; k += kLanes) {
+      for (int l = 0; l < kLanes; ++l) {
+        const float e = values[k + l] - lam * t[k + l] - del;
+        values[k + l] = e;  // kept for the residual at convergence
+        acc[0][l] += gx[k + l] * e;
+        acc[1][l] += gy[k + l] * e;
+        acc[2][l] += gs[k + l] * e;
+        acc[3][l] += t[k + l] * e;
+        acc[4][l] += e;
+        acc[5][l] += e * e;
+      }
+    }
+    for (; k < n; ++k) {
+      const float e = values[k] - lam * t[k] - del;
+      values[k] = e;
+      acc[0][0] += gx[k] * e;
+      acc[1][0] += gy[k] * e;
+      acc[2][0] += gs[k] * e;
+      acc[3][0] += t[k] * e;
+      acc[4][0] += e;
+      acc[5][0] += e * e;
+    }
+    float sums[6];
+    for (int q = 0; q < 6; ++q) {
+      sums[q] = 0.f;
+      for (int l = 0; l < kLanes; ++l) sums[q] += acc[q][l];
+    }
+    ++*iterations;
+    if (iteration >= settings.give_up_iteration && sums[5] > n * settings.give_up_rms * settings.give_up_rms * s.lambda * s.lambda) {
+      return LevelOutcome::kGiveUp;
+    }
+    Eigen::Matrix<float, 5, 1> b;
+    b << sums[0], sums[1], sums[2], sums[3], sums[4];
+    const Eigen::Matrix<float, 5, 1> h0_step = inverse_hessian * b;
+    // Gauss-Newton step of (dx, dy, ds, dlambda, ddelta): D^-1 H0^-1 J0^T e with D = diag(l, l, l, 1, 1).
+    const double lambda = s.lambda;
+    Eigen::Matrix<double, 5, 1> step;
+    step << h0_step(0) / lambda, h0_step(1) / lambda, h0_step(2) / lambda, h0_step(3), h0_step(4);
+    if (estimate_scale && settings.prior_weight > 0.0) {
+      // Prior mu (log s' - log s0)^2 with s' ~ s (1 - ds): adds mu to the ds diagonal and mu (log s - log
+      // s0) to its right-hand side; solved with the precomputed inverse by Sherman-Morrison.
+      Eigen::Matrix<double, 5, 1> u;
+      for (int i = 0; i < 5; ++i) u(i) = inverse_hessian(i, 2);
+      u.head<3>() /= lambda;
+      u /= lambda;  // u = A^-1 e2 with A = D H0 D
+      const double a22 = inverse_hessian(2, 2) / (lambda * lambda);
+      const double c = std::log(s.scale / settings.prior_scale);
+      const Eigen::Matrix<double, 5, 1> x0 = step + u * (settings.prior_weight * c);
+      step = x0 - u * (settings.prior_weight * x0(2) / (1.0 + settings.prior_weight * a22));
+    }
+    const double step_x = step(0), step_y = step(1), step_s = step(2);
+    if (!(1.0 + step_s > 0.5) || !std::isfinite(step_x) || !std::isfinite(step_y)) {
+      return LevelOutcome::kBadStep;
+    }
+    // Inverse composition of the geometric step, additive contrast step.
+    const double new_scale = s.scale / (1.0 + step_s);
+    const double new_x = s.x - s.scale * step_x / (1.0 + step_s);
+    const double new_y = s.y - s.scale * step_y / (1.0 + step_s);
+    const double corner_shift =
+        std::sqrt((new_x - s.x) * (new_x - s.x) + (new_y - s.y) * (new_y - s.y)) +
+        std::abs(new_scale - s.scale) * half * 1.4142135623730951;
+    s.x = new_x;
+    s.y = new_y;
+    s.scale = new_scale;
+    if (!(s.scale > 0.5 * settings.min_scale && s.scale < 2.0 * settings.max_scale)) {
+      return LevelOutcome::kScaleOutOfRange;
+    }
+    // Contrast step (on the offset of the centred template). Far from the solution (coarse levels, large
+    // displacements) the contrast step can be wild; it is then skipped for this iteration, and the final
+    // gain is checked against its range after convergence.
+    const double new_lambda = s.lambda + step(3);
+    const bool contrast_step = new_lambda > 1.0 / settings.max_gain && new_lambda < 1.0 / settings.min_gain;
+    if (contrast_step) {
+      s.delta += step(4) - step(3) * mean;
+      s.lambda = new_lambda;
+    }
+    if (corner_shift < settings.epsilon) {
+      if (converged_rms != nullptr) {
+        // The offset lambda * mean + delta of the centred template changes by step(4) in a contrast step.
+        ErrorImageResiduals(values, t, w, contrast_step ? step(3) : 0.0, contrast_step ? step(4) : 0.0, s.lambda,
+                            converged_rms, converged_block_rms);
+      }
+      return LevelOutcome::kConverged;
+    }
+  }
+  return LevelOutcome::kMaxIterations;
+}
+
+// RMS residual of (1) over the window sampled at `state`, and the RMS of the worst of its 3x3 blocks
+// (reference grey levels).
+void Residuals(const cv::Mat& image, const WindowView& window, bool cubic, const GaussNewtonState& state,
+               double* rms, double* block_rms) {
+  const int n = window.size * window.size;
+  float values[kMaxWindowSize * kMaxWindowSize];
+  SampleWindow(image, state, window, cubic, values);
+  const float lam = static_cast<float>(state.lambda);
+  const float del = static_cast<float>(state.delta + state.lambda * window.mean);
+  for (int k = 0; k < n; ++k) values[k] -= lam * window.t[k] + del;
+  ErrorImageResiduals(values, window.t, window.size, 0.0, 0.0, state.lambda, rms, block_rms);
+}
+
+}  // namespace
+
 bool ReferencePatch::Create(const ImagePyramid& pyramid, const Vector2d& position, int window_size,
-                            int max_levels) {
+                            int max_levels, int scale_window_stride) {
   num_levels_ = 0;
+  scale_window_stride_ = 0;
   if (window_size < 3 || window_size > kMaxWindowSize || window_size % 2 == 0 || pyramid.Empty())
     return false;
   window_size_ = window_size;
   position_ = position;
-  const int half = window_size / 2;
   const int n = window_size * window_size;
-  const int levels = std::min(max_levels, pyramid.NumLevels());
-  data_.assign(static_cast<size_t>(std::max(levels, 0)) * 4 * n, 0.0f);
-  inverse_hessian_.resize(std::max(levels, 0));
-  inverse_hessian_translation_.resize(std::max(levels, 0));
-  mean_.assign(std::max(levels, 0), 0.0);
-  const int ext = window_size + 2;  // window plus a one-pixel border for the central-difference gradients
-  std::vector<float> sampled(static_cast<size_t>(ext) * ext);
+  const int levels = std::max(0, std::min(max_levels, pyramid.NumLevels()));
+  data_.assign(static_cast<size_t>(levels) * 4 * n, 0.0f);
+  inverse_hessian_.resize(levels);
+  inverse_hessian_translation_.resize(levels);
+  mean_.assign(levels, 0.0);
   for (int level = 0; level < levels; ++level) {
-    const cv::Mat& image = pyramid.Level(level);
     const double to_level = std::ldexp(1.0, -level);
-    const double px = position.x() * to_level, py = position.y() * to_level;
-    if (!(px - half - 1 >= 0.0 && py - half - 1 >= 0.0 && px + half + 1 < image.cols - 1 &&
-          py + half + 1 < image.rows - 1)) {
-      break;
-    }
-    for (int r = 0; r < ext; ++r) {
-      for (int c = 0; c < ext; ++c) {
-        sampled[r * ext + c] = SampleBilinear(image, px + c - half - 1, py + r - half - 1);
-      }
-    }
-    float* t = data_.data() + Offset(level);
-    float* gx = t + n;
-    float* gy = t + 2 * n;
-    float* gs = t + 3 * n;
-    Eigen::Matrix<double, 5, 5> hessian = Eigen::Matrix<double, 5, 5>::Zero();
-    double sum = 0.0, sum_sq = 0.0;
-    for (int r = 0; r < window_size; ++r) {
-      for (int c = 0; c < window_size; ++c) {
-        const int k = r * window_size + c;
-        const float* s = &sampled[(r + 1) * ext + (c + 1)];
-        t[k] = s[0];
-        gx[k] = 0.5f * (s[1] - s[-1]);
-        gy[k] = 0.5f * (s[ext] - s[-ext]);
-        gs[k] = static_cast<float>(c - half) * gx[k] + static_cast<float>(r - half) * gy[k];
-        sum += t[k];
-        sum_sq += static_cast<double>(t[k]) * t[k];
-      }
-    }
-    // Centre the values: the contrast columns (T - mean, 1) are then orthogonal and the normal equations well
-    // conditioned in float.
-    const double mean = sum / n;
-    for (int k = 0; k < n; ++k) {
-      t[k] = static_cast<float>(t[k] - mean);
-      Eigen::Matrix<double, 5, 1> j;
-      j << gx[k], gy[k], gs[k], t[k], 1.0;
-      hessian.selfadjointView<Eigen::Lower>().rankUpdate(j);
-    }
-    hessian.triangularView<Eigen::StrictlyUpper>() = hessian.transpose();
-    mean_[level] = mean;
-    const double std_dev = std::sqrt(std::max(0.0, sum_sq / n - mean * mean));
+    double std_dev = 0.0;
+    const bool ok = CutWindow(pyramid.Level(level), position.x() * to_level, position.y() * to_level,
+                              window_size, 1, level == 0, data_.data() + Offset(level), &mean_[level], &std_dev,
+                              &inverse_hessian_[level], &inverse_hessian_translation_[level]);
     if (level == 0) std_dev_ = std_dev;
-    if (std_dev < kMinStdDev) break;
-    // Conditioning of the geometric parameters with the contrast parameters projected out (Schur complement).
-    const Eigen::Matrix3d schur =
-        hessian.topLeftCorner<3, 3>() - hessian.topRightCorner<3, 2>() *
-                                            hessian.bottomRightCorner<2, 2>().inverse() *
-                                            hessian.bottomLeftCorner<2, 3>();
-    // Compare in units where the scale column is a corner displacement (scale step * half window).
-    Eigen::Vector3d unit(1.0, 1.0, 1.0 / half);
-    const Eigen::Matrix3d normalised = unit.asDiagonal() * schur * unit.asDiagonal();
-    const double min_eigenvalue = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(normalised).eigenvalues()(0);
-    if (!(min_eigenvalue / n > kMinEigenvaluePerPixel)) break;
-    inverse_hessian_[level] = hessian.inverse().cast<float>();
-    // Without the scale parameter (coarse levels): invert the 4x4 system of (dx, dy, lambda, delta).
-    Eigen::Matrix4d reduced;
-    const int keep[4] = {0, 1, 3, 4};
-    for (int i = 0; i < 4; ++i) {
-      for (int j = 0; j < 4; ++j) reduced(i, j) = hessian(keep[i], keep[j]);
-    }
-    const Eigen::Matrix4d reduced_inverse = reduced.inverse();
-    Eigen::Matrix<float, 5, 5>& translation_only = inverse_hessian_translation_[level];
-    translation_only.setZero();
-    for (int i = 0; i < 4; ++i) {
-      for (int j = 0; j < 4; ++j)
-        translation_only(keep[i], keep[j]) = static_cast<float>(reduced_inverse(i, j));
-    }
+    if (!ok) break;
     num_levels_ = level + 1;
   }
   if (num_levels_ == 0) {
@@ -239,228 +582,180 @@ bool ReferencePatch::Create(const ImagePyramid& pyramid, const Vector2d& positio
   inverse_hessian_.resize(num_levels_);
   inverse_hessian_translation_.resize(num_levels_);
   mean_.resize(num_levels_);
+  // The wider level-0 window of the final refinement, when it fits and is well conditioned.
+  scale_data_.clear();
+  if (scale_window_stride > 1 && scale_window_stride <= kMaxScaleWindowStride) {
+    scale_data_.resize(static_cast<size_t>(4) * n);
+    double std_dev = 0.0;
+    if (CutWindow(pyramid.Level(0), position.x(), position.y(), window_size, scale_window_stride, true,
+                  scale_data_.data(), &scale_mean_, &std_dev, &scale_inverse_hessian_,
+                  &scale_inverse_hessian_translation_)) {
+      scale_window_stride_ = scale_window_stride;
+    } else {
+      scale_data_.clear();
+    }
+  }
   return true;
 }
 
-AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePatch& reference,
-                                 const WarpState& initial, const AlignmentOptions& options) {
+namespace {
+
+// AlignToReference starting at pyramid level `start_level` at most.
+AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch& reference,
+                               const WarpState& initial, const AlignmentOptions& options, int start_level) {
   AlignmentResult result;
   result.warp = initial;
   result.residual = std::numeric_limits<double>::infinity();
   if (!reference.Valid() || pyramid.Empty() || !(initial.gain > 0.0) || !(initial.scale > 0.0)) return result;
   const int w = reference.WindowSize();
-  const int half = w / 2;
-  const int n = w * w;
-  const int coarsest = std::min(pyramid.NumLevels(), reference.NumLevels()) - 1;
+  const int coarsest = std::max(0, std::min({pyramid.NumLevels() - 1, reference.NumLevels() - 1, start_level}));
 
+  GaussNewtonState state;
   // Template-side contrast: I ~ lambda T + delta, i.e. alpha = 1 / lambda, beta = -delta / lambda.
-  double lambda = 1.0 / initial.gain;
-  double delta = -initial.bias / initial.gain;
-  double scale = initial.scale;
+  state.lambda = 1.0 / initial.gain;
+  state.delta = -initial.bias / initial.gain;
+  state.scale = initial.scale;
   Vector2d position = initial.position;
-  bool converged = false;
-  double residual = std::numeric_limits<double>::infinity();
 
+  LevelSettings settings;
+  settings.min_gain = options.min_gain;
+  settings.max_gain = options.max_gain;
+  settings.min_scale = options.min_scale;
+  settings.max_scale = options.max_scale;
+  settings.prior_scale = initial.scale;
   // Weight of the scale prior in units of squared grey levels (residual noise of 1 grey level per pixel).
-  const double scale_prior_weight =
+  settings.prior_weight =
       options.scale_prior_sigma > 0.0 ? 1.0 / (options.scale_prior_sigma * options.scale_prior_sigma) : 0.0;
-  float values[kMaxWindowSize * kMaxWindowSize];
-  bool contrast_initialised = false;
+  settings.init_contrast = options.contrast_from_moments;
+
+  const auto finish = [&](TrackStatus status, const GaussNewtonState& s, double to_level) {
+    result.status = status;
+    result.warp.position = Vector2d(s.x, s.y) / to_level;
+    result.warp.scale = s.scale;
+    result.warp.gain = 1.0 / s.lambda;
+    result.warp.bias = -s.delta / s.lambda;
+    return result;
+  };
 
   for (int level = coarsest; level >= 0; --level) {
     const cv::Mat& image = pyramid.Level(level);
     const double to_level = std::ldexp(1.0, -level);
-    double dx = position.x() * to_level, dy = position.y() * to_level;
+    state.x = position.x() * to_level;
+    state.y = position.y() * to_level;
     const bool fine = level == 0;
-    const bool cubic = fine && options.cubic_interpolation;
-    const int max_iterations = fine ? options.max_iterations_fine : options.max_iterations_coarse;
-    const float* t = reference.Centered(level);
-    const float* gx = reference.Gx(level);
-    const float* gy = reference.Gy(level);
-    const float* gs = reference.Gs(level);
     // Coarse levels estimate translation and contrast only (the scale is kept): with the scale free, coarse
     // windows far from the solution too easily shrink or grow onto a neighbouring structure.
     const bool estimate_scale = fine || !options.coarse_translation_only;
-    const Eigen::Matrix<float, 5, 5>& inverse_hessian =
-        estimate_scale ? reference.InverseHessian(level) : reference.InverseHessianTranslation(level);
-    const double mean = reference.Mean(level);
-    converged = false;
-    for (int iteration = 0;; ++iteration) {
-      if (!fine && iteration >= max_iterations) break;
-      const double extent = scale * half;
-      // Cubic sampling needs one more pixel on each side than bilinear sampling.
-      const double margin = cubic ? 1.0 : 0.0;
-      if (!(dx - extent >= margin && dy - extent >= margin && dx + extent < image.cols - 1 - margin &&
-            dy + extent < image.rows - 1 - margin)) {
-        if (!fine) break;  // the window does not fit on this coarse level: continue on the finer one
-        result.status = TrackStatus::kOutOfImage;
-        result.warp.position = Vector2d(dx, dy);
-        result.warp.scale = scale;
-        result.iterations += iteration;
-        return result;
+    WindowView window;
+    window.size = w;
+    window.t = reference.Centered(level);
+    window.mean = reference.Mean(level);
+    window.inverse_hessian = &reference.InverseHessian(level);
+    window.inverse_hessian_translation = &reference.InverseHessianTranslation(level);
+    settings.cubic = fine && options.cubic_interpolation;
+    settings.fine = fine;
+    settings.max_iterations = fine ? options.max_iterations_fine : options.max_iterations_coarse;
+    settings.epsilon = fine ? options.convergence_epsilon : options.convergence_epsilon_coarse;
+    // At level 0, a window whose residual stays far above R after a few iterations will not match
+    // (occlusion, wrong basin): stop early instead of spending the remaining iterations.
+    settings.give_up_rms = fine ? kGiveUpResidualFactor * options.max_residual
+                                : std::numeric_limits<double>::infinity();
+    const LevelOutcome outcome = IterateLevel(image, window, estimate_scale, settings, &state, &result.iterations,
+                                              &result.residual, &result.block_residual);
+    settings.init_contrast = false;
+    if (!fine) {
+      // kOutOfImage: the window does not fit on this coarse level; continue on the finer one.
+      if (outcome == LevelOutcome::kBadStep) {
+        return finish(TrackStatus::kNotConverged, state, to_level);
+      } else if (outcome == LevelOutcome::kScaleOutOfRange) {
+        return finish(TrackStatus::kScaleOutOfRange, state, to_level);
       }
-      if (cubic) {
-        SampleWindowCubic(image, dx, dy, scale, w, values);
-      } else {
-        SampleWindowBilinear(image, dx, dy, scale, w, values);
-      }
-      if (options.contrast_from_moments && !contrast_initialised) {
-        // Start the contrast from the first two moments of the window: lambda = std(I) / std(T),
-        // delta = mean(I) - lambda mean(T); robust to large gain and bias changes and cheap.
-        contrast_initialised = true;
-        double sum_i = 0.0, sum_ii = 0.0, sum_tt = 0.0;
-        for (int k = 0; k < n; ++k) {
-          sum_i += values[k];
-          sum_ii += static_cast<double>(values[k]) * values[k];
-          sum_tt += static_cast<double>(t[k]) * t[k];  // centred template
-        }
-        const double var_i = sum_ii / n - (sum_i / n) * (sum_i / n);
-        const double var_t = sum_tt / n;
-        if (var_i > 0.0 && var_t > 0.0) {
-          lambda = std::clamp(std::sqrt(var_i / var_t), 1.0 / options.max_gain, 1.0 / options.min_gain);
-          delta = sum_i / n - lambda * mean;
-        }
-      }
-      // Error image and J0^T e (Segvic 2009 §4.2 warp; inverse compositional, see the header).
-      const float lam = static_cast<float>(lambda), del = static_cast<float>(delta + lambda * mean);
-      // Eight independent partial sums per quantity so that the compiler can keep them in SIMD registers
-      // (float additions are not reassociated otherwise).
-      constexpr int kLanes = 8;
-      float acc[6][kLanes] = {};
-      int k = 0;
-      for (; k + kLanes <= n; k += kLanes) {
-        for (int l = 0; l < kLanes; ++l) {
-          const float e = values[k + l] - lam * t[k + l] - del;
-          acc[0][l] += gx[k + l] * e;
-          acc[1][l] += gy[k + l] * e;
-          acc[2][l] += gs[k + l] * e;
-          acc[3][l] += t[k + l] * e;
-          acc[4][l] += e;
-          acc[5][l] += e * e;
-        }
-      }
-      for (; k < n; ++k) {
-        const float e = values[k] - lam * t[k] - del;
-        acc[0][0] += gx[k] * e;
-        acc[1][0] += gy[k] * e;
-        acc[2][0] += gs[k] * e;
-        acc[3][0] += t[k] * e;
-        acc[4][0] += e;
-        acc[5][0] += e * e;
-      }
-      float sums[6];
-      for (int q = 0; q < 6; ++q) {
-        sums[q] = 0.f;
-        for (int l = 0; l < kLanes; ++l) sums[q] += acc[q][l];
-      }
-      const float b0 = sums[0], b1 = sums[1], b2 = sums[2], b3 = sums[3], b4 = sums[4], sse = sums[5];
-      if (fine && (converged || iteration >= max_iterations)) {
-        residual = std::sqrt(sse / n) / lambda;
-        // RMS residual of the worst of the 3x3 blocks of the window: an occluder over part of the window
-        // shows there even when the whole-window RMS stays small.
-        double block_sse[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-        int block_count[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-        for (int r = 0; r < w; ++r) {
-          for (int c = 0; c < w; ++c) {
-            const int k = r * w + c;
-            const double e = values[k] - lam * t[k] - del;
-            const int block = (r * 3 / w) * 3 + c * 3 / w;
-            block_sse[block] += e * e;
-            ++block_count[block];
-          }
-        }
-        double worst = 0.0;
-        for (int b = 0; b < 9; ++b) worst = std::max(worst, block_sse[b] / std::max(1, block_count[b]));
-        result.block_residual = std::sqrt(worst) / lambda;
-        result.iterations += iteration;
-        break;
-      }
-      Eigen::Matrix<float, 5, 1> b;
-      b << b0, b1, b2, b3, b4;
-      if (fine && iteration >= 3 &&
-          sse > n * kGiveUpResidualFactor * kGiveUpResidualFactor * options.max_residual *
-                    options.max_residual * lambda * lambda) {
-        // Still far above R after a few iterations at level 0: this window will not match (occlusion, wrong
-        // basin); stop early instead of spending the remaining iterations.
-        result.status = TrackStatus::kResidualTooLarge;
-        result.residual = std::sqrt(sse / n) / lambda;
-        result.warp.position = Vector2d(dx, dy);
-        result.warp.scale = scale;
-        result.iterations += iteration;
-        return result;
-      }
-      const Eigen::Matrix<float, 5, 1> h0_step = inverse_hessian * b;
-      // Gauss-Newton step of (dx, dy, ds, dlambda, ddelta): D^-1 H0^-1 J0^T e with D = diag(l, l, l, 1, 1).
-      Eigen::Matrix<double, 5, 1> step;
-      step << h0_step(0) / lambda, h0_step(1) / lambda, h0_step(2) / lambda, h0_step(3), h0_step(4);
-      if (estimate_scale && scale_prior_weight > 0.0) {
-        // Prior mu (log s' - log s0)^2 with s' ~ s (1 - ds): adds mu to the ds diagonal and mu (log s - log
-        // s0) to its right-hand side; solved with the precomputed inverse by Sherman-Morrison.
-        Eigen::Matrix<double, 5, 1> u;
-        for (int i = 0; i < 5; ++i) u(i) = inverse_hessian(i, 2);
-        u.head<3>() /= lambda;
-        u /= lambda;  // u = A^-1 e2 with A = D H0 D
-        const double a22 = inverse_hessian(2, 2) / (lambda * lambda);
-        const double c = std::log(scale / initial.scale);
-        const Eigen::Matrix<double, 5, 1> x0 = step + u * (scale_prior_weight * c);
-        step = x0 - u * (scale_prior_weight * x0(2) / (1.0 + scale_prior_weight * a22));
-      }
-      const double step_x = step(0), step_y = step(1), step_s = step(2);
-      if (!(1.0 + step_s > 0.5) || !std::isfinite(step_x) || !std::isfinite(step_y)) {
-        result.status = TrackStatus::kNotConverged;
-        result.iterations += iteration + 1;
-        return result;
-      }
-      // Inverse composition of the geometric step, additive contrast step.
-      const double new_scale = scale / (1.0 + step_s);
-      const double new_dx = dx - scale * step_x / (1.0 + step_s);
-      const double new_dy = dy - scale * step_y / (1.0 + step_s);
-      const double corner_shift =
-          std::hypot(new_dx - dx, new_dy - dy) + std::abs(new_scale - scale) * half * 1.4142135623730951;
-      dx = new_dx;
-      dy = new_dy;
-      scale = new_scale;
-      if (!(scale > 0.5 * options.min_scale && scale < 2.0 * options.max_scale)) {
-        result.status = TrackStatus::kScaleOutOfRange;
-        result.warp.scale = scale;
-        result.iterations += iteration + 1;
-        return result;
-      }
-      // Contrast step (on the offset of the centred template). Far from the solution (coarse levels, large
-      // displacements) the contrast step can be wild; it is then skipped for this iteration, and the final
-      // gain is checked against its range after convergence.
-      const double new_lambda = lambda + step(3);
-      if (new_lambda > 1.0 / options.max_gain && new_lambda < 1.0 / options.min_gain) {
-        delta += step(4) - step(3) * mean;
-        lambda = new_lambda;
-      }
-      converged = corner_shift < options.convergence_epsilon;
-      if (!fine && converged) {
-        result.iterations += iteration + 1;
-        break;
-      }
+      position = Vector2d(state.x, state.y) / to_level;
+      continue;
     }
-    position = Vector2d(dx, dy) / to_level;
+    switch (outcome) {
+      case LevelOutcome::kConverged:
+        break;
+      case LevelOutcome::kOutOfImage:
+        return finish(TrackStatus::kOutOfImage, state, 1.0);
+      case LevelOutcome::kScaleOutOfRange:
+        return finish(TrackStatus::kScaleOutOfRange, state, 1.0);
+      case LevelOutcome::kGiveUp: {
+        // Report the residual of the state where the alignment gave up.
+        if (WindowFits(image, state, w / 2, settings.cubic)) {
+          Residuals(image, window, settings.cubic, state, &result.residual, &result.block_residual);
+        }
+        return finish(TrackStatus::kResidualTooLarge, state, 1.0);
+      }
+      case LevelOutcome::kBadStep:
+      case LevelOutcome::kMaxIterations:
+        if (WindowFits(image, state, w / 2, settings.cubic)) {
+          Residuals(image, window, settings.cubic, state, &result.residual, &result.block_residual);
+        }
+        return finish(TrackStatus::kNotConverged, state, 1.0);
+    }
+    result.converged = true;
+    if (!WindowFits(image, state, w / 2, settings.cubic)) return finish(TrackStatus::kOutOfImage, state, 1.0);
+    // Final refinement of scale, position and contrast on the larger level-0 window (see the header), for
+    // windows that match. It is adopted only when it converges and the larger window is consistent with the
+    // model (its RMS within R, its worst 3x3 block within the block limit: an occluder or a depth
+    // discontinuity in the outer ring rejects it) and it moves the position by less than
+    // `max_scale_window_shift`; otherwise the 15x15 result stands.
+    if (reference.ScaleWindowStride() > 1 && options.scale_window_stride > 1 &&
+        result.residual <= options.max_residual && result.block_residual <= options.max_block_residual) {
+      WindowView wide;
+      wide.size = w;
+      wide.stride = reference.ScaleWindowStride();
+      wide.t = reference.ScaleWindow();
+      wide.mean = reference.ScaleWindowMean();
+      wide.inverse_hessian = &reference.ScaleWindowInverseHessian();
+      wide.inverse_hessian_translation = &reference.ScaleWindowInverseHessianTranslation();
+      const double wide_half = 0.5 * (w - 1) * wide.stride;
+      GaussNewtonState refined = state;
+      LevelSettings refine = settings;
+      refine.max_iterations = options.max_iterations_scale_window;
+      // Started from the converged 15x15 solution, a wide window that will match has its RMS below R
+      // after two steps; one still above 1.5 R then is not adopted anyway (KITTI 07 at 320x240: none of the
+      // adopted refinements, and a third of the others, which then need no further iterations).
+      refine.give_up_rms = kWideGiveUpResidualFactor * options.max_residual;
+      refine.give_up_iteration = 2;
+      int iterations = 0;
+      double wide_rms = 0.0, wide_block = 0.0;
+      if (WindowFits(image, refined, wide_half, settings.cubic) &&
+          IterateLevel(image, wide, true, refine, &refined, &iterations, &wide_rms, &wide_block) ==
+              LevelOutcome::kConverged &&
+          std::hypot(refined.x - state.x, refined.y - state.y) <= options.max_scale_window_shift &&
+          WindowFits(image, refined, wide_half, settings.cubic)) {
+        double core_rms = 0.0, core_block = 0.0;
+        Residuals(image, window, settings.cubic, refined, &core_rms, &core_block);
+        if (wide_rms <= options.max_residual && wide_block <= options.max_residual) {
+          state = refined;
+          result.residual = core_rms;
+          result.block_residual = core_block;
+          result.scale_window_used = true;
+        }
+      }
+      result.iterations += iterations;
+    }
+    finish(TrackStatus::kTracked, state, 1.0);
+    if (state.scale < options.min_scale || state.scale > options.max_scale) {
+      result.status = TrackStatus::kScaleOutOfRange;
+    } else if (result.warp.gain < options.min_gain || result.warp.gain > options.max_gain) {
+      result.status = TrackStatus::kGainOutOfRange;
+    } else if (!(result.residual <= options.max_residual) ||
+               !(result.block_residual <= options.max_block_residual)) {
+      result.status = TrackStatus::kResidualTooLarge;
+    }
+    return result;
   }
+  return result;  // not reached: level 0 always returns
+}
 
-  result.warp.position = position;
-  result.warp.scale = scale;
-  result.warp.gain = 1.0 / lambda;
-  result.warp.bias = -delta / lambda;
-  result.residual = residual;
-  result.converged = converged;
-  if (scale < options.min_scale || scale > options.max_scale) {
-    result.status = TrackStatus::kScaleOutOfRange;
-  } else if (result.warp.gain < options.min_gain || result.warp.gain > options.max_gain) {
-    result.status = TrackStatus::kGainOutOfRange;
-  } else if (!converged) {
-    result.status = TrackStatus::kNotConverged;
-  } else if (!(residual <= options.max_residual) || !(result.block_residual <= options.max_block_residual)) {
-    result.status = TrackStatus::kResidualTooLarge;
-  } else {
-    result.status = TrackStatus::kTracked;
-  }
-  return result;
+}  // namespace
+
+AlignmentResult AlignToReference(const ImagePyramid& pyramid, const ReferencePatch& reference,
+                                 const WarpState& initial, const AlignmentOptions& options) {
+  return AlignFromLevel(pyramid, reference, initial, options, std::numeric_limits<int>::max());
 }
 
 AlignmentResult RefinePrediction(const ImagePyramid& pyramid, const ReferencePatch& reference,
@@ -485,7 +780,8 @@ FeatureTracker::FeatureTracker(const FeatureTrackerOptions& options) : options_(
 
 feature_t FeatureTracker::AddFeature(const ImagePyramid& pyramid, const Vector2d& position, feature_t id) {
   ReferencePatch reference;
-  if (!reference.Create(pyramid, position, options_.alignment.window_size, options_.num_levels)) {
+  if (!reference.Create(pyramid, position, options_.alignment.window_size, options_.num_levels,
+                        options_.alignment.scale_window_stride)) {
     return kInvalidFeatureId;
   }
   AlignmentResult alignment;
@@ -528,14 +824,25 @@ const std::vector<TrackedFeature>& FeatureTracker::Track(const ImagePyramid& pyr
   last_results_.clear();
   std::vector<AlignmentResult>& results = scratch_results_;
   results.assign(features_.size(), AlignmentResult());
-  const auto align = [&](size_t i, const Vector2d& velocity) {
+  const auto align = [&](size_t i, const Vector2d& velocity, bool own_velocity) {
     const TrackedFeature& feature = features_[i];
     WarpState initial = feature.warp;
     const bool predicted = velocity.squaredNorm() > 0.25;
     if (predicted) initial.position += velocity;
-    results[i] = AlignToReference(pyramid, references_[i], initial, options_.alignment);
-    if (!results[i].ok() && predicted) {
-      // The guess may be wrong after an abrupt change of motion: retry from the last position.
+    // A feature tracked in the previous frame with its own velocity has a good guess: start at a fine level
+    // and fall back to the full coarse-to-fine alignment unless that converged (onto a window that does not
+    // match, residual above R; see FeatureTrackerOptions::predicted_start_level).
+    bool done = false;
+    if (options_.predicted_start_level >= 0 && own_velocity && feature.num_frames >= 2) {
+      results[i] = AlignFromLevel(pyramid, references_[i], initial, options_.alignment,
+                                  options_.predicted_start_level);
+      done = results[i].ok() || (results[i].converged && results[i].status == TrackStatus::kResidualTooLarge);
+    }
+    if (!done) results[i] = AlignToReference(pyramid, references_[i], initial, options_.alignment);
+    // The guess may be wrong after an abrupt change of motion: retry from the last position, unless the
+    // alignment converged onto a window that does not match (residual above R): on KITTI 07 at 320x240 those
+    // retries succeeded for 0.3 % of the features and cost a quarter of the tracking time.
+    if (!results[i].ok() && predicted && results[i].status != TrackStatus::kResidualTooLarge) {
       AlignmentResult retry = AlignToReference(pyramid, references_[i], feature.warp, options_.alignment);
       if (retry.ok()) results[i] = retry;
     }
@@ -554,7 +861,7 @@ const std::vector<TrackedFeature>& FeatureTracker::Track(const ImagePyramid& pyr
       without_velocity.push_back(i);
       continue;
     }
-    align(i, velocities_[i]);
+    align(i, velocities_[i], true);
     if (results[i].ok()) {
       dx.push_back(results[i].warp.position.x() - features_[i].warp.position.x());
       dy.push_back(results[i].warp.position.y() - features_[i].warp.position.y());
@@ -566,7 +873,7 @@ const std::vector<TrackedFeature>& FeatureTracker::Track(const ImagePyramid& pyr
     std::nth_element(dy.begin(), dy.begin() + dy.size() / 2, dy.end());
     common_motion = Vector2d(dx[dx.size() / 2], dy[dy.size() / 2]);
   }
-  for (size_t i : without_velocity) align(i, common_motion);
+  for (size_t i : without_velocity) align(i, common_motion, false);
 
   size_t kept = 0;
   for (size_t i = 0; i < features_.size(); ++i) {
@@ -606,7 +913,8 @@ bool FeatureTracker::SetReference(feature_t id, const ImagePyramid& pyramid, con
   const int index = IndexOf(id);
   if (index < 0) return false;
   ReferencePatch reference;
-  if (!reference.Create(pyramid, position, options_.alignment.window_size, options_.num_levels)) return false;
+  if (!reference.Create(pyramid, position, options_.alignment.window_size, options_.num_levels,
+                        options_.alignment.scale_window_stride)) return false;
   references_[index] = std::move(reference);
   TrackedFeature& feature = features_[index];
   feature.warp = WarpState();

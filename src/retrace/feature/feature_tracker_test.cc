@@ -212,22 +212,20 @@ WarpErrors RunSyntheticWarps(const WarpRenderer& render, int num_cases, uint64_t
   return errors;
 }
 
-// Target of issue 3: position error < 0.1 px and scale error < 1 %. Measured, the position target holds for
-// more than 90 % of the corners but the per-corner scale target does not hold everywhere at the extremes of
-// the range (scale 0.8 / 1.25): the fixed pre-smoothing blurs the two images differently once the scale
-// differs, and on cluttered windows the scale trades off against interpolation error, which biases the scale
-// by 1-3 % (at most ~8 %) on a minority of windows. Checked here: >= 90 % of the centre corners tracked, >=
-// 90 % of them within 0.1 px, median position error < 0.05 px and median scale error < 0.5 %; every miss is
-// printed.
+// Target of issue 3, per corner: every tracked case corner (the corner the warp is centred on, so that its
+// motion is exactly the tracker's warp model) has a position error < 0.1 px and a scale error < 1 %, and at
+// least 90 % of the case corners are tracked. The scale of a 15x15 window around a corner is weakly observable
+// (a corner is self-similar under scaling about its apex), so these figures rely on the final refinement on
+// the wider level-0 window (AlignmentOptions::scale_window_stride); every miss is printed.
 void ExpectAccurate(const WarpErrors& errors) {
   int position_within = 0;
   for (double e : errors.centre_position) position_within += e < 0.1;
   std::printf("  centre corners tracked %d / %d; within 0.1 px: %d; within 0.1 px and 1 %% scale: %d\n",
               errors.centre_tracked, errors.centre_cases, position_within, errors.centre_within);
   EXPECT_GE(errors.centre_tracked, 0.9 * errors.centre_cases);
-  EXPECT_GE(position_within, 0.9 * errors.centre_tracked);
-  EXPECT_LT(Percentile(errors.centre_position, 0.5), 0.05);
-  EXPECT_LT(Percentile(errors.centre_scale, 0.5), 0.005);
+  EXPECT_EQ(errors.centre_within, errors.centre_tracked);
+  EXPECT_LT(Percentile(errors.centre_position, 1.0), 0.1);
+  EXPECT_LT(Percentile(errors.centre_scale, 1.0), 0.01);
   EXPECT_GE(errors.position.size(), 300u);
 }
 
@@ -422,6 +420,49 @@ TEST(FeatureTracker, AddRemoveSetReference) {
   EXPECT_TRUE(tracker.Remove(a));
   EXPECT_FALSE(tracker.Remove(a));
   EXPECT_EQ(tracker.NumFeatures(), 1);
+}
+
+// Features tracked in the previous frame start the alignment at a finer level from their constant-velocity guess
+// (FeatureTrackerOptions::predicted_start_level); when the motion reverses abruptly, the guess is 15 px off,
+// outside the basin of the start level, and the fallback to the full coarse-to-fine alignment must keep the tracks.
+TEST(FeatureTracker, AbruptMotionChangeFallsBackToCoarseToFine) {
+  const SyntheticTexture texture = SmallTexture(4);
+  const std::vector<double> shifts = {0.0, 2.7, 5.4, 8.1, -4.3};  // x translation of each frame
+  CornerDetectorOptions detector;
+  detector.max_corners = 60;
+  detector.min_distance = 10.0;
+  for (const int start_level : {0, 1, -1}) {
+    FeatureTrackerOptions options;
+    options.predicted_start_level = start_level;
+    FeatureTracker tracker(options);
+    std::map<feature_t, Vector2d> initial;
+    for (size_t f = 0; f < shifts.size(); ++f) {
+      const ImagePyramid pyramid(Quantise(texture.Render(320, 240, 1.0, Vector2d(shifts[f], 0.0))));
+      if (f == 0) {
+        std::vector<Vector2d> positions;
+        for (const Corner& c : DetectCorners(pyramid, detector)) {
+          // Away from the border, so that no window leaves the image during the motion.
+          if (c.position.x() > 40.0 && c.position.x() < 280.0 && c.position.y() > 30.0 && c.position.y() < 210.0)
+            positions.push_back(c.position);
+        }
+        const std::vector<feature_t> ids = tracker.AddFeatures(pyramid, positions);
+        for (size_t i = 0; i < ids.size(); ++i) {
+          if (ids[i] != kInvalidFeatureId) initial[ids[i]] = positions[i];
+        }
+        ASSERT_GE(initial.size(), 20u);
+        continue;
+      }
+      tracker.Track(pyramid);
+    }
+    double max_error = 0.0;
+    for (const TrackedFeature& feature : tracker.Features()) {
+      max_error = std::max(max_error, (feature.warp.position - initial[feature.id] - Vector2d(shifts.back(), 0.0)).norm());
+    }
+    std::printf("  start level %d: %d of %zu features tracked through the reversal, max error %.4f px\n",
+                start_level, tracker.NumFeatures(), initial.size(), max_error);
+    EXPECT_GE(tracker.NumFeatures(), static_cast<int>(0.9 * initial.size()));
+    EXPECT_LT(max_error, 0.1);
+  }
 }
 
 }  // namespace
