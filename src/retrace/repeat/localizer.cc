@@ -54,6 +54,7 @@ bool LocalizerOptions::Check(std::string* error) const {
   if (!(max_drift_px > 0)) return fail("max_drift_px must be positive");
   if (!(backward_margin >= 0)) return fail("backward_margin must be >= 0");
   if (!(min_parallax_px >= 0)) return fail("min_parallax_px must be >= 0");
+  if (!(transition_agreement > 0)) return fail("transition_agreement must be > 0");
   if (!(max_progress_step > 0)) return fail("max_progress_step must be > 0");
   if (retry_interval < 1) return fail("retry_interval must be >= 1");
   if (min_features < 8) return fail("min_features must be >= 8");
@@ -620,11 +621,20 @@ void Localizer::Localize(FrameResult* result) {
   }
   if (!continuous) return;
 
-  // Topological transition (Segvic 2009 §5.2.2, eq. (9)), from the second frame on this arc.
+  // Topological transition (Segvic 2009 §5.2.2, eq. (9)), from the second frame on this arc. The plane test on
+  // W_t:b uses its translation direction alone; it must agree with the camera placed by the scaled transfer through
+  // W_t:b (near or past b) and, when W_t:a is usable too, with the camera placed through W_t:a (within
+  // `transition_agreement` of b): in the simulated town's turns a W_t:b from few distant features once put the
+  // camera past b while W_t:a put it mid-arc (and the truth was before a). Backward transitions symmetrically.
+  const bool a_placed = geometry_a.usable && continuous_a;
+  const bool b_placed = geometry_b.usable && continuous_b;
+  const bool forward_agreed = b_placed && position_b.along > 1.0 - options_.backward_margin &&
+                              (!a_placed || position_a.along > 1.0 - options_.transition_agreement);
+  const bool backward_agreed = a_placed && (!b_placed || position_b.along < options_.transition_agreement);
   int direction = 0;
   if (had_progress) {
-    direction = DecideTransition(geometry_b.estimated && continuous_b ? &geometry_b.geometry : nullptr, position_a,
-                                 geometry_a.estimated && continuous_a ? &geometry_a.geometry : nullptr,
+    direction = DecideTransition(geometry_b.estimated && forward_agreed ? &geometry_b.geometry : nullptr, position_a,
+                                 geometry_a.estimated && backward_agreed ? &geometry_a.geometry : nullptr,
                                  arc->arc->to_from_from, max_sigma_p_px_, options_.backward_margin);
     // W_t:b fails (no parallax) when the camera is at b: the same plane test with the camera placed by W_t:a.
     if (direction == 0 && !geometry_b.usable && geometry_a.usable && continuous_a && position_a.along > 1.0) {
@@ -633,14 +643,15 @@ void Localizer::Localize(FrameResult* result) {
   }
   if ((direction > 0 && next == nullptr) || (direction < 0 && previous == nullptr)) direction = 0;
   if (direction == 0) return;
-  // The position on the new arc, from the same transfer chained into its frame (0 / 1 at the node passed when
-  // that is unknown).
+  // The position on the new arc, from the same transfer chained into its frame.
   std::optional<double> along_next;
   if (direction > 0 && predict_next && next != nullptr) {
     along_next = LocateOnArc(predict_next->current_from_a, next->arc->to_from_from).along;
   }
   ApplyTransition(direction, result);
-  progress_ = direction > 0 ? along_next.value_or(0.0) : 1.0;
+  // The camera has just crossed the plane through the node (eq. (9)): it is at the start of the new arc (at its end
+  // after a backward transition), whatever a chained, weakly determined transfer says.
+  progress_ = direction > 0 ? 0.0 : 1.0;
   // Short arcs (dense key-images, dropped frames): the camera may have passed the next arc's end too (eq. (9) as a
   // plane test in that arc's frame).
   if (direction > 0 && along_next && *along_next > 1.0 && next->next != kInvalidArcId) {

@@ -119,6 +119,9 @@ struct LocalizerOptions {
   // Backward transitions need the camera this far (arc lengths) behind a: hysteresis against flicker right after
   // a forward transition, where W_t:a has almost no baseline.
   double backward_margin = 0.1;
+  // A forward transition decided with W_t:b also needs W_t:a (when usable) to place the camera within this many arc
+  // lengths of b; a backward one decided with W_t:a needs W_t:b (when usable) within this of a.
+  double transition_agreement = 0.25;
   // Largest change of the position along the arc (arc lengths) between two frames that is believed; a larger
   // jump decides no transition and counts as a bad frame (see Localize step 7).
   double max_progress_step = 0.75;

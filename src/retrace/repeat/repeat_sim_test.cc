@@ -66,10 +66,19 @@ TEST(RepeatSim, OtherSunOffsetAndPedestrians) {
 
   // Never a confident wrong answer: no frame two or more arcs away from the true one.
   EXPECT_EQ(evaluation.wrong_by_two, 0);
-  // The target is 99 % correct, which is NOT met: measured 87.5 % correct, 8 % one arc off (a transition
-  // a frame or two early or late; arcs are ~6 frames long here) and 4.5 % lost on these 200 frames (README). This
+  for (size_t i = 0; i < evaluation.per_frame.size(); ++i) {
+    const FrameTruth& t = evaluation.per_frame[i];
+    if (t.error < 2) continue;
+    const FrameResult& r = results[i];
+    ADD_FAILURE() << "frame " << i << ": arc index " << t.estimated_arc_index << ", true " << t.true_arc_index
+                  << "; tracked " << r.tracked << " (" << r.tracked_by_role[0] << "/" << r.tracked_by_role[1] << "/"
+                  << r.tracked_by_role[2] << "), sigma_p " << r.sigma_p_from << "/" << r.sigma_p_to << ", position "
+                  << r.position_on_arc << ", transition " << r.transition << (r.bootstrapped ? ", bootstrapped" : "");
+  }
+  // The target is 99 % correct, which is NOT met: measured 95.0 % correct, 2.5 % one arc off (a transition
+  // a frame or two early or late; arcs are ~6 frames long here) and 2.5 % lost on these 200 frames (README). This
   // guards the measured level against regressions.
-  EXPECT_GE(evaluation.FractionCorrect(), 0.85);
+  EXPECT_GE(evaluation.FractionCorrect(), 0.90);
   EXPECT_LE(evaluation.wrong, evaluation.frames / 10);
 
   // Steering (eq. (10)) against ground truth. The mapped features are mostly distant, for which x_t - x* is the
