@@ -596,8 +596,8 @@ void Localizer::Localize(FrameResult* result) {
   if (transfer_a) position_a = LocateOnArc(transfer_a->current_from_a(), arc->arc->to_from_from);
   if (transfer_b) position_b = LocateOnArc(transfer_b->current_from_a(), arc->arc->to_from_from);
   const bool had_progress = progress_.has_value();
-  const bool continuous_a = position_a.valid && UpdateProgressCheck(position_a.along);
-  const bool continuous_b = position_b.valid && UpdateProgressCheck(position_b.along);
+  const bool continuous_a = position_a.valid && ProgressContinuous(position_a.along);
+  const bool continuous_b = position_b.valid && ProgressContinuous(position_b.along);
   const double last_progress = progress_.value_or(0.0);
   const bool continuous = AcceptProgress(position.valid ? std::optional<double>(position.along) : std::nullopt);
 
@@ -665,13 +665,13 @@ bool PositionContinuous(const std::optional<double>& last_along, double along, d
   return !last_along || std::abs(along - *last_along) <= max_step;
 }
 
-bool Localizer::UpdateProgressCheck(double along) const {
+bool Localizer::ProgressContinuous(double along) const {
   return PositionContinuous(progress_, along, options_.max_progress_step);
 }
 
 bool Localizer::AcceptProgress(std::optional<double> along) {
   if (!along) return true;
-  if (UpdateProgressCheck(*along)) {
+  if (ProgressContinuous(*along)) {
     progress_ = *along;
     return true;
   }

@@ -131,7 +131,9 @@ struct LocalizerOptions {
   bool redefine_references = true;
   // Frames before a rejected prediction of a feature is tried again (saves time on occluded features).
   int retry_interval = 3;
-  // Fewest tracked features of the current arc for a good frame.
+  // Fewest tracked features of the current arc for a good frame. The current geometries and σ_p decide whether
+  // the features are trustworthy; at 320x240 an arc maps ~50 features, and 15 made the simulated drive lost in
+  // mid-arc (80.0 % vs 77.3 % correct with 10, no frame two arcs off either way).
   int min_features = 10;
   // Bad frames in a row (too few features or no usable current geometry) after which the state is lost.
   int max_bad_frames = 3;
@@ -300,7 +302,7 @@ class Localizer {
   void RedefineReferences(const ArcData& arc, node_t node, FrameResult* result);
   // Continuity of the position along the current arc: true when `along` is within max_progress_step of the last
   // accepted position (or none is known yet); AcceptProgress records a measurement.
-  bool UpdateProgressCheck(double along) const;
+  bool ProgressContinuous(double along) const;
   bool AcceptProgress(std::optional<double> along);
   // Resumes untracked features of `arc` seen in key-image `node`, predicted from the displacement (key-image ->
   // current image) of the tracked features seen there that lie nearby.
