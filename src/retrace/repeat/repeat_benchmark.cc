@@ -18,7 +18,7 @@
 #include "retrace/dataset/sequence.h"
 #include "retrace/image/image_utils.h"
 #include "retrace/repeat/localizer.h"
-#include "retrace/sim/simulator.h"
+#include "retrace/sim/recording.h"
 #include "retrace/teach/teacher.h"
 
 namespace retrace {
@@ -71,29 +71,13 @@ const Setup* GetSimSetup() {
   Scenario scenario;
   scenario.num_frames = 200;
   auto setup = std::make_unique<Setup>();
-  {
-    Simulator teach(ApplyVariant(scenario, ScenarioVariant::kTeach));
-    setup->camera = teach.camera().Clone();
-    Teacher teacher(*setup->camera, TeachOptions(), nullptr);
-    SimFrame sim_frame;
-    size_t index = 0;
-    while (teach.NextFrame(&sim_frame)) {
-      Frame frame;
-      frame.index = frame.source_index = index++;
-      frame.image = sim_frame.image;
-      teacher.AddFrame(frame);
-    }
-    teacher.Finish();
-    setup->map = teacher.map();
-  }
-  Simulator repeat(ApplyVariant(scenario, ScenarioVariant::kRepeat));
-  SimFrame sim_frame;
-  while (repeat.NextFrame(&sim_frame)) {
-    Frame frame;
-    frame.index = frame.source_index = setup->repeat_frames.size();
-    frame.image = sim_frame.image;
-    setup->repeat_frames.push_back(frame);
-  }
+  RecordedDrive teach = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kTeach));
+  setup->camera = std::move(teach.camera);
+  Teacher teacher(*setup->camera, TeachOptions(), nullptr);
+  for (const Frame& frame : teach.frames) teacher.AddFrame(frame);
+  teacher.Finish();
+  setup->map = teacher.map();
+  setup->repeat_frames = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kRepeat)).frames;
   cached = std::move(setup);
   return cached.get();
 }

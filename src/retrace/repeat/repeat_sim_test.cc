@@ -11,40 +11,17 @@
 
 #include "retrace/repeat/evaluation.h"
 #include "retrace/repeat/localizer.h"
-#include "retrace/sim/simulator.h"
+#include "retrace/sim/recording.h"
 #include "retrace/teach/teacher.h"
 
 namespace retrace {
 namespace {
 
-struct Drive {
-  std::unique_ptr<CameraModel> camera;
-  std::vector<Frame> frames;
-  std::vector<TimedPose> truth;
-};
-
-Drive Record(const Scenario& scenario) {
-  Simulator simulator(scenario);
-  Drive drive;
-  drive.camera = simulator.camera().Clone();
-  SimFrame sim_frame;
-  while (simulator.NextFrame(&sim_frame)) {
-    Frame frame;
-    frame.index = frame.source_index = drive.frames.size();
-    frame.name = std::to_string(frame.index) + ".png";
-    frame.timestamp = sim_frame.timestamp;
-    frame.image = sim_frame.image;
-    drive.frames.push_back(frame);
-    drive.truth.push_back({sim_frame.timestamp, sim_frame.world_from_cam});
-  }
-  return drive;
-}
-
 TEST(RepeatSim, OtherSunOffsetAndPedestrians) {
   Scenario scenario;  // the default town and drive of `retrace sim example-scenario` and the demo
   scenario.num_frames = 200;
-  const Drive teach = Record(ApplyVariant(scenario, ScenarioVariant::kTeach));
-  const Drive repeat = Record(ApplyVariant(scenario, ScenarioVariant::kRepeat));
+  const RecordedDrive teach = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kTeach));
+  const RecordedDrive repeat = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kRepeat));
   ASSERT_EQ(repeat.frames.size(), 200u);
 
   Teacher teacher(*teach.camera, TeachOptions(), nullptr);

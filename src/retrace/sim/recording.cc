@@ -26,6 +26,23 @@ void WriteText(const std::filesystem::path& path, const std::string& text) {
 
 }  // namespace
 
+RecordedDrive RecordDrive(const Scenario& scenario) {
+  Simulator simulator(scenario);
+  RecordedDrive drive;
+  drive.camera = simulator.camera().Clone();
+  SimFrame sim_frame;
+  while (simulator.NextFrame(&sim_frame)) {
+    Frame frame;
+    frame.index = frame.source_index = drive.frames.size();
+    frame.name = fmt::format("{:06d}.png", frame.index);
+    frame.timestamp = sim_frame.timestamp;
+    frame.image = sim_frame.image;
+    drive.frames.push_back(std::move(frame));
+    drive.truth.push_back({sim_frame.timestamp, sim_frame.world_from_cam});
+  }
+  return drive;
+}
+
 RecordSummary RecordSequence(Simulator* sim, const std::filesystem::path& out_dir, const RecordOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   KittiSequenceWriter writer(out_dir);

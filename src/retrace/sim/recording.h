@@ -12,11 +12,14 @@
 // The world frame is the simulator's (simulator.h): a level camera on the ground at the route's start.
 
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <opencv2/core.hpp>
 
+#include "retrace/dataset/ground_truth.h"
+#include "retrace/dataset/sequence.h"
 #include "retrace/sim/simulator.h"
 
 namespace retrace {
@@ -41,5 +44,15 @@ struct RecordSummary {
 // into `out_dir` (created if needed). Throws InputError when the folder cannot be written.
 RecordSummary RecordSequence(Simulator* simulator, const std::filesystem::path& out_dir,
                              const RecordOptions& options);
+
+// A drive recorded in memory (tests, benchmarks): the frames as a Sequence of the written folder gives them
+// (index = source_index = frame number, name NNNNNN.png) and their ground-truth poses (world_from_cam, as in
+// poses.txt).
+struct RecordedDrive {
+  std::unique_ptr<CameraModel> camera;
+  std::vector<Frame> frames;
+  std::vector<TimedPose> truth;
+};
+RecordedDrive RecordDrive(const Scenario& scenario);
 
 }  // namespace retrace

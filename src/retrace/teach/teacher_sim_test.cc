@@ -5,7 +5,7 @@
 
 #include <gtest/gtest.h>
 
-#include "retrace/sim/simulator.h"
+#include "retrace/sim/recording.h"
 #include "retrace/teach/map_report.h"
 #include "retrace/teach/teacher.h"
 
@@ -13,29 +13,6 @@
 
 namespace retrace {
 namespace {
-
-struct Drive {
-  std::unique_ptr<CameraModel> camera;
-  std::vector<Frame> frames;
-  std::vector<Rigid3d> world_from_cam;
-};
-
-Drive Record(const Scenario& scenario) {
-  Simulator simulator(scenario);
-  Drive drive;
-  drive.camera = simulator.camera().Clone();
-  SimFrame sim_frame;
-  while (simulator.NextFrame(&sim_frame)) {
-    Frame frame;
-    frame.index = frame.source_index = drive.frames.size();
-    frame.name = std::to_string(frame.index) + ".png";
-    frame.timestamp = sim_frame.timestamp;
-    frame.image = sim_frame.image;
-    drive.frames.push_back(frame);
-    drive.world_from_cam.push_back(sim_frame.world_from_cam);
-  }
-  return drive;
-}
 
 Scenario SmallTown() {
   Scenario scenario;
@@ -67,7 +44,7 @@ TEST(TeachSim, CircularRouteClosesTheLoop) {
     scenario.route.type = "waypoints";
     scenario.route.waypoints = waypoints;
   }
-  const Drive drive = Record(scenario);
+  const RecordedDrive drive = RecordDrive(scenario);
   ASSERT_GT(drive.frames.size(), 100u);
 
   if (std::getenv("RETRACE_DEBUG")) spdlog::set_level(spdlog::level::debug);
@@ -85,8 +62,8 @@ TEST(TeachSim, CircularRouteClosesTheLoop) {
   const MapNode* closing = map.FindNode(map.arcs().back().to);
   EXPECT_LT(closing->id, 5) << "the loop closes onto one of the first key-images";
   // The loop arc's geometry is the true relative pose of the two key-images.
-  const Rigid3d truth = drive.world_from_cam[closing->source_frame].Inverse() *
-                        drive.world_from_cam[map.nodes().back().source_frame];
+  const Rigid3d truth = drive.truth[closing->source_frame].world_from_cam.Inverse() *
+                        drive.truth[map.nodes().back().source_frame].world_from_cam;
   EXPECT_LT(RotationErrorDeg(map.arcs().back().to_from_from.rotation, truth.rotation), 1.0);
   EXPECT_LT(AngleBetweenDeg(map.arcs().back().to_from_from.translation, truth.translation), 10.0);
 }
@@ -95,13 +72,14 @@ TEST(TeachSim, FrameGapIsBridgedByMatching) {
   Scenario scenario = SmallTown();
   scenario.num_frames = 120;
   scenario.drive.max_speed = 6.0;
-  const Drive drive = Record(scenario);
+  const RecordedDrive drive = RecordDrive(scenario);
   ASSERT_EQ(drive.frames.size(), 120u);
   // 15 frames (about 9 m) missing in the middle of the drive, on a straight street: the first window after frame
   // 40 over which the camera turns by less than 2 degrees.
   size_t gap_begin = 40;
   while (gap_begin + 16 < drive.frames.size() &&
-         RotationErrorDeg(drive.world_from_cam[gap_begin - 1].rotation, drive.world_from_cam[gap_begin + 15].rotation) >
+         RotationErrorDeg(drive.truth[gap_begin - 1].world_from_cam.rotation,
+                          drive.truth[gap_begin + 15].world_from_cam.rotation) >
              2.0) {
     ++gap_begin;
   }
@@ -123,8 +101,8 @@ TEST(TeachSim, FrameGapIsBridgedByMatching) {
   ASSERT_NE(gap_arc, map.arcs().end());
   EXPECT_LT(map.FindNode(gap_arc->from)->source_frame, static_cast<int64_t>(gap_begin));
   EXPECT_GE(map.FindNode(gap_arc->to)->source_frame, static_cast<int64_t>(gap_end));
-  const Rigid3d truth = drive.world_from_cam[map.FindNode(gap_arc->to)->source_frame].Inverse() *
-                        drive.world_from_cam[map.FindNode(gap_arc->from)->source_frame];
+  const Rigid3d truth = drive.truth[map.FindNode(gap_arc->to)->source_frame].world_from_cam.Inverse() *
+                        drive.truth[map.FindNode(gap_arc->from)->source_frame].world_from_cam;
   // The gap arc rests on a few dozen matches across 9 m of 320x240 images; it connects the graph but is much less
   // accurate than tracked arcs. Its error is reported; the check only rules out relating the wrong places.
   const double rotation_error = RotationErrorDeg(gap_arc->to_from_from.rotation, truth.rotation);
@@ -139,7 +117,7 @@ TEST(TeachSim, KeyImagesAreDenserInTurns) {
   Scenario scenario = SmallTown();
   scenario.route.segments = 6;
   scenario.num_frames = 260;
-  const Drive drive = Record(scenario);
+  const RecordedDrive drive = RecordDrive(scenario);
   if (std::getenv("RETRACE_DEBUG")) spdlog::set_level(spdlog::level::debug);
   Teacher teacher(*drive.camera, TeachOptions(), nullptr);
   for (const Frame& frame : drive.frames) teacher.AddFrame(frame);
@@ -149,8 +127,8 @@ TEST(TeachSim, KeyImagesAreDenserInTurns) {
   std::vector<double> turn_lengths, straight_lengths;
   std::vector<double> turn_sigma, straight_sigma;
   for (const MapArc& arc : map.arcs()) {
-    const Rigid3d& a = drive.world_from_cam[map.FindNode(arc.from)->source_frame];
-    const Rigid3d& b = drive.world_from_cam[map.FindNode(arc.to)->source_frame];
+    const Rigid3d& a = drive.truth[map.FindNode(arc.from)->source_frame].world_from_cam;
+    const Rigid3d& b = drive.truth[map.FindNode(arc.to)->source_frame].world_from_cam;
     const double metres = (b.translation - a.translation).norm();
     const double degrees = RotationErrorDeg(a.rotation, b.rotation);
     if (degrees / std::max(metres, 0.1) > 2.0) {
