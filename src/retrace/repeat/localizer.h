@@ -203,7 +203,10 @@ struct FrameResult {
   double sigma_p = -1.0;                 // σ_p of the geometry used for the current arc's transfer
   double position_on_arc = 0.0;          // projection of the camera on the arc (0 at a, 1 at b), when known
   bool position_valid = false;
-  double steering = 0.0;  // Segvic 2009 eq. (10), radians (0 when not valid)
+  // Segvic 2009 eq. (10), radians (0 when not valid). Image x grows to the right, so w < 0 turns left: towards
+  // where the next key-image looks (checked against ground truth in repeat_sim_test). Simulator::Step takes
+  // positive = left, i.e. -w.
+  double steering = 0.0;
   bool steering_valid = false;
   int transition = 0;         // +1 forward, -1 backward, 0 none in this frame (+2: two arcs forward)
   bool bootstrapped = false;  // (re)initialised by wide-baseline matching in this frame
