@@ -2,7 +2,7 @@
 //
 // Writes one CSV row per input frame (flushed as written, so a live run can be followed with `tail -f`):
 //   frame,image,timestamp,state,arc,node_from,node_to,tracked,tracked_previous,tracked_current,tracked_next,
-//   resumed,rejected,dropped,drifted,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,steering,ms
+//   resumed,rejected,dropped,drifted,redefined,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,steering,ms
 // frame = 0-based index in the input sequence (after --every/--offset), state = tracking | lost | relocalizing,
 // node ids and arc -1 when not tracking, σ_p columns -1 when not estimated, ms = processing time of the frame.
 
@@ -193,7 +193,8 @@ void RunRepeat(const RepeatArguments& args) {
   std::ofstream csv(args.output);
   if (!csv) throw InputError(args.output.string(), "cannot be written");
   csv << "frame,image,timestamp,state,arc,node_from,node_to,tracked,tracked_previous,tracked_current,tracked_next,"
-         "resumed,rejected,dropped,drifted,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,steering,ms\n";
+         "resumed,rejected,dropped,drifted,redefined,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,"
+         "steering,ms\n";
   csv.flush();
   if (!args.overlay.empty()) std::filesystem::create_directories(args.overlay);
 
@@ -208,11 +209,12 @@ void RunRepeat(const RepeatArguments& args) {
         frame->image = resized;
       }
       FrameResult r = localizer.ProcessFrame(*frame);
-      csv << fmt::format("{},{},{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{:.3f},{:.3f},{:.3f},{:.4f},{},{:.5f},{:.2f}\n",
+      csv << fmt::format("{},{},{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.3f},{:.3f},{:.3f},{:.4f},{},"
+                         "{:.5f},{:.2f}\n",
                          frame->index, frame->name, frame->timestamp, LocalizerStateName(r.state), r.arc,
                          r.node_from, r.node_to, r.tracked, r.tracked_by_role[0], r.tracked_by_role[1],
-                         r.tracked_by_role[2], r.resumed, r.rejected, r.dropped, r.drifted, r.sigma_p, r.sigma_p_from,
-                         r.sigma_p_to, r.position_valid ? r.position_on_arc : 0.0, r.transition,
+                         r.tracked_by_role[2], r.resumed, r.rejected, r.dropped, r.drifted, r.redefined, r.sigma_p,
+                         r.sigma_p_from, r.sigma_p_to, r.position_valid ? r.position_on_arc : 0.0, r.transition,
                          r.steering_valid ? r.steering : 0.0, 1000.0 * r.seconds);
       csv.flush();
       if (!csv) throw InputError(args.output.string(), "write failed");

@@ -32,17 +32,6 @@ constexpr int kMaxScaleWindowStride = 3;
 // Largest side of a sampled grid (the dense grid from which a strided reference window is cut).
 constexpr int kMaxSampledSide = (kMaxWindowSize - 1) * kMaxScaleWindowStride + 3;
 
-// Bilinear sample of a CV_32FC1 image; the caller guarantees 0 <= x < cols - 1 and 0 <= y < rows - 1.
-inline float SampleBilinear(const cv::Mat& image, double x, double y) {
-  const int ix = static_cast<int>(x), iy = static_cast<int>(y);
-  const float fx = static_cast<float>(x - ix), fy = static_cast<float>(y - iy);
-  const float* r0 = image.ptr<float>(iy) + ix;
-  const float* r1 = image.ptr<float>(iy + 1) + ix;
-  const float top = r0[0] + fx * (r0[1] - r0[0]);
-  const float bottom = r1[0] + fx * (r1[1] - r1[0]);
-  return top + fy * (bottom - top);
-}
-
 // Keys cubic convolution weights (a = -0.5) of the four samples floor(x) - 1 .. floor(x) + 2 at fraction f.
 inline void CubicWeights(float f, float* w) {
   const float f2 = f * f, f3 = f2 * f;

@@ -437,7 +437,9 @@ void Localizer::Localize(FrameResult* result) {
   }
   // The three-view geometry of the current arc: W_k adjusted to the more accurate current geometry.
   std::optional<PointTransfer> transfer_current;
-  if (transfer_a && (!transfer_b || geometry_a.geometry.sigma_p <= geometry_b.geometry.sigma_p)) {
+  const bool current_uses_a =
+      transfer_a && (!transfer_b || geometry_a.geometry.sigma_p <= geometry_b.geometry.sigma_p);
+  if (current_uses_a) {
     transfer_current = transfer_a;
     result->sigma_p = geometry_a.geometry.sigma_p;
   } else if (transfer_b) {
@@ -468,8 +470,11 @@ void Localizer::Localize(FrameResult* result) {
     }
   }
 
-  ArcPosition position;
-  if (transfer_current) position = LocateOnArc(transfer_current->current_from_a(), arc->arc->to_from_from);
+  // The camera on the arc through each current geometry, and through the one used for the transfer.
+  ArcPosition position_a, position_b;
+  if (transfer_a) position_a = LocateOnArc(transfer_a->current_from_a(), arc->arc->to_from_from);
+  if (transfer_b) position_b = LocateOnArc(transfer_b->current_from_a(), arc->arc->to_from_from);
+  const ArcPosition position = !transfer_current ? ArcPosition() : (current_uses_a ? position_a : position_b);
   result->position_valid = position.valid;
   result->position_on_arc = position.along;
 
@@ -592,9 +597,6 @@ void Localizer::Localize(FrameResult* result) {
   // Continuity: the camera moves steadily along the arc, so a position that jumps from the last accepted one (a
   // current geometry right after a transition or a bootstrap, estimated from few features, can place the camera
   // far ahead) is not believed: it decides no transition and makes the frame a bad one.
-  ArcPosition position_a, position_b;
-  if (transfer_a) position_a = LocateOnArc(transfer_a->current_from_a(), arc->arc->to_from_from);
-  if (transfer_b) position_b = LocateOnArc(transfer_b->current_from_a(), arc->arc->to_from_from);
   const bool had_progress = progress_.has_value();
   const bool continuous_a = position_a.valid && ProgressContinuous(position_a.along);
   const bool continuous_b = position_b.valid && ProgressContinuous(position_b.along);
