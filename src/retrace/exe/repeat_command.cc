@@ -234,17 +234,19 @@ void RunRepeat(const RepeatArguments& args) {
   }
   if (!args.overlay.empty()) WriteTrackedPlot(results, args.overlay / "tracked.png");
 
-  int tracking = 0, lost = 0, transitions = 0;
+  // Re-initialisations: every bootstrap after the first one (a loss, recovered in the same frame or later).
+  int tracking = 0, bootstraps = 0, transitions = 0;
   double seconds = 0;
   for (const FrameResult& r : results) {
     tracking += r.state == LocalizerState::kTracking;
-    lost += r.state == LocalizerState::kLost;
+    bootstraps += r.bootstrapped;
     transitions += r.transition != 0;
     seconds += r.seconds;
   }
-  std::cout << fmt::format("repeat: {} frames, {} tracking, {} lost events, {} transitions; {:.1f} ms/frame "
+  std::cout << fmt::format("repeat: {} frames, {} tracking, {} re-initialisations, {} transitions; {:.1f} ms/frame "
                            "({:.1f} frames/s)\n",
-                           results.size(), tracking, lost, transitions, 1000.0 * seconds / std::max<size_t>(1, results.size()),
+                           results.size(), tracking, std::max(0, bootstraps - 1), transitions,
+                           1000.0 * seconds / std::max<size_t>(1, results.size()),
                            results.size() / std::max(seconds, 1e-9));
 
   if (args.evaluate) {

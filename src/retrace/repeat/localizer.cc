@@ -266,6 +266,7 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
                                      std::to_string(camera_->width()) + "x" + std::to_string(camera_->height()));
   }
   ++frame_counter_;
+  if (state_ == LocalizerState::kLost) state_ = LocalizerState::kRelocalizing;
   FrameResult result;
   result.frame_index = frame.index;
   pyramid_.Build(frame.image, pyramid_options_);
@@ -279,14 +280,17 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
       it = tracker_.Find(it->first) == nullptr ? reference_node_.erase(it) : std::next(it);
     }
     Localize(&result);
-  } else {
+  }
+  // Not localized (before, or lost in this very frame): re-initialise from this frame, so that a loss costs no
+  // extra frame. A frame that lost track and could not be re-initialised is reported `lost`, the following ones
+  // `relocalizing` until one succeeds.
+  if (state_ != LocalizerState::kTracking) {
     if (Bootstrap(frame, &result)) {
       state_ = LocalizerState::kTracking;
       bad_frames_ = 0;
       result.bootstrapped = true;
+      result.sigma_p_from = result.sigma_p_to = result.sigma_p = -1.0;
       Localize(&result);
-    } else {
-      state_ = LocalizerState::kRelocalizing;
     }
   }
 
