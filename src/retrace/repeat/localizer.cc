@@ -604,7 +604,7 @@ void Localizer::Localize(FrameResult* result) {
   const bool had_progress = progress_.has_value();
   const bool continuous_a = position_a.valid && ProgressContinuous(position_a.along);
   const bool continuous_b = position_b.valid && ProgressContinuous(position_b.along);
-  const double last_progress = progress_.value_or(0.0);
+  const double last_progress = progress_ ? progress_->along : 0.0;
   const bool continuous = AcceptProgress(position.valid ? std::optional<double>(position.along) : std::nullopt);
 
   // Health: enough features of the current arc, a trustworthy current geometry and a continuous position, else
@@ -649,39 +649,80 @@ void Localizer::Localize(FrameResult* result) {
   }
   if ((direction > 0 && next == nullptr) || (direction < 0 && previous == nullptr)) direction = 0;
   if (direction == 0) return;
-  // The position on the new arc, from the same transfer chained into its frame.
-  std::optional<double> along_next;
-  if (direction > 0 && predict_next && next != nullptr) {
-    along_next = LocateOnArc(predict_next->current_from_a, next->arc->to_from_from).along;
-  }
+  // The camera has just crossed the plane through the node (eq. (9)). Its position and speed carry over into the new
+  // arc's unit through the relative scale stored at the node: past b by the overshoot (before a by the undershoot
+  // after a backward transition). Without a stored scale it is placed at the node with an unknown speed.
+  const ArcProgress before = progress_.value_or(ArcProgress{direction > 0 ? 1.0 : 0.0, 0.0, frame_counter_, false});
+  const arc_t left = arc_;
   ApplyTransition(direction, result);
-  // The camera has just crossed the plane through the node (eq. (9)): it is at the start of the new arc (at its end
-  // after a backward transition), whatever a chained, weakly determined transfer says.
-  progress_ = direction > 0 ? 0.0 : 1.0;
-  // Short arcs (dense key-images, dropped frames): the camera may have passed the next arc's end too (eq. (9) as a
-  // plane test in that arc's frame).
-  if (direction > 0 && along_next && *along_next > 1.0 && next->next != kInvalidArcId) {
+  const auto carry = [this](const ArcProgress& old_progress, arc_t old_arc, int step) {
+    const std::optional<double> factor = UnitRatio(old_arc, arc_, step);
+    ArcProgress carried{step > 0 ? 0.0 : 1.0, 0.0, frame_counter_, false};
+    if (factor) {
+      carried.along = step > 0 ? std::max(0.0, old_progress.along - 1.0) * *factor
+                               : 1.0 + std::min(0.0, old_progress.along) * *factor;
+      carried.speed = old_progress.speed * *factor;
+      carried.speed_known = old_progress.speed_known;
+      carried.num_steps = old_progress.num_steps;
+      for (int i = 0; i < old_progress.num_steps; ++i) carried.steps[i] = old_progress.steps[i] * *factor;
+    }
+    return carried;
+  };
+  progress_ = carry(before, left, direction);
+  // Short arcs (dense key-images in turns, dropped frames): the camera may have passed the new arc's end too.
+  if (direction > 0 && progress_->along > 1.0 && Arc(arc_)->next != kInvalidArcId) {
+    const arc_t passed = arc_;
+    const ArcProgress on_passed = *progress_;
     ApplyTransition(+1, result);
     result->transition = 2;
-    progress_ = 0.0;
+    progress_ = carry(on_passed, passed, +1);
   }
 }
 
-bool PositionContinuous(const std::optional<double>& last_along, double along, double max_step) {
-  return !last_along || std::abs(along - *last_along) <= max_step;
+std::optional<double> Localizer::UnitRatio(arc_t old_arc, arc_t new_arc, int direction) const {
+  // Design §1: a length in units of the arc leaving a node times the stored scale is the same length in units of
+  // the arc entering it.
+  const ArcData* old_data = Arc(old_arc);
+  const std::optional<double> scale = direction > 0 ? map_.ScaleAt(old_data->arc->to, old_arc, new_arc)
+                                                    : map_.ScaleAt(old_data->arc->from, new_arc, old_arc);
+  if (!scale || !(*scale > 0)) return std::nullopt;
+  return direction > 0 ? 1.0 / *scale : *scale;
+}
+
+bool PositionContinuous(const std::optional<ArcProgress>& last, size_t frame, double along, double max_step) {
+  if (!last) return true;
+  const double frames = frame > last->frame ? static_cast<double>(frame - last->frame) : 0.0;
+  const double speed = last->speed_known ? last->speed : 0.0;
+  const double expected = last->along + speed * frames;
+  // A camera that covers more than max_step per frame (short arcs) is allowed one frame of its motion as the
+  // tolerance (not the motion of all frames since: one noisy speed would then excuse ever larger jumps).
+  return std::abs(along - expected) <= std::max(max_step, std::abs(speed));
 }
 
 bool Localizer::ProgressContinuous(double along) const {
-  return PositionContinuous(progress_, along, options_.max_progress_step);
+  return PositionContinuous(progress_, frame_counter_, along, options_.max_progress_step);
 }
 
 bool Localizer::AcceptProgress(std::optional<double> along) {
   if (!along) return true;
-  if (ProgressContinuous(*along)) {
-    progress_ = *along;
-    return true;
+  if (!ProgressContinuous(*along)) return false;
+  ArcProgress accepted = progress_.value_or(ArcProgress());
+  accepted.along = *along;
+  accepted.frame = frame_counter_;
+  if (progress_ && frame_counter_ > progress_->frame) {
+    // The speed along the arc (arc lengths per frame) is the median of the last three steps: one noisy position
+    // (0.28 -> 0.95 -> 3.06 on an arc covered in 7 frames in the simulated town) must not set the expected motion.
+    const double step = (*along - progress_->along) / static_cast<double>(frame_counter_ - progress_->frame);
+    for (int i = static_cast<int>(accepted.steps.size()) - 1; i > 0; --i) accepted.steps[i] = accepted.steps[i - 1];
+    accepted.steps[0] = step;
+    accepted.num_steps = std::min<int>(accepted.num_steps + 1, accepted.steps.size());
+    accepted.speed = accepted.num_steps == 2 ? 0.5 * (accepted.steps[0] + accepted.steps[1])
+                                             : Median(std::vector<double>(accepted.steps.begin(),
+                                                                          accepted.steps.begin() + accepted.num_steps));
+    accepted.speed_known = true;
   }
-  return false;
+  progress_ = accepted;
+  return true;
 }
 
 void Localizer::ApplyTransition(int direction, FrameResult* result) {

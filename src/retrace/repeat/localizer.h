@@ -34,10 +34,13 @@
 //  7. topological transition (eq. (9)): forward when the camera centre passes the plane through b's centre
 //     perpendicular to the arc's direction of travel, decided with W_t:b (with W_t:a's position when W_t:b has no
 //     parallax, i.e. the camera is at b); backward symmetrically with W_t:a (with a small margin against
-//     flicker); cancelled when the geometry's σ_p is too large, and when the position along the arc jumped by more
-//     than `max_progress_step` from the last accepted one (continuity: such a jump is a bad frame, several of them
+//     flicker); cancelled when the geometry's σ_p is too large, and when the position along the arc is farther than
+//     max(`max_progress_step`, one frame of motion) from where the last accepted position and the camera's speed
+//     along the arc (median of its last three steps) put it (continuity: such a jump is a bad frame, several of them
 //     make the localizer lost — right after a transition a geometry from few far features once placed the camera a
-//     whole arc ahead). After a transition the features of the arc two behind are dropped and the references are
+//     whole arc ahead). Position and speed carry over into the next arc through the relative scale stored at the
+//     node, and a camera past the new arc's end too makes a second transition (short arcs: kitti07 at 320 px passes
+//     about one arc per frame in its turns). After a transition the features of the arc two behind are dropped and the references are
 //     redefined (§5.2.2): the new current arc's features are re-aligned against the key-image now approached, the
 //     previous arc's against the key-image just passed; a feature whose new reference does not align at its
 //     current position keeps the old one (re-cutting blindly lost most tracks in kitti07's turns);
@@ -250,9 +253,20 @@ int DecideTransition(const TwoViewGeometry* current_from_b, const ArcPosition& p
                      const TwoViewGeometry* current_from_a, const Rigid3d& arc_b_from_a, double max_sigma_p_px,
                      double backward_margin);
 
-// Continuity of the position along an arc (arc lengths): a new position is believed when no earlier one is known
-// on this arc or when it moved by at most `max_step` from the last accepted one.
-bool PositionContinuous(const std::optional<double>& last_along, double along, double max_step);
+// The last accepted position of the camera along the current arc and its speed.
+struct ArcProgress {
+  double along = 0.0;        // arc lengths (0 at a, 1 at b)
+  double speed = 0.0;        // arc lengths per frame: median of the last steps, when speed_known
+  size_t frame = 0;          // frame counter of the acceptance
+  bool speed_known = false;
+  std::array<double, 3> steps{};  // the last steps (arc lengths per frame), newest first
+  int num_steps = 0;
+};
+
+// Continuity of the position along an arc (arc lengths): a new position in frame `frame` is believed when no
+// earlier one is known on this arc, or when it lies within max(`max_step`, the distance covered at the last speed)
+// of where the last accepted position and speed put the camera now.
+bool PositionContinuous(const std::optional<ArcProgress>& last, size_t frame, double along, double max_step);
 
 class Localizer {
  public:
@@ -310,6 +324,9 @@ class Localizer {
   // Continuity of the position along the current arc: true when `along` is within max_progress_step of the last
   // accepted position (or none is known yet); AcceptProgress records a measurement.
   bool ProgressContinuous(double along) const;
+  // Length conversion across the node between consecutive arcs (direction +1: `new_arc` follows `old_arc`): a
+  // length in units of `old_arc` times this is the same length in units of `new_arc`; none without a stored scale.
+  std::optional<double> UnitRatio(arc_t old_arc, arc_t new_arc, int direction) const;
   bool AcceptProgress(std::optional<double> along);
   // Resumes untracked features of `arc` seen in key-image `node`, predicted from the displacement (key-image ->
   // current image) of the tracked features seen there that lie nearby.
@@ -342,7 +359,7 @@ class Localizer {
   arc_t start_arc_ = kInvalidArcId;
   int bad_frames_ = 0;
   arc_t last_arc_ = kInvalidArcId;       // the arc where the localizer was last lost
-  std::optional<double> progress_;       // last accepted position along the current arc (arc lengths)
+  std::optional<ArcProgress> progress_;  // last accepted position along the current arc and its speed
   node_t last_passed_ = kInvalidNodeId;  // the key-image passed by the last transition
   // Key-image each tracked feature takes its reference from.
   std::unordered_map<feature_t, node_t> reference_node_;

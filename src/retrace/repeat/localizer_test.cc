@@ -143,17 +143,30 @@ TEST(DecideTransition, ForwardBackwardAndCancelled) {
 }
 
 TEST(PositionContinuous, BelievesSteadyMotionNotJumps) {
+  const auto at = [](double along, size_t frame) { return std::optional<ArcProgress>(ArcProgress{along, 0.0, frame, false}); };
+  const auto moving = [](double along, double speed, size_t frame) {
+    return std::optional<ArcProgress>(ArcProgress{along, speed, frame, true});
+  };
   // Nothing known yet on this arc (after a bootstrap): any position.
-  EXPECT_TRUE(PositionContinuous(std::nullopt, 0.8, 0.75));
+  EXPECT_TRUE(PositionContinuous(std::nullopt, 5, 0.8, 0.75));
   // Steady progress, also backwards (noise) and with dropped frames.
-  EXPECT_TRUE(PositionContinuous(0.30, 0.45, 0.75));
-  EXPECT_TRUE(PositionContinuous(0.30, 0.25, 0.75));
-  EXPECT_TRUE(PositionContinuous(0.30, 1.05, 0.75));
+  EXPECT_TRUE(PositionContinuous(at(0.30, 4), 5, 0.45, 0.75));
+  EXPECT_TRUE(PositionContinuous(at(0.30, 4), 5, 0.25, 0.75));
+  EXPECT_TRUE(PositionContinuous(at(0.30, 4), 6, 1.05, 0.75));
   // Right after a transition (0 on the new arc) a geometry from few far features placed the camera at 0.82
-  // of the new arc in the simulated town: not believed.
-  EXPECT_FALSE(PositionContinuous(0.0, 0.82, 0.75));
-  EXPECT_FALSE(PositionContinuous(0.72, 2.0, 0.75));
-  EXPECT_FALSE(PositionContinuous(0.9, 0.1, 0.75));
+  // of the new arc in the simulated town, where the camera covers ~0.17 arc per frame: not believed.
+  EXPECT_FALSE(PositionContinuous(at(0.0, 4), 5, 0.82, 0.75));
+  EXPECT_FALSE(PositionContinuous(moving(0.0, 0.17, 4), 5, 0.98, 0.75));
+  EXPECT_FALSE(PositionContinuous(at(0.72, 4), 5, 2.0, 0.75));
+  EXPECT_FALSE(PositionContinuous(at(0.9, 4), 5, 0.1, 0.75));
+  // Short arcs (kitti07 at 320 px in turns): the camera covers about one arc per frame, and the position is
+  // predicted from the speed, with that motion as the tolerance.
+  EXPECT_TRUE(PositionContinuous(moving(0.27, 1.0, 4), 5, 1.50, 0.75));
+  EXPECT_TRUE(PositionContinuous(moving(0.27, 1.0, 4), 7, 3.20, 0.75));
+  EXPECT_FALSE(PositionContinuous(moving(0.95, 0.17, 4), 6, 2.67, 0.75));
+  EXPECT_FALSE(PositionContinuous(moving(0.27, 1.0, 4), 5, 3.50, 0.75));
+  // ... and a camera that stopped is not expected to move on.
+  EXPECT_FALSE(PositionContinuous(moving(0.5, 0.0, 4), 5, 1.4, 0.75));
 }
 
 TEST(LocalizerOptions, CheckRejectsBadValues) {
