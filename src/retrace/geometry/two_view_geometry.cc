@@ -101,21 +101,6 @@ std::vector<int> InlierIndices(const Rigid3d& pose, const std::vector<Vector3d>&
   return indices;
 }
 
-int RequiredIterations(double inlier_ratio, int sample_size, double confidence) {
-  const double all_inliers = std::pow(inlier_ratio, sample_size);
-  if (all_inliers >= 1.0 - 1e-12) return 0;
-  if (all_inliers <= 1e-12) return std::numeric_limits<int>::max();
-  const double n = std::log(1.0 - confidence) / std::log(1.0 - all_inliers);
-  return n >= std::numeric_limits<int>::max() ? std::numeric_limits<int>::max() : static_cast<int>(std::ceil(n));
-}
-
-bool ValidBearings(const std::vector<Vector3d>& bearings) {
-  for (const Vector3d& f : bearings) {
-    if (!f.allFinite() || std::abs(f.squaredNorm() - 1.0) > 1e-6) return false;
-  }
-  return true;
-}
-
 }  // namespace
 
 void EvaluateTwoViewGeometry(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
@@ -176,6 +161,22 @@ void EvaluateTwoViewGeometry(const std::vector<Vector3d>& bearings_a, const std:
 }
 
 namespace internal {
+
+int RequiredIterations(double inlier_ratio, int sample_size, double confidence) {
+  const double all_inliers = std::pow(inlier_ratio, sample_size);
+  if (all_inliers >= 1.0 - 1e-12) return 0;
+  if (all_inliers <= 1e-12) return std::numeric_limits<int>::max();
+  const double n = std::log(1.0 - confidence) / std::log(1.0 - all_inliers);
+  return n >= std::numeric_limits<int>::max() ? std::numeric_limits<int>::max() : static_cast<int>(std::ceil(n));
+}
+
+bool ValidBearings(const std::vector<Vector3d>& bearings) {
+  for (const Vector3d& f : bearings) {
+    if (!f.allFinite() || std::abs(f.squaredNorm() - 1.0) > 1e-6) return false;
+  }
+  return true;
+}
+
 
 Rigid3d RefineOnSampson(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
                         const std::vector<int>& indices, const Rigid3d& initial, const PoseManifold& manifold,

@@ -115,6 +115,12 @@ struct PoseManifold {
   std::function<Rigid3d(const Rigid3d& pose, const double* delta)> update;
 };
 
+// Samples needed so that one of them is outlier-free with probability `confidence`, at this inlier ratio:
+// log(1 - confidence) / log(1 - inlier_ratio^sample_size) (0 when all are inliers, INT_MAX when none is).
+int RequiredIterations(double inlier_ratio, int sample_size, double confidence);
+// True when every bearing is a finite unit vector.
+bool ValidBearings(const std::vector<Vector3d>& bearings);
+
 // The robust loop, refinement and final evaluation shared by the 5-point and planar estimators.
 TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
                                 double focal_length_px, const TwoViewOptions& options, int sample_size,

@@ -1,0 +1,171 @@
+#include "retrace/geometry/absolute_pose.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <opengv/absolute_pose/CentralAbsoluteAdapter.hpp>
+#include <opengv/absolute_pose/methods.hpp>
+#include <random>
+
+#include "retrace/geometry/sigma_p.h"
+#include "retrace/geometry/triangulation.h"
+
+namespace retrace {
+namespace {
+
+// OpenGV's convention: a transformation [R | t] gives the camera's orientation (camera -> world) and position
+// in the world frame.
+Rigid3d CamFromWorld(const opengv::transformation_t& world_from_cam) {
+  const Matrix3d rotation = world_from_cam.block<3, 3>(0, 0);
+  const Vector3d centre = world_from_cam.col(3);
+  return Rigid3d(rotation.transpose(), -rotation.transpose() * centre);
+}
+
+// Squared residual (radians²) of one correspondence; a point behind the camera along its ray gets a residual
+// of at least one radian (TangentResidualPx), so it never counts as an inlier.
+double SquaredResidual(const Rigid3d& cam_from_world, const Vector3d& point, const Vector3d& bearing) {
+  return TangentResidualPx(bearing, cam_from_world * point, 1.0).squaredNorm();
+}
+
+std::vector<int> InlierIndices(const Rigid3d& pose, const std::vector<Vector3d>& points,
+                               const std::vector<Vector3d>& bearings, double tau2) {
+  std::vector<int> inliers;
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (SquaredResidual(pose, points[i], bearings[i]) <= tau2) inliers.push_back(static_cast<int>(i));
+  }
+  return inliers;
+}
+
+AbsolutePose Failure(const std::string& message, size_t n) {
+  AbsolutePose pose;
+  pose.failure_message = message;
+  pose.inlier_mask.assign(n, false);
+  return pose;
+}
+
+}  // namespace
+
+bool AbsolutePoseOptions::Check(std::string* error) const {
+  const auto fail = [&](const char* message) {
+    if (error != nullptr) *error = message;
+    return false;
+  };
+  if (!ransac.Check()) return fail("invalid sampling options");
+  if (min_inliers < 4) return fail("min_inliers must be >= 4");
+  if (refinement_rounds < 0) return fail("refinement_rounds must be >= 0");
+  if (!(sigma_p_probability > 0 && sigma_p_probability < 1))
+    return fail("sigma_p_probability must lie in (0, 1)");
+  return true;
+}
+
+AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world,
+                                  const std::vector<Vector3d>& bearings, double focal_length_px,
+                                  const AbsolutePoseOptions& options) {
+  const size_t n = points_in_world.size();
+  constexpr int kSampleSize = 3;
+  std::string error;
+  if (!options.Check(&error)) return Failure("invalid options: " + error, n);
+  if (bearings.size() != n)
+    return Failure("points and bearings differ in number", std::max(n, bearings.size()));
+  if (!(focal_length_px > 0.0) || !std::isfinite(focal_length_px))
+    return Failure("focal length must be positive", n);
+  if (!internal::ValidBearings(bearings)) return Failure("bearings must be finite unit vectors", n);
+  for (const Vector3d& p : points_in_world) {
+    if (!p.allFinite()) return Failure("points must be finite", n);
+  }
+  const int min_needed = std::max(kSampleSize + 1, options.min_inliers);
+  if (static_cast<int>(n) < min_needed) {
+    return Failure("too few correspondences: " + std::to_string(n) + " < " + std::to_string(min_needed), n);
+  }
+
+  const opengv::bearingVectors_t opengv_bearings(bearings.begin(), bearings.end());
+  const opengv::points_t opengv_points(points_in_world.begin(), points_in_world.end());
+  opengv::absolute_pose::CentralAbsoluteAdapter adapter(opengv_bearings, opengv_points);
+
+  const double tau = options.ransac.max_error_px / focal_length_px;
+  const double tau2 = tau * tau;
+  std::mt19937_64 rng(options.ransac.seed);
+  std::vector<int> pool(n);
+  std::iota(pool.begin(), pool.end(), 0);
+  std::vector<int> sample(kSampleSize);
+
+  Rigid3d best_pose;
+  double best_cost = std::numeric_limits<double>::infinity();
+  int required = options.ransac.max_iterations;
+  int iteration = 0;
+  for (; iteration < options.ransac.max_iterations &&
+         (iteration < options.ransac.min_iterations || iteration < required);
+       ++iteration) {
+    for (int k = 0; k < kSampleSize; ++k) {
+      std::uniform_int_distribution<int> pick(k, static_cast<int>(n) - 1);
+      std::swap(pool[k], pool[pick(rng)]);
+      sample[k] = pool[k];
+    }
+    for (const opengv::transformation_t& solution : opengv::absolute_pose::p3p_kneip(adapter, sample)) {
+      if (!solution.allFinite()) continue;
+      const Rigid3d pose = CamFromWorld(solution);
+      double cost = 0.0;
+      int inliers = 0;
+      for (size_t i = 0; i < n && cost < best_cost; ++i) {
+        const double e2 = SquaredResidual(pose, points_in_world[i], bearings[i]);
+        inliers += e2 <= tau2;
+        cost += std::min(e2, tau2);
+      }
+      if (cost < best_cost) {
+        best_cost = cost;
+        best_pose = pose;
+        required = std::max(options.ransac.min_iterations,
+                            internal::RequiredIterations(static_cast<double>(inliers) / n, kSampleSize,
+                                                         options.ransac.confidence));
+      }
+    }
+  }
+  if (!std::isfinite(best_cost)) {
+    AbsolutePose failure = Failure("no hypothesis", n);
+    failure.num_iterations = iteration;
+    return failure;
+  }
+
+  // Local optimisation: refine on the inliers, re-select, refine again while the inlier set grows.
+  Rigid3d pose = best_pose;
+  std::vector<int> inliers = InlierIndices(pose, points_in_world, bearings, tau2);
+  for (int round = 0; round < options.refinement_rounds && static_cast<int>(inliers.size()) >= min_needed;
+       ++round) {
+    const Rigid3d world_from_cam = pose.Inverse();
+    adapter.setR(world_from_cam.rotation);
+    adapter.sett(world_from_cam.translation);
+    const opengv::transformation_t refined_transformation =
+        opengv::absolute_pose::optimize_nonlinear(adapter, inliers);
+    if (!refined_transformation.allFinite()) break;
+    const Rigid3d refined = CamFromWorld(refined_transformation);
+    std::vector<int> refined_inliers = InlierIndices(refined, points_in_world, bearings, tau2);
+    if (refined_inliers.size() < inliers.size()) break;
+    pose = refined;
+    const bool same = refined_inliers == inliers;
+    inliers.swap(refined_inliers);
+    if (same) break;
+  }
+
+  AbsolutePose result;
+  result.cam_from_world = pose;
+  result.num_iterations = iteration;
+  result.inlier_mask.assign(n, false);
+  double sum_squares = 0.0;
+  for (const int i : inliers) {
+    result.inlier_mask[i] = true;
+    sum_squares += TangentResidualPx(bearings[i], pose * points_in_world[i], focal_length_px).squaredNorm();
+  }
+  result.num_inliers = static_cast<int>(inliers.size());
+  if (result.num_inliers < options.min_inliers) {
+    result.failure_message = "too few inliers: " + std::to_string(result.num_inliers) + " < " +
+                             std::to_string(options.min_inliers);
+    return result;
+  }
+  result.sigma_p =
+      SigmaPFromSumSquares(sum_squares, result.num_inliers, options.sigma_p_probability);  // eq. (6)
+  result.rms_residual_px = std::sqrt(sum_squares / (2.0 * result.num_inliers));
+  result.success = true;
+  return result;
+}
+
+}  // namespace retrace

@@ -1,0 +1,78 @@
+#pragma once
+
+// Absolute pose of a calibrated camera from 2D-3D correspondences on unit bearing vectors: where a camera is
+// in a reconstruction. Repeat uses it to place the current camera in the reconstruction of the current arc
+// (the points Q_kj of W_k, stored in the map), which fixes the camera's position in the arc's own frame and
+// unit directly, without the separate scale estimate of the decomposed point transfer (point_transfer.h).
+//
+// Robust estimation, as for the two-view geometries (two_view_geometry.h):
+//  - hypotheses from random minimal samples of three correspondences, solved by Kneip's P3P (Kneip,
+//    Scaramuzza, Siegwart, "A novel parametrization of the perspective-three-point problem for a direct
+//    computation of absolute camera position and orientation", CVPR 2011; via OpenGV), up to four poses each;
+//  - MSAC scoring, Σ_i min(e_i², τ²), with e_i the angle between the observed bearing and the direction to
+//    the point in the camera, times the focal length (pixels); a point behind the camera (on the wrong side
+//    along its ray) costs τ²;
+//  - adaptive number of samples from the best inlier ratio, N = log(1 - confidence) / log(1 - w³);
+//  - the best hypothesis is refined on its inliers by OpenGV's non-linear optimisation (Levenberg-Marquardt
+//    on the bearing errors), inliers re-selected and refined again while the inlier set grows;
+//  - σ_p (Segvic 2009, eq. (6)) from the inliers' residual components in the tangent plane of each observed
+//    bearing, in pixels (sigma_p.h): the same quality measure and the same gate as the two-view geometries.
+//
+// Works for perspective and omnidirectional cameras (bearings anywhere on the sphere).
+//
+// Example:
+//   AbsolutePose pose = EstimateAbsolutePose(points_in_arc, bearings_now, camera.FocalLength(), options);
+//   if (pose.success) use(pose.cam_from_world, pose.sigma_p);
+
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "retrace/geometry/two_view_geometry.h"
+#include "retrace/util/types.h"
+
+namespace retrace {
+
+struct AbsolutePoseOptions {
+  // Sampling: τ = max_error_px (angle times focal length), confidence, sample bounds, seed. Tracked features
+  // have few outliers, so the minimum number of samples is low.
+  RansacOptions ransac = [] {
+    RansacOptions r;
+    r.min_iterations = 20;
+    return r;
+  }();
+  // Fewer inliers than this is a failure: the pose has 6 degrees of freedom, and a few more points make σ_p
+  // (which penalises small supports) meaningful.
+  int min_inliers = 6;
+  // Rounds of refinement and re-selection of the inliers.
+  int refinement_rounds = 3;
+  // Tolerated probability p of σ_p (Segvic 2009, eq. (6)).
+  double sigma_p_probability = 0.05;
+
+  bool Check(std::string* error = nullptr) const;
+};
+
+struct AbsolutePose {
+  bool success = false;
+  std::string failure_message;  // empty on success
+
+  // x_cam = R x_world + t, in the unit of the given points.
+  Rigid3d cam_from_world;
+  std::vector<bool> inlier_mask;  // per correspondence
+  int num_inliers = 0;
+  // Segvic 2009, eq. (6), from the inliers' residuals, pixels.
+  double sigma_p = std::numeric_limits<double>::infinity();
+  // RMS of the inliers' residual components, pixels.
+  double rms_residual_px = std::numeric_limits<double>::infinity();
+  int num_iterations = 0;  // samples drawn
+};
+
+// Robust absolute pose from correspondences points_in_world[i] <-> bearings[i] (unit vectors in the camera
+// frame). `focal_length_px` converts the pixel thresholds to angles (CameraModel::FocalLength()). Never
+// throws; failures (too few correspondences or inliers, invalid input, no hypothesis) are reported in the
+// result.
+AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world,
+                                  const std::vector<Vector3d>& bearings, double focal_length_px,
+                                  const AbsolutePoseOptions& options = AbsolutePoseOptions());
+
+}  // namespace retrace
