@@ -8,6 +8,7 @@
 #include <Eigen/SVD>
 #include <spdlog/spdlog.h>
 
+#include "retrace/geometry/absolute_pose.h"
 #include "retrace/geometry/relative_pose.h"
 #include "retrace/util/error.h"
 
@@ -23,6 +24,12 @@ double Median(std::vector<double> values) {
 
 Vector3d CameraCentre(const Rigid3d& cam_from_world) {
   return -cam_from_world.rotation.transpose() * cam_from_world.translation;
+}
+
+// Where the last accepted position and the camera's speed along the arc put it in frame `frame`.
+double ExpectedAlong(const ArcProgress& last, size_t frame) {
+  const double frames = frame > last.frame ? static_cast<double>(frame - last.frame) : 0.0;
+  return last.along + (last.speed_known ? last.speed : 0.0) * frames;
 }
 
 }  // namespace
@@ -54,7 +61,7 @@ bool LocalizerOptions::Check(std::string* error) const {
   if (!(max_drift_px > 0)) return fail("max_drift_px must be positive");
   if (!(backward_margin >= 0)) return fail("backward_margin must be >= 0");
   if (!(min_parallax_px >= 0)) return fail("min_parallax_px must be >= 0");
-  if (!(transition_agreement > 0)) return fail("transition_agreement must be > 0");
+  if (!(position_agreement >= 0) || !(transfer_agreement > 0)) return fail("agreement tolerances must be positive");
   if (!(max_progress_step > 0)) return fail("max_progress_step must be > 0");
   if (retry_interval < 1) return fail("retry_interval must be >= 1");
   if (min_features < 8) return fail("min_features must be >= 8");
@@ -65,6 +72,8 @@ bool LocalizerOptions::Check(std::string* error) const {
   if (!(bootstrap_neighbour_radius_px > 0) || !(bootstrap_radius_px > 0)) return fail("invalid bootstrap radii");
   if (!tracker.Check()) return fail("invalid tracker options");
   if (!geometry.Check()) return fail("invalid geometry options");
+  std::string pose_error;
+  if (!pose.Check(&pose_error)) return fail("pose: " + pose_error);
   std::string matching_error;
   if (!matching.Check(&matching_error)) return fail("matching: " + matching_error);
   return true;
@@ -84,14 +93,6 @@ ArcPosition LocateOnArc(const Rigid3d& current_from_a, const Rigid3d& arc_b_from
   return position;
 }
 
-bool PassedArcEnd(const Rigid3d& current_from_b, const Rigid3d& arc_b_from_a) {
-  // Segvic 2009, eq. (9). In b's frame the camera centre is C_t = -R_tb^T t_tb and the direction of travel is
-  // C_b - C_a = -t_ab (a's centre is at t_ab); the plane through C_b = 0 perpendicular to it is passed when
-  // <C_t, -t_ab> > 0. Both geometries have arbitrary positive scales, which do not change the sign.
-  const Vector3d c_t = CameraCentre(current_from_b);
-  return c_t.dot(-arc_b_from_a.translation) > 0.0;
-}
-
 ResumptionPolicy DecideResumption(const ArcPosition& position, double next_arc_ratio, double previous_arc_ratio) {
   ResumptionPolicy policy;
   if (!position.valid) return policy;
@@ -104,17 +105,13 @@ bool GeometryUsable(const TwoViewGeometry& geometry, double max_sigma_p_px) {
   return geometry.success && geometry.sigma_p < max_sigma_p_px;
 }
 
-int DecideTransition(const TwoViewGeometry* current_from_b, const ArcPosition& position_from_a_geometry,
-                     const TwoViewGeometry* current_from_a, const Rigid3d& arc_b_from_a, double max_sigma_p_px,
-                     double backward_margin) {
-  if (current_from_b != nullptr && GeometryUsable(*current_from_b, max_sigma_p_px) &&
-      PassedArcEnd(current_from_b->b_from_a, arc_b_from_a)) {
-    return +1;
-  }
-  if (current_from_a != nullptr && GeometryUsable(*current_from_a, max_sigma_p_px) &&
-      position_from_a_geometry.valid && position_from_a_geometry.along < -backward_margin) {
-    return -1;
-  }
+int DecideTransition(const ArcPosition& position, double backward_margin) {
+  if (!position.valid) return 0;
+  // Segvic 2009, eq. (9). With the camera centre C_t in the arc's frame (a at the origin, b at C_b), the plane
+  // through C_b perpendicular to the direction of travel C_b - C_a is passed when (C_t - C_b) . C_b > 0, i.e.
+  // along = C_t . C_b / |C_b|^2 > 1.
+  if (position.along > 1.0) return +1;
+  if (position.along < -backward_margin) return -1;
   return 0;
 }
 
@@ -152,6 +149,8 @@ Localizer::Localizer(const Map& map, const CameraModel& camera, const LocalizerO
   geometry_options_ = options_.geometry;
   geometry_options_.ransac.max_error_px = options_.inlier_threshold_px * pixel_scale_;
   geometry_options_.min_parallax_px = options_.min_parallax_px * pixel_scale_;
+  pose_options_ = options_.pose;
+  pose_options_.ransac.max_error_px = options_.inlier_threshold_px * pixel_scale_;
   FeatureTrackerOptions tracker_options = options_.tracker;
   tracker_options.alignment.max_residual = options_.max_residual;
   tracker_options.num_levels = pyramid_options_.num_levels;
@@ -351,6 +350,18 @@ Localizer::CurrentGeometry Localizer::EstimateCurrentGeometry(node_t node_id) {
   return current;
 }
 
+AbsolutePose Localizer::EstimatePoseInArc(const ArcData& arc) const {
+  std::vector<Vector3d> points, bearings;
+  for (const TrackedFeature& f : tracker_.Features()) {
+    const auto point = arc.points.find(f.id);
+    const auto bearing = bearings_.find(f.id);
+    if (point == arc.points.end() || bearing == bearings_.end()) continue;
+    points.push_back(point->second);
+    bearings.push_back(bearing->second);
+  }
+  return EstimateAbsolutePose(points, bearings, camera_->FocalLength(), pose_options_);
+}
+
 namespace {
 
 // Steps 1-3 of the decomposed point transfer for `arc` with a current geometry W_t:key (key = one of the arc's
@@ -439,14 +450,50 @@ void Localizer::Localize(FrameResult* result) {
           MakeTransfer(*next->arc, next->points, geometry_b.geometry, geometry_b.ids, ArcImage::kA, margin);
     }
   }
-  // The three-view geometry of the current arc: W_k adjusted to the more accurate current geometry.
+  // The camera on the arc through each current geometry.
+  ArcPosition position_a, position_b;
+  if (transfer_a) position_a = LocateOnArc(transfer_a->current_from_a(), arc->arc->to_from_from);
+  if (transfer_b) position_b = LocateOnArc(transfer_b->current_from_a(), arc->arc->to_from_from);
+  if (position_a.valid) result->position_via_from = position_a.along;
+  if (position_b.valid) result->position_via_to = position_b.along;
+  // ... and through its absolute pose in the arc's reconstruction (σ_p gated like the current geometries).
+  std::optional<PlacedCamera> via_pose;
+  if (options_.place_by_absolute_pose) {
+    const AbsolutePose pose = EstimatePoseInArc(*arc);
+    if (pose.success) {
+      result->sigma_p_pose = pose.sigma_p;
+      const ArcPosition position_pose = LocateOnArc(pose.cam_from_world, arc->arc->to_from_from);
+      if (position_pose.valid) result->position_via_pose = position_pose.along;
+      if (pose.sigma_p < max_sigma_p_px_) via_pose = PlacedCamera{position_pose, pose.sigma_p};
+    }
+  }
+  // The placements fused (FuseArcPositions): the absolute pose when it is believed, else the motion decides between
+  // the current geometries' placements.
+  const auto placed = [](const ArcPosition& p, const CurrentGeometry& g) {
+    return p.valid ? std::optional<PlacedCamera>(PlacedCamera{p, g.geometry.sigma_p}) : std::nullopt;
+  };
+  const FusedArcPosition fused =
+      FuseArcPositions(progress_, frame_counter_, via_pose, placed(position_a, geometry_a),
+                       placed(position_b, geometry_b), options_.max_progress_step, options_.position_agreement);
+  const ArcPosition& position = fused.position;
+  result->position_valid = position.valid;
+  result->position_on_arc = position.along;
+
+  // The three-view geometry of the current arc: W_k adjusted to the more accurate current geometry — of those whose
+  // placement of the camera was believed: used for the fused position, or (when the absolute pose placed the
+  // camera) within `transfer_agreement` of it. A decomposed transfer whose scale or translation direction is off
+  // predicts every feature of the arc somewhere else.
+  const auto agrees = [&](const ArcPosition& p) {
+    return p.valid && std::abs(p.along - position.along) <= options_.transfer_agreement;
+  };
+  const bool believe_a = !position.valid || fused.via_from || (fused.via_pose && agrees(position_a));
+  const bool believe_b = !position.valid || fused.via_to || (fused.via_pose && agrees(position_b));
   std::optional<PointTransfer> transfer_current;
-  const bool current_uses_a =
-      transfer_a && (!transfer_b || geometry_a.geometry.sigma_p <= geometry_b.geometry.sigma_p);
-  if (current_uses_a) {
+  if (transfer_a && believe_a &&
+      (!transfer_b || !believe_b || geometry_a.geometry.sigma_p <= geometry_b.geometry.sigma_p)) {
     transfer_current = transfer_a;
     result->sigma_p = geometry_a.geometry.sigma_p;
-  } else if (transfer_b) {
+  } else if (transfer_b && believe_b) {
     transfer_current = transfer_b;
     result->sigma_p = geometry_b.geometry.sigma_p;
   }
@@ -473,14 +520,6 @@ void Localizer::Localize(FrameResult* result) {
       predict_previous = ArcPredictor{current_from_z, previous->arc->to_from_from};
     }
   }
-
-  // The camera on the arc through each current geometry, and through the one used for the transfer.
-  ArcPosition position_a, position_b;
-  if (transfer_a) position_a = LocateOnArc(transfer_a->current_from_a(), arc->arc->to_from_from);
-  if (transfer_b) position_b = LocateOnArc(transfer_b->current_from_a(), arc->arc->to_from_from);
-  const ArcPosition position = !transfer_current ? ArcPosition() : (current_uses_a ? position_a : position_b);
-  result->position_valid = position.valid;
-  result->position_on_arc = position.along;
 
   // Consistency (Segvic 2009 §5.2.1): discontinue tracks that drifted from their prediction.
   struct RoleTransfer {
@@ -602,17 +641,15 @@ void Localizer::Localize(FrameResult* result) {
   // current geometry right after a transition or a bootstrap, estimated from few features, can place the camera
   // far ahead) is not believed: it decides no transition and makes the frame a bad one.
   const bool had_progress = progress_.has_value();
-  const bool continuous_a = position_a.valid && ProgressContinuous(position_a.along);
-  const bool continuous_b = position_b.valid && ProgressContinuous(position_b.along);
   const double last_progress = progress_ ? progress_->along : 0.0;
-  const bool continuous = AcceptProgress(position.valid ? std::optional<double>(position.along) : std::nullopt);
+  if (position.valid) AcceptProgress(position.along);
 
   // Health: enough features of the current arc, a trustworthy current geometry and a continuous position, else
   // lost after a few frames.
   int current_tracked = 0;
   for (const TrackedFeature& f : tracker_.Features()) current_tracked += arc->points.count(f.id) ? 1 : 0;
-  const bool good =
-      current_tracked >= options_.min_features && (geometry_a.usable || geometry_b.usable) && continuous;
+  const bool good = current_tracked >= options_.min_features && (geometry_a.usable || geometry_b.usable) &&
+                    fused.continuous;
   bad_frames_ = good ? 0 : bad_frames_ + 1;
   if (bad_frames_ >= options_.max_bad_frames) {
     spdlog::debug("repeat: lost at frame {} ({} features of arc {}, W_t:a {}, W_t:b {}, position {:.2f} after {:.2f})",
@@ -625,28 +662,9 @@ void Localizer::Localize(FrameResult* result) {
     arc_ = kInvalidArcId;
     return;
   }
-  if (!continuous) return;
 
-  // Topological transition (Segvic 2009 §5.2.2, eq. (9)), from the second frame on this arc. The plane test on
-  // W_t:b uses its translation direction alone; it must agree with the camera placed by the scaled transfer through
-  // W_t:b (near or past b) and, when W_t:a is usable too, with the camera placed through W_t:a (within
-  // `transition_agreement` of b): in the simulated town's turns a W_t:b from few distant features once put the
-  // camera past b while W_t:a put it mid-arc (and the truth was before a). Backward transitions symmetrically.
-  const bool a_placed = geometry_a.usable && continuous_a;
-  const bool b_placed = geometry_b.usable && continuous_b;
-  const bool forward_agreed = b_placed && position_b.along > 1.0 - options_.backward_margin &&
-                              (!a_placed || position_a.along > 1.0 - options_.transition_agreement);
-  const bool backward_agreed = a_placed && (!b_placed || position_b.along < options_.transition_agreement);
-  int direction = 0;
-  if (had_progress) {
-    direction = DecideTransition(geometry_b.estimated && forward_agreed ? &geometry_b.geometry : nullptr, position_a,
-                                 geometry_a.estimated && backward_agreed ? &geometry_a.geometry : nullptr,
-                                 arc->arc->to_from_from, max_sigma_p_px_, options_.backward_margin);
-    // W_t:b fails (no parallax) when the camera is at b: the same plane test with the camera placed by W_t:a.
-    if (direction == 0 && !geometry_b.usable && geometry_a.usable && continuous_a && position_a.along > 1.0) {
-      direction = +1;
-    }
-  }
+  // Topological transition (Segvic 2009 §5.2.2, eq. (9)) on the fused position, from the second frame on this arc.
+  int direction = had_progress ? DecideTransition(position, options_.backward_margin) : 0;
   if ((direction > 0 && next == nullptr) || (direction < 0 && previous == nullptr)) direction = 0;
   if (direction == 0) return;
   // The camera has just crossed the plane through the node (eq. (9)). Its position and speed carry over into the new
@@ -691,28 +709,80 @@ std::optional<double> Localizer::UnitRatio(arc_t old_arc, arc_t new_arc, int dir
 
 bool PositionContinuous(const std::optional<ArcProgress>& last, size_t frame, double along, double max_step) {
   if (!last) return true;
-  const double frames = frame > last->frame ? static_cast<double>(frame - last->frame) : 0.0;
   const double speed = last->speed_known ? last->speed : 0.0;
-  const double expected = last->along + speed * frames;
+  const double expected = ExpectedAlong(*last, frame);
   // A camera that covers more than max_step per frame (short arcs) is allowed one frame of its motion as the
   // tolerance (not the motion of all frames since: one noisy speed would then excuse ever larger jumps).
   return std::abs(along - expected) <= std::max(max_step, std::abs(speed));
 }
 
-bool Localizer::ProgressContinuous(double along) const {
-  return PositionContinuous(progress_, frame_counter_, along, options_.max_progress_step);
+FusedArcPosition FuseArcPositions(const std::optional<ArcProgress>& last, size_t frame,
+                                  const std::optional<PlacedCamera>& via_pose,
+                                  const std::optional<PlacedCamera>& via_from,
+                                  const std::optional<PlacedCamera>& via_to, double max_step, double agreement) {
+  FusedArcPosition fused;
+  const auto believed = [&](const std::optional<PlacedCamera>& placed) {
+    return placed && placed->position.valid && PositionContinuous(last, frame, placed->position.along, max_step);
+  };
+  if (believed(via_pose)) {
+    fused.position = via_pose->position;
+    fused.via_pose = true;
+    return fused;
+  }
+  const bool pose_rejected = via_pose && via_pose->position.valid;
+  struct Candidate {
+    const PlacedCamera* placed;
+    bool from;
+  };
+  std::vector<Candidate> candidates;
+  for (const auto& [placed, from] : {std::pair{&via_from, true}, std::pair{&via_to, false}}) {
+    if (placed->has_value() && (*placed)->position.valid) candidates.push_back({&**placed, from});
+  }
+  if (candidates.empty()) {
+    fused.continuous = !pose_rejected;
+    return fused;
+  }
+  // Believed placements only, the most plausible first: nearest to where the motion puts the camera, or (no
+  // motion known) the lower σ_p.
+  if (last) {
+    candidates.erase(std::remove_if(candidates.begin(), candidates.end(),
+                                    [&](const Candidate& c) {
+                                      return !PositionContinuous(last, frame, c.placed->position.along, max_step);
+                                    }),
+                     candidates.end());
+    if (candidates.empty()) {
+      fused.continuous = false;
+      return fused;
+    }
+    const double expected = ExpectedAlong(*last, frame);
+    std::sort(candidates.begin(), candidates.end(), [expected](const Candidate& x, const Candidate& y) {
+      return std::abs(x.placed->position.along - expected) < std::abs(y.placed->position.along - expected);
+    });
+  } else {
+    std::sort(candidates.begin(), candidates.end(),
+              [](const Candidate& x, const Candidate& y) { return x.placed->sigma_p < y.placed->sigma_p; });
+  }
+  fused.position = candidates[0].placed->position;
+  (candidates[0].from ? fused.via_from : fused.via_to) = true;
+  if (candidates.size() == 2 &&
+      std::abs(candidates[1].placed->position.along - fused.position.along) <= agreement) {
+    const ArcPosition& other = candidates[1].placed->position;
+    fused.position.along = 0.5 * (fused.position.along + other.along);
+    fused.position.distance_to_from = 0.5 * (fused.position.distance_to_from + other.distance_to_from);
+    fused.position.distance_to_to = 0.5 * (fused.position.distance_to_to + other.distance_to_to);
+    fused.via_from = fused.via_to = true;
+  }
+  return fused;
 }
 
-bool Localizer::AcceptProgress(std::optional<double> along) {
-  if (!along) return true;
-  if (!ProgressContinuous(*along)) return false;
+void Localizer::AcceptProgress(double along) {
   ArcProgress accepted = progress_.value_or(ArcProgress());
-  accepted.along = *along;
+  accepted.along = along;
   accepted.frame = frame_counter_;
   if (progress_ && frame_counter_ > progress_->frame) {
     // The speed along the arc (arc lengths per frame) is the median of the last three steps: one noisy position
     // (0.28 -> 0.95 -> 3.06 on an arc covered in 7 frames in the simulated town) must not set the expected motion.
-    const double step = (*along - progress_->along) / static_cast<double>(frame_counter_ - progress_->frame);
+    const double step = (along - progress_->along) / static_cast<double>(frame_counter_ - progress_->frame);
     for (int i = static_cast<int>(accepted.steps.size()) - 1; i > 0; --i) accepted.steps[i] = accepted.steps[i - 1];
     accepted.steps[0] = step;
     accepted.num_steps = std::min<int>(accepted.num_steps + 1, accepted.steps.size());
@@ -722,7 +792,6 @@ bool Localizer::AcceptProgress(std::optional<double> along) {
     accepted.speed_known = true;
   }
   progress_ = accepted;
-  return true;
 }
 
 void Localizer::ApplyTransition(int direction, FrameResult* result) {

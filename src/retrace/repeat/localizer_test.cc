@@ -29,13 +29,6 @@ struct SyntheticArc {
   Vector3d centre_b = Vector3d(0.2, 0.0, 1.0).normalized();
   Matrix3d rotation_b = Yaw(10);
   Rigid3d b_from_a = CamFromWorld(centre_b, rotation_b);
-  // W_t:b (x_t = R x_b + t) at an arbitrary positive scale, for a camera at `centre` turned by `yaw`.
-  Rigid3d CurrentFromB(const Vector3d& centre, double yaw, double scale) const {
-    const Rigid3d current_from_a = CamFromWorld(centre, Yaw(yaw));
-    Rigid3d current_from_b = current_from_a * b_from_a.Inverse();
-    current_from_b.translation *= scale;
-    return current_from_b;
-  }
 };
 
 TwoViewGeometry Geometry(const Rigid3d& pose, double sigma_p, bool success = true) {
@@ -56,25 +49,29 @@ TEST(LocateOnArc, ProjectsTheCameraCentreOnTheArc) {
   EXPECT_NEAR(p.distance_to_to, (centre - arc.centre_b).norm(), 1e-12);
 }
 
-TEST(PassedArcEnd, FiresExactlyWhenTheCameraCrossesThePlaneThroughB) {
+TEST(DecideTransition, FiresExactlyWhenTheCameraCrossesThePlaneThroughB) {
+  // Segvic 2009, eq. (9): the plane through b's centre perpendicular to the direction of travel a -> b, whatever the
+  // lateral offset and heading of the camera.
   const SyntheticArc arc;
-  // Direction of travel and a lateral direction perpendicular to it.
   const Vector3d travel = arc.centre_b;
   const Vector3d lateral = travel.cross(Vector3d::UnitY()).normalized();
+  const double margin = 0.1;
   for (const double lateral_offset : {-0.3, 0.0, 0.4}) {
     for (const double yaw : {-30.0, 0.0, 15.0}) {
-      for (const double scale : {0.01, 1.0, 37.0}) {
-        const Vector3d before = 0.97 * travel + lateral_offset * lateral;
-        const Vector3d after = 1.03 * travel + lateral_offset * lateral;
-        EXPECT_FALSE(PassedArcEnd(arc.CurrentFromB(before, yaw, scale), arc.b_from_a))
-            << lateral_offset << " " << yaw << " " << scale;
-        EXPECT_TRUE(PassedArcEnd(arc.CurrentFromB(after, yaw, scale), arc.b_from_a))
-            << lateral_offset << " " << yaw << " " << scale;
-      }
+      const auto decide = [&](double along) {
+        const Vector3d centre = along * travel + lateral_offset * lateral;
+        return DecideTransition(LocateOnArc(CamFromWorld(centre, Yaw(yaw)), arc.b_from_a), margin);
+      };
+      EXPECT_EQ(decide(0.97), 0) << lateral_offset << " " << yaw;
+      EXPECT_EQ(decide(1.03), +1) << lateral_offset << " " << yaw;
+      EXPECT_EQ(decide(0.5), 0) << lateral_offset << " " << yaw;
+      // Backward (reversing past a) only beyond the margin behind a.
+      EXPECT_EQ(decide(-0.05), 0) << lateral_offset << " " << yaw;
+      EXPECT_EQ(decide(-0.2), -1) << lateral_offset << " " << yaw;
     }
   }
-  // Far behind a (reversing past the start): not passed.
-  EXPECT_FALSE(PassedArcEnd(arc.CurrentFromB(-0.5 * travel, 0, 1), arc.b_from_a));
+  // No position (no estimate passed the σ_p gate): no transition.
+  EXPECT_EQ(DecideTransition(ArcPosition(), margin), 0);
 }
 
 TEST(DecideResumption, FollowsEquationsSevenAndEight) {
@@ -107,39 +104,46 @@ TEST(GeometryUsable, GatesOnSigmaP) {
   EXPECT_FALSE(GeometryUsable(Geometry(Rigid3d(), 1.0, /*success=*/false), 4.0));
 }
 
-TEST(DecideTransition, ForwardBackwardAndCancelled) {
-  const SyntheticArc arc;
-  const Vector3d travel = arc.centre_b;
-  const auto position = [&](double along) { return LocateOnArc(CamFromWorld(along * travel), arc.b_from_a); };
-  const auto from_a = [&](double along, double sigma) {
-    return Geometry(CamFromWorld(along * travel), sigma);
-  };
-  const auto from_b = [&](double along, double sigma) {
-    return Geometry(arc.CurrentFromB(along * travel, 5.0, 0.4), sigma);
-  };
-  const double max_sigma = 4.0, margin = 0.1;
-  // Mid-arc: nothing.
-  TwoViewGeometry gb = from_b(0.6, 1.0), ga = from_a(0.6, 1.0);
-  EXPECT_EQ(DecideTransition(&gb, position(0.6), &ga, arc.b_from_a, max_sigma, margin), 0);
-  // Past b with a trustworthy W_t:b: forward.
-  gb = from_b(1.02, 1.0);
-  ga = from_a(1.02, 1.0);
-  EXPECT_EQ(DecideTransition(&gb, position(1.02), &ga, arc.b_from_a, max_sigma, margin), 1);
-  // Same, but σ_p of W_t:b too large: cancelled.
-  gb = from_b(1.02, 6.0);
-  EXPECT_EQ(DecideTransition(&gb, position(1.02), &ga, arc.b_from_a, max_sigma, margin), 0);
-  // No W_t:b at all: no forward transition.
-  EXPECT_EQ(DecideTransition(nullptr, position(1.02), &ga, arc.b_from_a, max_sigma, margin), 0);
-  // Behind a by more than the margin: backward; within the margin: not yet; σ_p too large: cancelled.
-  gb = from_b(-0.2, 1.0);
-  ga = from_a(-0.2, 1.0);
-  EXPECT_EQ(DecideTransition(&gb, position(-0.2), &ga, arc.b_from_a, max_sigma, margin), -1);
-  ga = from_a(-0.05, 1.0);
-  gb = from_b(-0.05, 1.0);
-  EXPECT_EQ(DecideTransition(&gb, position(-0.05), &ga, arc.b_from_a, max_sigma, margin), 0);
-  ga = from_a(-0.2, 5.0);
-  gb = from_b(-0.2, 1.0);
-  EXPECT_EQ(DecideTransition(&gb, position(-0.2), &ga, arc.b_from_a, max_sigma, margin), 0);
+PlacedCamera Placed(double along, double sigma_p = 0.5) {
+  ArcPosition position;
+  position.valid = true;
+  position.along = along;
+  position.distance_to_from = std::abs(along);
+  position.distance_to_to = std::abs(1.0 - along);
+  return PlacedCamera{position, sigma_p};
+}
+
+TEST(FuseArcPositions, AbsolutePoseFirstThenTheMotionDecides) {
+  const std::optional<ArcProgress> moving(ArcProgress{0.40, 0.15, 4, true});  // expected at frame 5: 0.55
+  const double max_step = 0.75, agreement = 0.1;
+  // The absolute pose, when continuous, decides alone.
+  FusedArcPosition f = FuseArcPositions(moving, 5, Placed(0.57), Placed(0.50), Placed(0.80), max_step, agreement);
+  EXPECT_TRUE(f.position.valid && f.continuous && f.via_pose && !f.via_from && !f.via_to);
+  EXPECT_DOUBLE_EQ(f.position.along, 0.57);
+  // A jumping absolute pose is not believed: of the current geometries' placements the one nearest to where the
+  // motion puts the camera is taken (here W_t:a), the other one is too far from it to be averaged.
+  f = FuseArcPositions(moving, 5, Placed(1.60), Placed(0.52), Placed(0.75), max_step, agreement);
+  EXPECT_TRUE(f.position.valid && f.continuous && !f.via_pose && f.via_from && !f.via_to);
+  EXPECT_DOUBLE_EQ(f.position.along, 0.52);
+  // Two agreeing placements are averaged.
+  f = FuseArcPositions(moving, 5, std::nullopt, Placed(0.52), Placed(0.58), max_step, agreement);
+  EXPECT_TRUE(f.via_from && f.via_to);
+  EXPECT_NEAR(f.position.along, 0.55, 1e-12);
+  // W_t:b's placement alone, far from the motion's prediction but within max_step: believed.
+  f = FuseArcPositions(moving, 5, std::nullopt, std::nullopt, Placed(0.95), max_step, agreement);
+  EXPECT_TRUE(f.position.valid && f.via_to);
+  // Nothing continuous: no position, and the frame is not continuous (a bad frame, no transition).
+  f = FuseArcPositions(moving, 5, Placed(2.0), Placed(-0.5), Placed(1.4), max_step, agreement);
+  EXPECT_FALSE(f.position.valid);
+  EXPECT_FALSE(f.continuous);
+  // Nothing placed at all: no position, but nothing contradicted the motion either.
+  f = FuseArcPositions(moving, 5, std::nullopt, std::nullopt, std::nullopt, max_step, agreement);
+  EXPECT_FALSE(f.position.valid);
+  EXPECT_TRUE(f.continuous);
+  // First frame on an arc (no motion known): the lower σ_p decides between the current geometries.
+  f = FuseArcPositions(std::nullopt, 5, std::nullopt, Placed(0.3, 2.0), Placed(0.7, 1.0), max_step, agreement);
+  EXPECT_TRUE(f.via_to && !f.via_from);
+  EXPECT_DOUBLE_EQ(f.position.along, 0.7);
 }
 
 TEST(PositionContinuous, BelievesSteadyMotionNotJumps) {
@@ -185,6 +189,13 @@ TEST(LocalizerOptions, CheckRejectsBadValues) {
   options = LocalizerOptions();
   options.prediction_skipped_levels = -1;
   EXPECT_FALSE(options.Check());
+  options = LocalizerOptions();
+  options.transfer_agreement = 0.0;
+  EXPECT_FALSE(options.Check());
+  options = LocalizerOptions();
+  options.pose.min_inliers = 2;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("pose"), std::string::npos) << error;
 }
 
 TEST(Localizer, MapWithoutImagesIsBadInput) {
