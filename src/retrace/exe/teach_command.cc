@@ -70,6 +70,7 @@ void RunTeach(const TeachArguments& args) {
   Teacher teacher(*camera, args.options, database.get());
   database->SetMetadata("r_p", fmt::format("{:.3f}", teacher.sigma_p_threshold_px()));
   database->SetMetadata("min_features", std::to_string(args.options.min_features));
+  database->SetMetadata("min_features_fraction", fmt::format("{:g}", args.options.min_features_fraction));
   database->SetMetadata("max_residual", fmt::format("{:.2f}", args.options.max_residual));
   // Repeat must pre-smooth its images exactly as teach did, or R means something else against the key-images.
   database->SetMetadata("reference_width", std::to_string(args.options.reference_width));
@@ -162,6 +163,9 @@ void RegisterTeachCommand(CLI::App& app) {
   cmd->add_option("--r-p", args->options.max_sigma_p_px, "r_p: sigma_p threshold for a new key-image, px at 320 px width")
       ->capture_default_str();
   cmd->add_option("--min-features", args->options.min_features, "n: fewest features an arc may keep")
+      ->capture_default_str();
+  cmd->add_option("--min-features-fraction", args->options.min_features_fraction,
+                  "... or this fraction of the features tracked from the key-image, when more (0 = n alone)")
       ->capture_default_str();
   cmd->add_option("--max-residual", args->options.max_residual, "R: largest tracking residual, grey levels")
       ->capture_default_str();

@@ -3,7 +3,8 @@
 // The hybrid topological-geometric map (Segvic 2009 §3.2, design §1).
 //
 // Nodes are key-images. Each keeps its feature map: the 2D positions of point features in the key-image, indexed by
-// globally unique feature ids, with each feature's reference appearance (a small patch used by the tracker).
+// globally unique feature ids; the tracker cuts each feature's reference appearance from the key-image itself,
+// which the node stores.
 // Arcs connect neighbouring nodes and carry the two-view geometry W_k of their two key-images: the relative motion
 // (R, t) with t of unit length, the 3D points of the features seen in both nodes (the set M_k) in the unit scale of
 // that arc, and the geometry's quality σ_p. Relative scales between the geometries of consecutive arcs are stored
@@ -26,7 +27,10 @@ namespace retrace {
 struct FeatureObservation {
   feature_t feature_id = kInvalidFeatureId;
   Vector2d position = Vector2d::Zero();  // pixel position in the key-image
-  cv::Mat patch;                         // reference appearance, 8-bit gray (e.g. 15x15), may be empty
+  // Reference appearance, 8-bit gray (e.g. 15x15), may be empty. retrace's teach leaves it empty: the key-image is
+  // stored with its node, and repeat cuts the references from it at every pyramid level (stored patches only
+  // duplicated those pixels, a third of a kitti07 map).
+  cv::Mat patch;
 };
 
 struct MapNode {

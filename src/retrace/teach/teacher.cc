@@ -28,16 +28,6 @@ class ScopedTimer {
   Clock::time_point start_;
 };
 
-// Side of the reference patches stored with the observations (the tracker's window).
-constexpr int kPatchSize = 15;
-
-cv::Mat CutPatch(const cv::Mat& image, const Vector2d& position) {
-  cv::Mat patch;
-  cv::getRectSubPix(image, cv::Size(kPatchSize, kPatchSize),
-                    cv::Point2f(static_cast<float>(position.x()), static_cast<float>(position.y())), patch);
-  return patch;
-}
-
 // A key-image made of a teach frame, without features yet.
 MapNode NodeFromFrame(node_t id, const Frame& frame) {
   MapNode node;
@@ -79,6 +69,7 @@ bool TeachOptions::Check(std::string* error) const {
   if (reference_width <= 0) return fail("reference_width must be positive");
   if (!(max_sigma_p_px > 0)) return fail("max_sigma_p_px (r_p) must be positive");
   if (min_features < 8) return fail("min_features (n) must be at least 8");
+  if (!(min_features_fraction >= 0 && min_features_fraction < 1)) return fail("min_features_fraction must lie in [0, 1)");
   if (!(max_residual > 0)) return fail("max_residual (R) must be positive");
   if (max_corners < min_features) return fail("max_corners must be at least min_features");
   if (min_matched_inliers < 8) return fail("min_matched_inliers must be at least 8");
@@ -108,9 +99,11 @@ struct Teacher::Subrange {
   MatchableImage matchable;  // image and pyramid; wide-baseline features computed on demand
   bool has_wide_baseline = false;
   std::unordered_map<feature_t, Vector3d> bearings;  // every feature tracked from the key-image on
-  // Every feature seen at the key-image with its reference patch; only those that end up in an arc are stored.
+  // Every feature seen at the key-image (position; no patch, see map.h); only those that end up in an arc are
+  // stored.
   std::unordered_map<feature_t, FeatureObservation> observations;
   std::unordered_set<feature_t> stored;  // ids already written with the key-image
+  int min_features = 0;  // n of this subrange: max(n, fraction of the features tracked from the key-image on)
 };
 
 Teacher::Teacher(const CameraModel& camera, const TeachOptions& options, MapDatabase* database)
@@ -177,8 +170,9 @@ void Teacher::AddFrame(const Frame& frame) {
   // (Segvic 2009 §5.1), and the current frame is tracked again from there.
   const bool previous_is_key = previous_->frame.index == subrange_->frame_index;
   if (!previous_is_key && previous_->geometry.success) {
-    const bool enough_features = current->survivors >= options_.min_features &&
-                                 (!current->geometry.success || current->geometry.num_inliers >= options_.min_features);
+    const int n = subrange_->min_features;
+    const bool enough_features =
+        current->survivors >= n && (!current->geometry.success || current->geometry.num_inliers >= n);
     const KeyImageReason reason = enough_features ? KeyImageReason::kSigmaP : KeyImageReason::kFeatures;
     RegisterKeyImage(previous_.get(), reason, /*with_arc=*/true);
     track(current.get());
@@ -221,11 +215,10 @@ void Teacher::EstimateGeometryToKey(FrameState* frame) {
 }
 
 bool Teacher::GeometryAcceptable(const FrameState& frame) const {
-  if (frame.survivors < options_.min_features) return false;
+  const int n = subrange_->min_features;
+  if (frame.survivors < n) return false;
   // The arc keeps only the geometry's inliers, so they are what must number at least n.
-  if (frame.geometry.success) {
-    return frame.geometry.num_inliers >= options_.min_features && frame.geometry.sigma_p <= max_sigma_p_px_;
-  }
+  if (frame.geometry.success) return frame.geometry.num_inliers >= n && frame.geometry.sigma_p <= max_sigma_p_px_;
   // Too little parallax yet (the vehicle stands or turns on the spot): no key-image is needed.
   return frame.geometry.failure == TwoViewFailure::kInsufficientParallax;
 }
@@ -245,7 +238,7 @@ void Teacher::StartSubrange(FrameState* frame) {
   }
   std::unordered_map<feature_t, FeatureObservation> observations;
   for (const TrackedFeature& f : frame->features) {
-    observations[f.id] = {f.id, f.warp.position, CutPatch(frame->frame.image, f.warp.position)};
+    observations[f.id] = {f.id, f.warp.position, cv::Mat()};
   }
 
   // New corners fill the subrange up to max_corners ("all Harris corners of the first frame", Segvic 2009 §5.1).
@@ -258,7 +251,7 @@ void Teacher::StartSubrange(FrameState* frame) {
         const feature_t id = tracker_.AddFeature(frame->pyramid, corner.position, next_feature_id_);
         if (id == kInvalidFeatureId) continue;
         ++next_feature_id_;
-        observations[id] = {id, corner.position, CutPatch(frame->frame.image, corner.position)};
+        observations[id] = {id, corner.position, cv::Mat()};
       }
     }
   }
@@ -272,6 +265,9 @@ void Teacher::StartSubrange(FrameState* frame) {
     Vector3d bearing;
     if (camera_->Unproject(f.warp.position, &bearing)) subrange_->bearings[f.id] = bearing;
   }
+  subrange_->min_features =
+      std::max(options_.min_features,
+               static_cast<int>(std::lround(options_.min_features_fraction * subrange_->bearings.size())));
 }
 
 void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool with_arc) {
@@ -407,7 +403,7 @@ bool Teacher::RecoverGap(FrameState* frame) {
     tracked.warp.position = matched.position_in_b[i];
     frame->features.push_back(tracked);
     const Vector2d position_key = matched.PositionInA(subrange_->matchable, i);
-    subrange_->observations[id] = {id, position_key, CutPatch(subrange_->matchable.image, position_key)};
+    subrange_->observations[id] = {id, position_key, cv::Mat()};
   }
   frame->geometry = std::move(matched.geometry);
   RegisterKeyImage(frame, KeyImageReason::kGap, /*with_arc=*/true);
@@ -513,9 +509,9 @@ void Teacher::RelateFramesByMatching(size_t a, size_t b) {
       arc->points.push_back({id, matched.geometry.points_in_a[i]});
       if (stored_at_from.insert(id).second) {
         const Vector2d in_a = matched.PositionInA(MatchableFrame(a), i);
-        from_additions.push_back({id, in_a, CutPatch(frames_[a].image, in_a)});
+        from_additions.push_back({id, in_a, cv::Mat()});
       }
-      node.features.push_back({id, matched.position_in_b[i], CutPatch(frames_[b].image, matched.position_in_b[i])});
+      node.features.push_back({id, matched.position_in_b[i], cv::Mat()});
       if (const auto d = depth_in_previous.find(id); d != depth_in_previous.end()) {
         depth_previous.push_back(d->second);
         depth_this.push_back(matched.geometry.depths_a[i]);
@@ -591,8 +587,8 @@ void Teacher::CloseLoop() {
     const feature_t id = next_feature_id_++;
     const Vector2d in_last = best.PositionInA(last_image, i);
     arc.points.push_back({id, best.geometry.points_in_a[i]});
-    last_observations.push_back({id, in_last, CutPatch(last.image, in_last)});
-    first_observations.push_back({id, best.position_in_b[i], CutPatch(best_node->image, best.position_in_b[i])});
+    last_observations.push_back({id, in_last, cv::Mat()});
+    first_observations.push_back({id, best.position_in_b[i], cv::Mat()});
   }
   const node_t last_id = last.id, first_id = best_node->id;
   Commit(nullptr, &arc, nullptr, {{last_id, std::move(last_observations)}, {first_id, std::move(first_observations)}});

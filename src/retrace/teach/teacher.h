@@ -64,6 +64,11 @@ struct TeachOptions {
   double max_sigma_p_px = 4.0;
   // n: a new key-image when fewer features survive since K. Segvic 2009 §5.1: 50.
   int min_features = 50;
+  // ... or fewer than this fraction of the features tracked from K on (when that is more than n). The arc keeps the
+  // features that survive it; a map repeated under other light needs enough of them: in the simulated town (570
+  // corners per key-image at 320x240) n = 50 alone kept 55 per arc, of which too few align again under another
+  // sun (see README). 0 = the paper's rule.
+  double min_features_fraction = 0.2;
   // R: tracks whose RMS residual against their reference exceeds this are dropped (grey levels). Paper: 6.
   double max_residual = 6.0;
   // Corners handed to the tracker at the start of a subrange, surviving tracks included.
