@@ -130,9 +130,14 @@ struct LocalizerOptions {
   // When the absolute pose placed the camera, a current geometry's transfer predicts the current arc's features only
   // when its own placement lies within this (arc lengths) of the absolute pose's.
   double transfer_agreement = 0.25;
-  // Largest change of the position along the arc (arc lengths) between two frames that is believed; a larger
-  // jump decides no transition and counts as a bad frame (see Localize step 7).
+  // Continuity of the position along the arc (PositionContinuous): a placement farther than this (arc lengths)
+  // from where the last accepted position puts the camera is not believed while the camera's speed along the arc
+  // is unknown (first frames on an arc) ...
   double max_progress_step = 0.75;
+  // ... and farther than this from where the last position and the speed put it once the speed is known (at least
+  // one frame of motion either way). 0.75 let a pose from 10 distant features right after a transition place the
+  // camera past the next node (simulated town: three transitions in three frames, two arcs ahead of the truth).
+  double progress_tolerance = 0.3;
   // Segvic 2009 §5.2.2: after a transition, redefine the references of the new current arc's features from the
   // key-image approached and of the arc just left from the key-image passed (a feature whose new reference does not
   // align at its current position keeps the old one).
@@ -155,9 +160,14 @@ struct LocalizerOptions {
   // bootstrap located 8-19 of them for 15 frames in a row, and 20 kept the drive relocalizing there (demo drive
   // 92.7 % correct with 12, 94.3 % with 8; kitti07 100 % either way).
   int min_bootstrap_features = 8;
-  // Relocalization after a loss first matches the key-images of the arcs up to this many arcs around the arc
-  // where it was lost, and all key-images only when none of those verifies.
+  // Relocalization after a loss matches the key-images of the arcs up to this many arcs around the arc where it
+  // was lost, ...
   int relocalization_neighbourhood = 3;
+  // ... plus this many arcs more for every frame since the loss (kitti07 at 320 px passes about one arc per frame
+  // in its turns), ...
+  int relocalization_widening = 1;
+  // ... and every key-image of the map once it has been lost for this many frames (a robot carried elsewhere).
+  int global_relocalization_frames = 20;
   // Bootstrap: matched key-points nearer than this (px at reference_width) predict a mapped feature's position.
   double bootstrap_neighbour_radius_px = 30.0;
   // Bootstrap: accept a located feature within this distance of its local prediction (px at reference_width).
@@ -228,6 +238,7 @@ struct FrameResult {
   double position_via_to = std::numeric_limits<double>::quiet_NaN();
   double position_via_pose = std::numeric_limits<double>::quiet_NaN();
   double sigma_p_pose = -1.0;            // σ_p of the absolute pose in the arc's reconstruction
+  int pose_inliers = 0;                  // its inliers (features of the current arc)
   // Segvic 2009 eq. (10), radians (0 when not valid). Image x grows to the right, so w < 0 turns left: towards
   // where the next key-image looks (checked against ground truth in repeat_sim_test). Simulator::Step takes
   // positive = left, i.e. -w.
@@ -270,10 +281,18 @@ struct ArcProgress {
   int num_steps = 0;
 };
 
+// How far (arc lengths) a new position along the arc may lie from where the last accepted position and the
+// camera's speed put it, and still be believed.
+struct ContinuityLimits {
+  double unknown_speed = 0.75;  // while the speed along the arc is not known
+  double known_speed = 0.3;     // once it is
+};
+
 // Continuity of the position along an arc (arc lengths): a new position in frame `frame` is believed when no
-// earlier one is known on this arc, or when it lies within max(`max_step`, the distance covered at the last speed)
-// of where the last accepted position and speed put the camera now.
-bool PositionContinuous(const std::optional<ArcProgress>& last, size_t frame, double along, double max_step);
+// earlier one is known on this arc, or when it lies within max(limit, the distance covered in one frame at the
+// last speed) of where the last accepted position and speed put the camera now.
+bool PositionContinuous(const std::optional<ArcProgress>& last, size_t frame, double along,
+                        const ContinuityLimits& limits);
 
 // A placement of the current camera on the arc by one estimate, with that estimate's σ_p (px).
 struct PlacedCamera {
@@ -291,7 +310,7 @@ struct PlacedCamera {
 // other sun, 1 m offset) its placements were more than 0.15 arc lengths from the truth in 1-2 % of the frames,
 // those of W_t:a / W_t:b in 6-15 % (a current geometry from few or distant features, whose translation direction
 // or scale is poorly determined). A placement is believed only when it is continuous with the last accepted
-// position (PositionContinuous with `max_step`). The absolute pose is taken when believed; otherwise, of the
+// position (PositionContinuous). The absolute pose is taken when believed; otherwise, of the
 // believed decomposed placements the nearest to where the camera's speed puts it is taken, averaged with the other
 // when both agree within `agreement` arc lengths (without a last position the lower σ_p decides).
 struct FusedArcPosition {
@@ -304,7 +323,8 @@ struct FusedArcPosition {
 FusedArcPosition FuseArcPositions(const std::optional<ArcProgress>& last, size_t frame,
                                   const std::optional<PlacedCamera>& via_pose,
                                   const std::optional<PlacedCamera>& via_from,
-                                  const std::optional<PlacedCamera>& via_to, double max_step, double agreement);
+                                  const std::optional<PlacedCamera>& via_to, const ContinuityLimits& limits,
+                                  double agreement);
 
 // Topological transition (Segvic 2009 §5.2.2, eq. (9)): forward (+1) when the camera centre has passed the plane
 // through b's centre perpendicular to the arc's direction of travel, i.e. its projection on the arc lies beyond b
@@ -405,6 +425,7 @@ class Localizer {
   arc_t start_arc_ = kInvalidArcId;
   int bad_frames_ = 0;
   arc_t last_arc_ = kInvalidArcId;       // the arc where the localizer was last lost
+  size_t lost_at_frame_ = 0;             // frame counter of that loss
   std::optional<ArcProgress> progress_;  // last accepted position along the current arc and its speed
   node_t last_passed_ = kInvalidNodeId;  // the key-image passed by the last transition
   // Key-image each tracked feature takes its reference from.

@@ -115,33 +115,37 @@ PlacedCamera Placed(double along, double sigma_p = 0.5) {
 
 TEST(FuseArcPositions, AbsolutePoseFirstThenTheMotionDecides) {
   const std::optional<ArcProgress> moving(ArcProgress{0.40, 0.15, 4, true});  // expected at frame 5: 0.55
-  const double max_step = 0.75, agreement = 0.1;
+  const ContinuityLimits limits{0.75, 0.3};
+  const double agreement = 0.1;
   // The absolute pose, when continuous, decides alone.
-  FusedArcPosition f = FuseArcPositions(moving, 5, Placed(0.57), Placed(0.50), Placed(0.80), max_step, agreement);
+  FusedArcPosition f = FuseArcPositions(moving, 5, Placed(0.57), Placed(0.50), Placed(0.80), limits, agreement);
   EXPECT_TRUE(f.position.valid && f.continuous && f.via_pose && !f.via_from && !f.via_to);
   EXPECT_DOUBLE_EQ(f.position.along, 0.57);
   // A jumping absolute pose is not believed: of the current geometries' placements the one nearest to where the
   // motion puts the camera is taken (here W_t:a), the other one is too far from it to be averaged.
-  f = FuseArcPositions(moving, 5, Placed(1.60), Placed(0.52), Placed(0.75), max_step, agreement);
+  f = FuseArcPositions(moving, 5, Placed(1.60), Placed(0.52), Placed(0.70), limits, agreement);
   EXPECT_TRUE(f.position.valid && f.continuous && !f.via_pose && f.via_from && !f.via_to);
   EXPECT_DOUBLE_EQ(f.position.along, 0.52);
   // Two agreeing placements are averaged.
-  f = FuseArcPositions(moving, 5, std::nullopt, Placed(0.52), Placed(0.58), max_step, agreement);
+  f = FuseArcPositions(moving, 5, std::nullopt, Placed(0.52), Placed(0.58), limits, agreement);
   EXPECT_TRUE(f.via_from && f.via_to);
   EXPECT_NEAR(f.position.along, 0.55, 1e-12);
-  // W_t:b's placement alone, far from the motion's prediction but within max_step: believed.
-  f = FuseArcPositions(moving, 5, std::nullopt, std::nullopt, Placed(0.95), max_step, agreement);
+  // W_t:b's placement alone: believed near where the motion puts the camera, not 0.4 arc lengths from it.
+  f = FuseArcPositions(moving, 5, std::nullopt, std::nullopt, Placed(0.75), limits, agreement);
   EXPECT_TRUE(f.position.valid && f.via_to);
+  f = FuseArcPositions(moving, 5, std::nullopt, std::nullopt, Placed(0.95), limits, agreement);
+  EXPECT_FALSE(f.position.valid);
+  EXPECT_FALSE(f.continuous);
   // Nothing continuous: no position, and the frame is not continuous (a bad frame, no transition).
-  f = FuseArcPositions(moving, 5, Placed(2.0), Placed(-0.5), Placed(1.4), max_step, agreement);
+  f = FuseArcPositions(moving, 5, Placed(2.0), Placed(-0.5), Placed(1.4), limits, agreement);
   EXPECT_FALSE(f.position.valid);
   EXPECT_FALSE(f.continuous);
   // Nothing placed at all: no position, but nothing contradicted the motion either.
-  f = FuseArcPositions(moving, 5, std::nullopt, std::nullopt, std::nullopt, max_step, agreement);
+  f = FuseArcPositions(moving, 5, std::nullopt, std::nullopt, std::nullopt, limits, agreement);
   EXPECT_FALSE(f.position.valid);
   EXPECT_TRUE(f.continuous);
   // First frame on an arc (no motion known): the lower σ_p decides between the current geometries.
-  f = FuseArcPositions(std::nullopt, 5, std::nullopt, Placed(0.3, 2.0), Placed(0.7, 1.0), max_step, agreement);
+  f = FuseArcPositions(std::nullopt, 5, std::nullopt, Placed(0.3, 2.0), Placed(0.7, 1.0), limits, agreement);
   EXPECT_TRUE(f.via_to && !f.via_from);
   EXPECT_DOUBLE_EQ(f.position.along, 0.7);
 }
@@ -151,26 +155,32 @@ TEST(PositionContinuous, BelievesSteadyMotionNotJumps) {
   const auto moving = [](double along, double speed, size_t frame) {
     return std::optional<ArcProgress>(ArcProgress{along, speed, frame, true});
   };
+  const ContinuityLimits limits{0.75, 0.3};
   // Nothing known yet on this arc (after a bootstrap): any position.
-  EXPECT_TRUE(PositionContinuous(std::nullopt, 5, 0.8, 0.75));
-  // Steady progress, also backwards (noise) and with dropped frames.
-  EXPECT_TRUE(PositionContinuous(at(0.30, 4), 5, 0.45, 0.75));
-  EXPECT_TRUE(PositionContinuous(at(0.30, 4), 5, 0.25, 0.75));
-  EXPECT_TRUE(PositionContinuous(at(0.30, 4), 6, 1.05, 0.75));
+  EXPECT_TRUE(PositionContinuous(std::nullopt, 5, 0.8, limits));
+  // Speed unknown (first frames on an arc): steady progress, also backwards (noise) and with dropped frames.
+  EXPECT_TRUE(PositionContinuous(at(0.30, 4), 5, 0.45, limits));
+  EXPECT_TRUE(PositionContinuous(at(0.30, 4), 5, 0.25, limits));
+  EXPECT_TRUE(PositionContinuous(at(0.30, 4), 6, 1.05, limits));
   // Right after a transition (0 on the new arc) a geometry from few far features placed the camera at 0.82
   // of the new arc in the simulated town, where the camera covers ~0.17 arc per frame: not believed.
-  EXPECT_FALSE(PositionContinuous(at(0.0, 4), 5, 0.82, 0.75));
-  EXPECT_FALSE(PositionContinuous(moving(0.0, 0.17, 4), 5, 0.98, 0.75));
-  EXPECT_FALSE(PositionContinuous(at(0.72, 4), 5, 2.0, 0.75));
-  EXPECT_FALSE(PositionContinuous(at(0.9, 4), 5, 0.1, 0.75));
+  EXPECT_FALSE(PositionContinuous(at(0.0, 4), 5, 0.82, limits));
+  EXPECT_FALSE(PositionContinuous(at(0.72, 4), 5, 2.0, limits));
+  EXPECT_FALSE(PositionContinuous(at(0.9, 4), 5, 0.1, limits));
+  // Speed known: the tighter limit around where the speed puts the camera (0.17 + 0.17 = 0.34 here).
+  EXPECT_TRUE(PositionContinuous(moving(0.17, 0.17, 4), 5, 0.40, limits));
+  EXPECT_TRUE(PositionContinuous(moving(0.17, 0.17, 4), 5, 0.10, limits));
+  EXPECT_FALSE(PositionContinuous(moving(0.17, 0.17, 4), 5, 0.70, limits));
+  EXPECT_FALSE(PositionContinuous(moving(0.0, 0.17, 4), 5, 0.98, limits));
   // Short arcs (kitti07 at 320 px in turns): the camera covers about one arc per frame, and the position is
   // predicted from the speed, with that motion as the tolerance.
-  EXPECT_TRUE(PositionContinuous(moving(0.27, 1.0, 4), 5, 1.50, 0.75));
-  EXPECT_TRUE(PositionContinuous(moving(0.27, 1.0, 4), 7, 3.20, 0.75));
-  EXPECT_FALSE(PositionContinuous(moving(0.95, 0.17, 4), 6, 2.67, 0.75));
-  EXPECT_FALSE(PositionContinuous(moving(0.27, 1.0, 4), 5, 3.50, 0.75));
+  EXPECT_TRUE(PositionContinuous(moving(0.27, 1.0, 4), 5, 1.50, limits));
+  EXPECT_TRUE(PositionContinuous(moving(0.27, 1.0, 4), 7, 3.20, limits));
+  EXPECT_FALSE(PositionContinuous(moving(0.95, 0.17, 4), 6, 2.67, limits));
+  EXPECT_FALSE(PositionContinuous(moving(0.27, 1.0, 4), 5, 3.50, limits));
   // ... and a camera that stopped is not expected to move on.
-  EXPECT_FALSE(PositionContinuous(moving(0.5, 0.0, 4), 5, 1.4, 0.75));
+  EXPECT_FALSE(PositionContinuous(moving(0.5, 0.0, 4), 5, 1.4, limits));
+  EXPECT_FALSE(PositionContinuous(moving(0.5, 0.0, 4), 5, 0.9, limits));
 }
 
 TEST(LocalizerOptions, CheckRejectsBadValues) {
