@@ -7,6 +7,7 @@
 #include <opengv/absolute_pose/methods.hpp>
 #include <random>
 
+#include "retrace/geometry/essential.h"
 #include "retrace/geometry/sigma_p.h"
 #include "retrace/geometry/triangulation.h"
 
@@ -36,6 +37,82 @@ std::vector<int> InlierIndices(const Rigid3d& pose, const std::vector<Vector3d>&
   return inliers;
 }
 
+// Rotation by the axis-angle vector w.
+Matrix3d ExpSO3(const Vector3d& w) {
+  const double angle = w.norm();
+  if (angle < 1e-12) return Matrix3d::Identity();
+  return Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
+}
+
+// Squared sum of the residuals (tangent-plane components, radians) of the correspondences `indices` under
+// `pose`, and (when `jtj` is given) the normal equations of the 6 parameters (δω, δt) of the update
+// x_cam <- exp(δω) x_cam + δt, i.e. R <- exp(δω) R, t <- exp(δω) t + δt.
+double NormalEquations(const Rigid3d& pose, const std::vector<Vector3d>& points,
+                       const std::vector<Vector3d>& bearings, const std::vector<int>& indices,
+                       Eigen::Matrix<double, 6, 6>* jtj, Eigen::Matrix<double, 6, 1>* jtr) {
+  double cost = 0.0;
+  if (jtj != nullptr) {
+    jtj->setZero();
+    jtr->setZero();
+  }
+  for (const int i : indices) {
+    const Vector3d p = pose * points[i];
+    const double norm = p.norm();
+    if (!(norm > 0.0)) continue;
+    const Vector3d direction = p / norm;
+    Vector3d u, v;
+    TangentBasis(bearings[i], &u, &v);
+    const Eigen::Vector2d r(u.dot(direction), v.dot(direction));
+    cost += r.squaredNorm();
+    if (jtj == nullptr) continue;
+    // d direction / d p = (I - d dᵀ) / |p|; d p / d δω = -[p]ₓ, d p / d δt = I.
+    Eigen::Matrix<double, 2, 3> d_r_d_p;
+    d_r_d_p.row(0) = (u - u.dot(direction) * direction).transpose() / norm;
+    d_r_d_p.row(1) = (v - v.dot(direction) * direction).transpose() / norm;
+    Eigen::Matrix<double, 2, 6> j;
+    j.leftCols<3>() = -d_r_d_p * CrossProductMatrix(p);
+    j.rightCols<3>() = d_r_d_p;
+    *jtj += j.transpose() * j;
+    *jtr += j.transpose() * r;
+  }
+  return cost;
+}
+
+// Levenberg-Marquardt on the tangent-plane residuals of `indices` with the analytic Jacobian (plain least
+// squares, as the two-view refinement: on a clean inlier set it is the maximum-likelihood estimate).
+Rigid3d Refine(const std::vector<Vector3d>& points, const std::vector<Vector3d>& bearings,
+               const std::vector<int>& indices, const Rigid3d& initial, int max_iterations) {
+  Rigid3d pose = initial;
+  Eigen::Matrix<double, 6, 6> jtj;
+  Eigen::Matrix<double, 6, 1> jtr;
+  double cost = NormalEquations(pose, points, bearings, indices, &jtj, &jtr);
+  double lambda = 1e-4;
+  for (int iteration = 0; iteration < max_iterations; ++iteration) {
+    bool improved = false;
+    for (int attempt = 0; attempt < 10 && !improved; ++attempt) {
+      Eigen::Matrix<double, 6, 6> a = jtj;
+      a.diagonal() += lambda * (jtj.diagonal().array() + 1e-12).matrix();
+      const Eigen::Matrix<double, 6, 1> step = a.ldlt().solve(-jtr);
+      if (!step.allFinite()) return pose;
+      const Matrix3d rotation = ExpSO3(step.head<3>());
+      const Rigid3d candidate(rotation * pose.rotation, rotation * pose.translation + step.tail<3>());
+      const double candidate_cost = NormalEquations(candidate, points, bearings, indices, nullptr, nullptr);
+      if (candidate_cost < cost) {
+        const bool converged = cost - candidate_cost <= 1e-10 * cost;
+        pose = candidate;
+        lambda = std::max(lambda / 10.0, 1e-12);
+        improved = true;
+        cost = NormalEquations(pose, points, bearings, indices, &jtj, &jtr);
+        if (converged) return pose;
+      } else {
+        lambda *= 10.0;
+      }
+    }
+    if (!improved) break;
+  }
+  return pose;
+}
+
 AbsolutePose Failure(const std::string& message, size_t n) {
   AbsolutePose pose;
   pose.failure_message = message;
@@ -52,7 +129,8 @@ bool AbsolutePoseOptions::Check(std::string* error) const {
   };
   if (!ransac.Check()) return fail("invalid sampling options");
   if (min_inliers < 4) return fail("min_inliers must be >= 4");
-  if (refinement_rounds < 0) return fail("refinement_rounds must be >= 0");
+  if (refinement_rounds < 0 || refinement_iterations < 0)
+    return fail("refinement rounds and iterations must be >= 0");
   if (!(sigma_p_probability > 0 && sigma_p_probability < 1))
     return fail("sigma_p_probability must lie in (0, 1)");
   return true;
@@ -131,13 +209,7 @@ AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world,
   std::vector<int> inliers = InlierIndices(pose, points_in_world, bearings, tau2);
   for (int round = 0; round < options.refinement_rounds && static_cast<int>(inliers.size()) >= min_needed;
        ++round) {
-    const Rigid3d world_from_cam = pose.Inverse();
-    adapter.setR(world_from_cam.rotation);
-    adapter.sett(world_from_cam.translation);
-    const opengv::transformation_t refined_transformation =
-        opengv::absolute_pose::optimize_nonlinear(adapter, inliers);
-    if (!refined_transformation.allFinite()) break;
-    const Rigid3d refined = CamFromWorld(refined_transformation);
+    const Rigid3d refined = Refine(points_in_world, bearings, inliers, pose, options.refinement_iterations);
     std::vector<int> refined_inliers = InlierIndices(refined, points_in_world, bearings, tau2);
     if (refined_inliers.size() < inliers.size()) break;
     pose = refined;

@@ -13,8 +13,8 @@
 //    the point in the camera, times the focal length (pixels); a point behind the camera (on the wrong side
 //    along its ray) costs τ²;
 //  - adaptive number of samples from the best inlier ratio, N = log(1 - confidence) / log(1 - w³);
-//  - the best hypothesis is refined on its inliers by OpenGV's non-linear optimisation (Levenberg-Marquardt
-//    on the bearing errors), inliers re-selected and refined again while the inlier set grows;
+//  - the best hypothesis is refined on its inliers by Levenberg-Marquardt on the same residuals (analytic
+//    Jacobian), inliers re-selected and refined again while the inlier set grows;
 //  - σ_p (Segvic 2009, eq. (6)) from the inliers' residual components in the tangent plane of each observed
 //    bearing, in pixels (sigma_p.h): the same quality measure and the same gate as the two-view geometries.
 //
@@ -44,8 +44,9 @@ struct AbsolutePoseOptions {
   // Fewer inliers than this is a failure: the pose has 6 degrees of freedom, and a few more points make σ_p
   // (which penalises small supports) meaningful.
   int min_inliers = 6;
-  // Rounds of refinement and re-selection of the inliers.
+  // Rounds of refinement and re-selection of the inliers, and Levenberg-Marquardt iterations per round.
   int refinement_rounds = 3;
+  int refinement_iterations = 10;
   // Tolerated probability p of σ_p (Segvic 2009, eq. (6)).
   double sigma_p_probability = 0.05;
 

@@ -78,7 +78,7 @@ void SolveFivePoint(const std::vector<Vector3d>& bearings_a, const std::vector<V
 }
 
 TwoViewGeometry EstimateRelativePose(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
-                                     double focal_length_px, const TwoViewOptions& options) {
+                                     double focal_length_px, const TwoViewOptions& options, const Rigid3d* guess) {
   if (bearings_a.size() != bearings_b.size() || bearings_a.size() < 5) {
     // Let the shared loop report the failure with its reason (the solver needs matching lists of 5 or more).
     return internal::EstimateTwoView(bearings_a, bearings_b, focal_length_px, options, 5,
@@ -89,7 +89,7 @@ TwoViewGeometry EstimateRelativePose(const std::vector<Vector3d>& bearings_a, co
   return internal::EstimateTwoView(
       bearings_a, bearings_b, focal_length_px, options, 5,
       [&solver](const std::vector<int>& sample, std::vector<Rigid3d>* poses) { solver(sample, poses); },
-      internal::PoseManifold{5, &UpdateGeneralPose});
+      internal::PoseManifold{5, &UpdateGeneralPose}, guess);
 }
 
 }  // namespace retrace

@@ -23,8 +23,11 @@ namespace retrace {
 // to angles (CameraModel::FocalLength()). Never throws; failures are reported in the result. When several
 // correspondences are needed (5 for the solver, options.min_inliers for a result) and missing, or the inliers show
 // no parallax (pure rotation), `success` is false with a reason.
+// `guess`, when given, is a hypothesis b_from_a scored before any sample (e.g. the previous frame's geometry while
+// tracking; RansacOptions::min_iterations_with_guess).
 TwoViewGeometry EstimateRelativePose(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
-                                     double focal_length_px, const TwoViewOptions& options = TwoViewOptions());
+                                     double focal_length_px, const TwoViewOptions& options = TwoViewOptions(),
+                                     const Rigid3d* guess = nullptr);
 
 // Minimal solver: the candidate poses b_from_a of five correspondences `sample` (indices into the bearing lists)
 // that put all five points in front of both cameras (up to 10 essential matrices, each decomposed and

@@ -218,5 +218,38 @@ TEST(RelativePose, DegenerateInputFailsCleanly) {
   EXPECT_EQ(g.failure, TwoViewFailure::kInvalidOptions);
 }
 
+TEST(RelativePose, AGoodGuessNeedsFewSamplesAndABadOneDoesNoHarm) {
+  // While tracking, the previous frame's geometry is the guess: scored first, it lets the adaptive loop stop after
+  // RansacOptions::min_iterations_with_guess samples when it explains the correspondences (10 % outliers here).
+  const PerspectiveCamera camera(640, 480, 500.0, 500.0, 319.5, 239.5);
+  SyntheticTwoViewOptions scene_options;
+  scene_options.outlier_ratio = 0.1;
+  scene_options.min_distance = 3.0;
+  scene_options.max_distance = 15.0;
+  const Rigid3d truth = kPerspectivePoses[0];
+  const SyntheticTwoView scene = GenerateTwoView(camera, truth, scene_options);
+  TwoViewOptions options;
+  options.ransac.min_iterations = 30;
+  const double f = camera.FocalLength();
+  const TwoViewGeometry unguided = EstimateRelativePose(scene.bearings_a, scene.bearings_b, f, options);
+  // The previous frame's geometry: the truth moved by a small step.
+  const Rigid3d previous = MakePose(5.3, Vector3d(0.1, 1.0, 0.05), Vector3d(0.21, 0.05, -0.97));
+  const TwoViewGeometry guided = EstimateRelativePose(scene.bearings_a, scene.bearings_b, f, options, &previous);
+  ASSERT_TRUE(unguided.success && guided.success) << unguided.failure_message << guided.failure_message;
+  std::printf("  samples: %d unguided, %d with a good guess\n", unguided.num_iterations, guided.num_iterations);
+  EXPECT_GE(unguided.num_iterations, 30);
+  EXPECT_LE(guided.num_iterations, 10);
+  EXPECT_LT(PoseErrors(guided, truth).rotation_deg, 0.1);
+  EXPECT_LT(PoseErrors(guided, truth).translation_deg, 1.0);
+  EXPECT_NEAR(guided.sigma_p, unguided.sigma_p, 0.05);
+  // A wrong guess (the camera backwards and turned) explains nothing: the loop samples as usual.
+  const Rigid3d wrong = MakePose(40.0, Vector3d(1.0, 0.0, 0.0), Vector3d(0.0, 1.0, 1.0));
+  const TwoViewGeometry misled = EstimateRelativePose(scene.bearings_a, scene.bearings_b, f, options, &wrong);
+  ASSERT_TRUE(misled.success) << misled.failure_message;
+  EXPECT_GE(misled.num_iterations, options.ransac.min_iterations_with_guess);
+  EXPECT_LT(PoseErrors(misled, truth).rotation_deg, 0.1);
+  EXPECT_LT(PoseErrors(misled, truth).translation_deg, 1.0);
+}
+
 }  // namespace
 }  // namespace retrace

@@ -17,7 +17,8 @@ namespace retrace {
 
 bool RansacOptions::Check() const {
   return max_error_px > 0.0 && confidence > 0.0 && confidence < 1.0 && min_iterations >= 0 &&
-         max_iterations >= 1 && min_iterations <= max_iterations;
+         max_iterations >= 1 && min_iterations <= max_iterations && min_iterations_with_guess >= 0 &&
+         min_iterations_with_guess <= max_iterations;
 }
 
 bool TwoViewOptions::Check() const {
@@ -260,7 +261,7 @@ Rigid3d RefineOnSampson(const std::vector<Vector3d>& bearings_a, const std::vect
 
 TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
                                 double focal_length_px, const TwoViewOptions& options, int sample_size,
-                                const MinimalSolver& solver, const PoseManifold& manifold) {
+                                const MinimalSolver& solver, const PoseManifold& manifold, const Rigid3d* guess) {
   const size_t n = bearings_a.size();
   if (!options.Check()) return Failure(TwoViewFailure::kInvalidOptions, "", n);
   if (bearings_b.size() != n) {
@@ -290,9 +291,19 @@ TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const s
   Rigid3d best_pose;
   double best_cost = std::numeric_limits<double>::infinity();
   int required = options.ransac.max_iterations;
+  int min_iterations = options.ransac.min_iterations;
+  if (guess != nullptr && guess->rotation.allFinite() && guess->translation.allFinite() &&
+      guess->translation.norm() > 0.0) {
+    const Rigid3d pose(guess->rotation, guess->translation.normalized());
+    int inliers = 0;
+    best_cost = ScorePose(pose, bearings_a, bearings_b, tau2, best_cost, &inliers);
+    best_pose = pose;
+    min_iterations = options.ransac.min_iterations_with_guess;
+    required = std::max(min_iterations, RequiredIterations(static_cast<double>(inliers) / n, sample_size,
+                                                           options.ransac.confidence));
+  }
   int iteration = 0;
-  for (; iteration < options.ransac.max_iterations &&
-         (iteration < options.ransac.min_iterations || iteration < required);
+  for (; iteration < options.ransac.max_iterations && (iteration < min_iterations || iteration < required);
        ++iteration) {
     // Partial Fisher-Yates shuffle: the first sample_size entries of the pool are a uniform sample.
     for (int k = 0; k < sample_size; ++k) {
@@ -321,9 +332,8 @@ TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const s
       if (cost < best_cost) {
         best_cost = cost;
         best_pose = pose;
-        required = std::max(options.ransac.min_iterations,
-                            RequiredIterations(static_cast<double>(inliers) / n, sample_size,
-                                               options.ransac.confidence));
+        required = std::max(min_iterations, RequiredIterations(static_cast<double>(inliers) / n, sample_size,
+                                                               options.ransac.confidence));
       }
     }
   }

@@ -40,6 +40,9 @@ struct RansacOptions {
   // Bounds on the number of samples drawn.
   int min_iterations = 100;
   int max_iterations = 5000;
+  // The lower bound when the estimator is given a guess (e.g. the previous frame's geometry while tracking): the
+  // guess is scored before any sample, so a good one lets the adaptive loop stop after few samples.
+  int min_iterations_with_guess = 5;
   // Seed of the random sampler; equal seeds and inputs give equal results.
   uint64_t seed = 0x5eed;
 
@@ -121,10 +124,12 @@ int RequiredIterations(double inlier_ratio, int sample_size, double confidence);
 // True when every bearing is a finite unit vector.
 bool ValidBearings(const std::vector<Vector3d>& bearings);
 
-// The robust loop, refinement and final evaluation shared by the 5-point and planar estimators.
+// The robust loop, refinement and final evaluation shared by the 5-point and planar estimators. `guess`, when given,
+// is scored as the first hypothesis (see RansacOptions::min_iterations_with_guess).
 TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
                                 double focal_length_px, const TwoViewOptions& options, int sample_size,
-                                const MinimalSolver& solver, const PoseManifold& manifold);
+                                const MinimalSolver& solver, const PoseManifold& manifold,
+                                const Rigid3d* guess = nullptr);
 
 // Levenberg-Marquardt on the Sampson residuals (radians) of `indices` over the manifold, with an optional Cauchy
 // loss of scale `cauchy_scale` (radians; 0, the default used by the estimators, is plain least squares: on a clean
