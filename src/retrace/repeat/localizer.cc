@@ -257,6 +257,7 @@ node_t Localizer::ReferenceNode(const ArcData& arc, feature_t feature, node_t pr
 
 void Localizer::ClearTracks() {
   for (const TrackedFeature& f : std::vector<TrackedFeature>(tracker_.Features())) tracker_.Remove(f.id);
+  last_geometry_.clear();
   reference_node_.clear();
   retry_after_.clear();
 }
@@ -350,7 +351,16 @@ Localizer::CurrentGeometry Localizer::EstimateCurrentGeometry(node_t node_id) {
   }
   if (static_cast<int>(current.ids.size()) < geometry_options_.min_inliers) return current;
   current.estimated = true;
-  current.geometry = EstimateRelativePose(bearings_key, bearings_current, camera_->FocalLength(), geometry_options_);
+  // The previous frame's geometry towards the same key-image is scored first: frame to frame it changes little,
+  // and the robust loop then stops after few samples.
+  const auto guess = last_geometry_.find(node_id);
+  current.geometry = EstimateRelativePose(bearings_key, bearings_current, camera_->FocalLength(), geometry_options_,
+                                          guess == last_geometry_.end() ? nullptr : &guess->second);
+  if (current.geometry.success) {
+    last_geometry_[node_id] = current.geometry.b_from_a;
+  } else {
+    last_geometry_.erase(node_id);
+  }
   current.usable = GeometryUsable(current.geometry, max_sigma_p_px_);
   return current;
 }
@@ -677,7 +687,12 @@ void Localizer::Localize(FrameResult* result) {
   // or at once when the absolute pose placed the camera (a bootstrap that matched the key-image ahead of the camera
   // is corrected in its own frame; the current geometries' placements right after a bootstrap or transition are too
   // uncertain for that).
-  int direction = had_progress || fused.via_pose ? DecideTransition(position, options_.backward_margin) : 0;
+  // A transition needs the absolute pose or both current geometries agreeing: one current geometry alone, with the
+  // absolute pose rejected, placed the camera a third of an arc too far in the simulated town (a transition two
+  // frames early).
+  const bool decisive = fused.via_pose || (fused.via_from && fused.via_to);
+  int direction =
+      decisive && (had_progress || fused.via_pose) ? DecideTransition(position, options_.backward_margin) : 0;
   if ((direction > 0 && next == nullptr) || (direction < 0 && previous == nullptr)) direction = 0;
   if (direction == 0) return;
   // The camera has just crossed the plane through the node (eq. (9)). Its position and speed carry over into the new

@@ -432,6 +432,8 @@ class Localizer {
   std::unordered_map<feature_t, node_t> reference_node_;
   // Frame counter before which a rejected prediction is not retried.
   std::unordered_map<feature_t, size_t> retry_after_;
+  // The last successful current geometry towards each key-image (the next frame's first hypothesis).
+  std::unordered_map<node_t, Rigid3d> last_geometry_;
   // Current bearings of the tracked features (this frame).
   std::unordered_map<feature_t, Vector3d> bearings_;
 };
