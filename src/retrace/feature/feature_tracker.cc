@@ -242,15 +242,37 @@ bool CutWindow(const cv::Mat& image, double px, double py, int w, int stride, bo
   // Centre the values: the contrast columns (T - mean, 1) are then orthogonal and the normal equations well
   // conditioned in float.
   const double mean = sum / n;
-  Eigen::Matrix<double, 5, 5> hessian = Eigen::Matrix<double, 5, 5>::Zero();
+  // H = Σ J0ᵀ J0 with J0 = [Tx, Ty, u.grad T, T, 1]: its 15 distinct sums, in two passes of few accumulators each
+  // (they stay in registers).
+  double xx = 0, xy = 0, xs = 0, x1 = 0, yy = 0, ys = 0, y1 = 0, ss = 0, s1 = 0;
+  for (int k = 0; k < n; ++k) {
+    const double jx = gx[k], jy = gy[k], js = gs[k];
+    xx += jx * jx;
+    xy += jx * jy;
+    xs += jx * js;
+    x1 += jx;
+    yy += jy * jy;
+    ys += jy * js;
+    y1 += jy;
+    ss += js * js;
+    s1 += js;
+  }
+  double xt = 0, yt = 0, st = 0, tt = 0, t1 = 0;
   for (int k = 0; k < n; ++k) {
     t[k] = static_cast<float>(t[k] - mean);
-    const double j[5] = {gx[k], gy[k], gs[k], t[k], 1.0};
-    for (int a = 0; a < 5; ++a) {
-      for (int b = 0; b <= a; ++b) hessian(a, b) += j[a] * j[b];
-    }
+    const double jt = t[k];
+    xt += gx[k] * jt;
+    yt += gy[k] * jt;
+    st += gs[k] * jt;
+    tt += jt * jt;
+    t1 += jt;
   }
-  hessian.triangularView<Eigen::StrictlyUpper>() = hessian.transpose();
+  Eigen::Matrix<double, 5, 5> hessian;
+  hessian << xx, xy, xs, xt, x1,  //
+      xy, yy, ys, yt, y1,         //
+      xs, ys, ss, st, s1,         //
+      xt, yt, st, tt, t1,         //
+      x1, y1, s1, t1, static_cast<double>(n);
   *mean_out = mean;
   const double std_dev = std::sqrt(std::max(0.0, sum_sq / n - mean * mean));
   *std_dev_out = std_dev;
@@ -263,7 +285,8 @@ bool CutWindow(const cv::Mat& image, double px, double py, int w, int stride, bo
   // Compare in units where the scale column is a corner displacement (scale step * half window).
   const Eigen::Vector3d unit(1.0, 1.0, 1.0 / (half * stride));
   const Eigen::Matrix3d normalised = unit.asDiagonal() * schur * unit.asDiagonal();
-  const double min_eigenvalue = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(normalised).eigenvalues()(0);
+  const double min_eigenvalue =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>().computeDirect(normalised, Eigen::EigenvaluesOnly).eigenvalues()(0);
   if (!(min_eigenvalue / n > kMinEigenvaluePerPixel)) return false;
   *inverse_hessian = hessian.inverse().cast<float>();
   // Without the scale parameter (coarse levels): invert the 4x4 system of (dx, dy, lambda, delta).
