@@ -2,10 +2,15 @@
 //
 // Writes one CSV row per input frame (flushed as written, so a live run can be followed with `tail -f`):
 //   frame,image,timestamp,state,arc,node_from,node_to,tracked,tracked_previous,tracked_current,tracked_next,
-//   resumed,rejected,dropped,drifted,redefined,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,steering,ms
+//   resumed,rejected,dropped,drifted,redefined,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,steering,ms,
+//   position_via_from,position_via_to,position_via_pose,sigma_p_pose,pose_inliers
 // frame = 0-based index in the input sequence (after --every/--offset), state = tracking | lost | relocalizing,
-// node ids and arc -1 when not tracking, σ_p columns -1 when not estimated, ms = processing time of the frame.
+// node ids and arc -1 when not tracking, σ_p columns -1 when not estimated, ms = processing time of the frame,
+// position_on_arc the camera's position along the arc used for transitions (0 at node_from, 1 at node_to), the
+// position_via_* columns the placements it was fused from (W_t:a, W_t:b, the absolute pose in the arc's
+// reconstruction; empty when that estimate gave none).
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -43,6 +48,9 @@ double ParseMetadataNumber(const std::string& text, const std::string& key, cons
   }
   throw InputError(map.string(), "metadata " + key + " is not a number: '" + text + "'");
 }
+
+// A number with 4 decimals, or empty when not a number (an estimate that gave none).
+std::string OptionalNumber(double value) { return std::isfinite(value) ? fmt::format("{:.4f}", value) : ""; }
 
 struct RepeatArguments {
   std::filesystem::path map;
@@ -194,7 +202,7 @@ void RunRepeat(const RepeatArguments& args) {
   if (!csv) throw InputError(args.output.string(), "cannot be written");
   csv << "frame,image,timestamp,state,arc,node_from,node_to,tracked,tracked_previous,tracked_current,tracked_next,"
          "resumed,rejected,dropped,drifted,redefined,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,"
-         "steering,ms\n";
+         "steering,ms,position_via_from,position_via_to,position_via_pose,sigma_p_pose,pose_inliers\n";
   csv.flush();
   if (!args.overlay.empty()) std::filesystem::create_directories(args.overlay);
 
@@ -210,12 +218,15 @@ void RunRepeat(const RepeatArguments& args) {
       }
       FrameResult r = localizer.ProcessFrame(*frame);
       csv << fmt::format("{},{},{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.3f},{:.3f},{:.3f},{:.4f},{},"
-                         "{:.5f},{:.2f}\n",
+                         "{:.5f},{:.2f}",
                          frame->index, frame->name, frame->timestamp, LocalizerStateName(r.state), r.arc,
                          r.node_from, r.node_to, r.tracked, r.tracked_by_role[0], r.tracked_by_role[1],
                          r.tracked_by_role[2], r.resumed, r.rejected, r.dropped, r.drifted, r.redefined, r.sigma_p,
                          r.sigma_p_from, r.sigma_p_to, r.position_valid ? r.position_on_arc : 0.0, r.transition,
-                         r.steering_valid ? r.steering : 0.0, 1000.0 * r.seconds);
+                         r.steering_valid ? r.steering : 0.0, 1000.0 * r.seconds)
+          << fmt::format(",{},{},{},{:.3f},{}\n", OptionalNumber(r.position_via_from),
+                         OptionalNumber(r.position_via_to), OptionalNumber(r.position_via_pose), r.sigma_p_pose,
+                         r.pose_inliers);
       csv.flush();
       if (!csv) throw InputError(args.output.string(), "write failed");
       if (!args.overlay.empty()) {
@@ -234,20 +245,31 @@ void RunRepeat(const RepeatArguments& args) {
   }
   if (!args.overlay.empty()) WriteTrackedPlot(results, args.overlay / "tracked.png");
 
-  // Re-initialisations: every bootstrap after the first one (a loss, recovered in the same frame or later).
+  // Re-initialisations: every bootstrap after the first one (a loss, recovered in the same frame or later). Time:
+  // all frames after the first (whose bootstrap extracts features of every key-image for retrieval), and the median
+  // of the frames localized by tracking (without wide-baseline matching).
   int tracking = 0, bootstraps = 0, transitions = 0;
   double seconds = 0;
-  for (const FrameResult& r : results) {
+  std::vector<double> tracked_ms;
+  for (size_t i = 0; i < results.size(); ++i) {
+    const FrameResult& r = results[i];
     tracking += r.state == LocalizerState::kTracking;
     bootstraps += r.bootstrapped;
     transitions += r.transition != 0;
-    seconds += r.seconds;
+    if (i > 0) seconds += r.seconds;
+    if (r.state == LocalizerState::kTracking && !r.bootstrapped) tracked_ms.push_back(1000.0 * r.seconds);
   }
-  std::cout << fmt::format("repeat: {} frames, {} tracking, {} re-initialisations, {} transitions; {:.1f} ms/frame "
-                           "({:.1f} frames/s)\n",
-                           results.size(), tracking, std::max(0, bootstraps - 1), transitions,
-                           1000.0 * seconds / std::max<size_t>(1, results.size()),
-                           results.size() / std::max(seconds, 1e-9));
+  std::string timing;
+  if (results.size() > 1) {
+    timing = fmt::format("; {:.1f} frames/s after the first frame ({:.0f} ms)", (results.size() - 1) / std::max(seconds, 1e-9),
+                         1000.0 * results.front().seconds);
+  }
+  if (!tracked_ms.empty()) {
+    std::nth_element(tracked_ms.begin(), tracked_ms.begin() + tracked_ms.size() / 2, tracked_ms.end());
+    timing += fmt::format(", median {:.2f} ms per tracked frame", tracked_ms[tracked_ms.size() / 2]);
+  }
+  std::cout << fmt::format("repeat: {} frames, {} tracking, {} re-initialisations, {} transitions{}\n", results.size(),
+                           tracking, std::max(0, bootstraps - 1), transitions, timing);
 
   if (args.evaluate) {
     // Pseudo-repeat: key-images are frames of the teach sequence (map metadata), repeat frames of this one.

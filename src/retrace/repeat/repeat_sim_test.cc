@@ -1,11 +1,13 @@
 // Repeat in the simulator, where ground truth is exact (issue acceptance: "repeat drive 1 m to the side of the teach
-// drive, different sun, pedestrians crossing"): a map is taught on the default town drive, and the repeat variant of
-// the same scenario (another time of day, 1 m lateral offset with wobble, pedestrians and cars elsewhere) is
-// localized in it frame by frame. Ground truth decides which arc was right and whether the steering command
-// (Segvic 2009, eq. (10)) points where the taught path goes.
+// drive, different sun, pedestrians crossing: >= 99 % correct, zero wrong by >= 2"): a map is taught on a town drive,
+// and the repeat variant of the same scenario (another time of day, 1 m lateral offset with wobble, pedestrians and
+// cars elsewhere) is localized in it frame by frame; for the default town and drive and for another one. Ground truth
+// decides which arc was right and whether the steering command (Segvic 2009, eq. (10)) points where the taught path
+// goes.
 
 #include <cmath>
 #include <iostream>
+#include <string>
 
 #include <gtest/gtest.h>
 
@@ -17,8 +19,11 @@
 namespace retrace {
 namespace {
 
-TEST(RepeatSim, OtherSunOffsetAndPedestrians) {
-  Scenario scenario;  // the default town and drive of `retrace sim example-scenario` and the demo
+// Teaches the scenario's drive (200 frames), repeats its repeat variant and checks the issue's acceptance: at least
+// 99 % of the frames on the correct arc (±1 near a node), none two or more arcs off, at most 1 % lost; and the
+// steering command against ground truth (when the drive turns).
+void RepeatAndCheck(const Scenario& base, const std::string& label, bool check_steering) {
+  Scenario scenario = base;
   scenario.num_frames = 200;
   const RecordedDrive teach = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kTeach));
   const RecordedDrive repeat = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kRepeat));
@@ -39,25 +44,23 @@ TEST(RepeatSim, OtherSunOffsetAndPedestrians) {
     results.push_back(std::move(result));
   }
   const TopologicalEvaluation evaluation = EvaluateTopological(map, teach.truth, repeat.truth, records);
-  std::cout << "simulated repeat (other sun, 1 m offset, pedestrians): " << evaluation.Summary() << "\n";
+  std::cout << label << " (other sun, 1 m offset, pedestrians), " << map.nodes().size()
+            << " key-images: " << evaluation.Summary() << "\n";
 
   // Never a confident wrong answer: no frame two or more arcs away from the true one.
   EXPECT_EQ(evaluation.wrong_by_two, 0);
   for (size_t i = 0; i < evaluation.per_frame.size(); ++i) {
     const FrameTruth& t = evaluation.per_frame[i];
-    if (t.error < 2) continue;
+    if (t.correct) continue;
     const FrameResult& r = results[i];
-    ADD_FAILURE() << "frame " << i << ": arc index " << t.estimated_arc_index << ", true " << t.true_arc_index
-                  << "; tracked " << r.tracked << " (" << r.tracked_by_role[0] << "/" << r.tracked_by_role[1] << "/"
-                  << r.tracked_by_role[2] << "), sigma_p " << r.sigma_p_from << "/" << r.sigma_p_to << ", position "
-                  << r.position_on_arc << ", transition " << r.transition << (r.bootstrapped ? ", bootstrapped" : "");
+    std::cout << "  frame " << i << ": " << LocalizerStateName(r.state) << ", arc index " << t.estimated_arc_index
+              << ", true " << t.true_arc_index << "; tracked " << r.tracked << " (" << r.tracked_by_role[0] << "/"
+              << r.tracked_by_role[1] << "/" << r.tracked_by_role[2] << "), sigma_p " << r.sigma_p_from << "/"
+              << r.sigma_p_to << ", position " << r.position_on_arc << ", transition " << r.transition
+              << (r.bootstrapped ? ", bootstrapped" : "") << "\n";
   }
-  // The issue's target is 99 % correct, which is NOT met: measured 96.5 % correct and 3.5 % one arc off (a
-  // transition a frame or two early or late; arcs are ~6 frames long here), none lost, on these 200 frames
-  // (README). This guards the measured level against regressions.
-  EXPECT_GE(evaluation.FractionCorrect(), 0.95);
-  EXPECT_LE(evaluation.lost, evaluation.frames / 50);
-  EXPECT_LE(evaluation.wrong, evaluation.frames / 20);
+  EXPECT_GE(evaluation.FractionCorrect(), 0.99);
+  EXPECT_LE(evaluation.lost, evaluation.frames / 100);
 
   // Steering (eq. (10)) against ground truth. The mapped features are mostly distant, for which x_t - x* is the
   // heading difference between the current camera and the next key-image: when the next key-image looks more than
@@ -79,8 +82,22 @@ TEST(RepeatSim, OtherSunOffsetAndPedestrians) {
   }
   std::cout << "steering turns towards the next key-image's heading in " << agreeing << " of " << checked
             << " frames (heading difference > 2 degrees)\n";
+  if (!check_steering) return;
   ASSERT_GT(checked, 40);
   EXPECT_GE(agreeing, 0.85 * checked);
+}
+
+TEST(RepeatSim, OtherSunOffsetAndPedestrians) {
+  // The town and drive of `retrace sim example-scenario` and the demo; its first 200 frames take three turns.
+  RepeatAndCheck(Scenario(), "default town and drive", /*check_steering=*/true);
+}
+
+TEST(RepeatSim, AnotherTownAndRoute) {
+  // A town and a route the defaults were not tuned on (seed 2 of both); its first 200 frames go straight on.
+  Scenario scenario;
+  scenario.seed = 2;
+  scenario.town.seed = 2;
+  RepeatAndCheck(scenario, "town and drive of seed 2", /*check_steering=*/false);
 }
 
 }  // namespace
