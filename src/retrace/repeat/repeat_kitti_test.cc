@@ -136,6 +136,21 @@ TEST_F(RepeatKitti, PassingOccluder) {
   perturbation.occluder_last_frame = 39;
   const RepeatRun run = Run(2, 1, perturbation, 0, "occluder 40% for 10 frames");
   ExpectPerturbedAcceptance(run);
+  // The occluded features are dropped while the occluder passes and resumed (predicted by point transfer and
+  // re-aligned) once it has passed: the counts per frame before, during and after.
+  const auto mean_tracked = [&](int first, int last) {
+    double sum = 0;
+    for (int i = first; i <= last; ++i) sum += run.results[i].tracked;
+    return sum / (last - first + 1);
+  };
+  int resumed_after = 0;
+  for (int i = 40; i <= 44; ++i) resumed_after += run.results[i].resumed;
+  const double before = mean_tracked(25, 29), during = mean_tracked(35, 39), after = mean_tracked(45, 49);
+  std::cout << "tracked features per frame: " << before << " before, " << during << " under the occluder, " << after
+            << " after (" << resumed_after << " resumed in the 5 frames after it)\n";
+  EXPECT_LT(during, 0.85 * before);
+  EXPECT_GT(after, during);
+  EXPECT_GT(resumed_after, 10);
 }
 
 TEST_F(RepeatKitti, EverySecondFrameDropped) {
