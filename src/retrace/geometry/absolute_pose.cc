@@ -22,10 +22,15 @@ Rigid3d CamFromWorld(const opengv::transformation_t& world_from_cam) {
   return Rigid3d(rotation.transpose(), -rotation.transpose() * centre);
 }
 
-// Squared residual (radians²) of one correspondence; a point behind the camera along its ray gets a residual
-// of at least one radian (TangentResidualPx), so it never counts as an inlier.
+// Squared residual of one correspondence: the squared norm of TangentResidualPx (radians), i.e. the squared
+// sine of the angle between the bearing and the direction to the point, 1 - (f·p)² / |p|²; a point behind the
+// camera along its ray costs 4 (more than one radian, so it never counts as an inlier).
 double SquaredResidual(const Rigid3d& cam_from_world, const Vector3d& point, const Vector3d& bearing) {
-  return TangentResidualPx(bearing, cam_from_world * point, 1.0).squaredNorm();
+  const Vector3d p = cam_from_world * point;
+  const double along = bearing.dot(p);
+  const double norm2 = p.squaredNorm();
+  if (!(along > 0.0) || !(norm2 > 0.0)) return 4.0;
+  return std::max(0.0, 1.0 - along * along / norm2);
 }
 
 std::vector<int> InlierIndices(const Rigid3d& pose, const std::vector<Vector3d>& points,

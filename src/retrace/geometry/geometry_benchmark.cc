@@ -1,4 +1,5 @@
-// Benchmarks of the geometry layer: robust 5-point relative pose (150 correspondences, 30 % outliers) and σ_p.
+// Benchmarks of the geometry layer: robust 5-point relative pose (150 correspondences, 30 % outliers), with and
+// without a good guess (the previous frame's geometry while tracking), robust absolute pose (P3P) and σ_p.
 //
 //   build/src/retrace/geometry/bench_geometry_geometry_benchmark --benchmark_repetitions=5
 //       --benchmark_report_aggregates_only=true
@@ -8,6 +9,7 @@
 #include <benchmark/benchmark.h>
 
 #include "retrace/camera/perspective_camera.h"
+#include "retrace/geometry/absolute_pose.h"
 #include "retrace/geometry/planar_pose.h"
 #include "retrace/geometry/relative_pose.h"
 #include "retrace/geometry/sigma_p.h"
@@ -41,6 +43,52 @@ void BM_RelativePose5Point150Points30PercentOutliers(benchmark::State& state) {
   state.counters["samples"] = iterations;
 }
 BENCHMARK(BM_RelativePose5Point150Points30PercentOutliers)->Unit(benchmark::kMillisecond);
+
+// The same scene with 10 % outliers, as the tracked features of repeat, estimated from a guess near the truth (the
+// previous frame's geometry) with the repeat's sample floor (30 without a guess).
+void BM_RelativePoseWithGuess150Points10PercentOutliers(benchmark::State& state) {
+  const Rigid3d pose(Eigen::AngleAxisd(0.08, Vector3d(0.1, 1.0, 0.05).normalized()).toRotationMatrix(),
+                     Vector3d(0.2, 0.05, -1.0));
+  const PerspectiveCamera camera(640, 480, 500.0, 500.0, 319.5, 239.5);
+  SyntheticTwoViewOptions scene_options;
+  scene_options.num_points = 150;
+  scene_options.outlier_ratio = 0.1;
+  scene_options.min_distance = 3.0;
+  scene_options.max_distance = 15.0;
+  const SyntheticTwoView scene = GenerateTwoView(camera, pose, scene_options);
+  const Rigid3d guess(Eigen::AngleAxisd(0.085, Vector3d(0.1, 1.0, 0.05).normalized()).toRotationMatrix(),
+                      Vector3d(0.21, 0.05, -0.98));
+  TwoViewOptions options;
+  options.ransac.min_iterations = 30;
+  const bool with_guess = state.range(0) != 0;
+  int iterations = 0;
+  for (auto _ : state) {
+    const TwoViewGeometry g =
+        EstimateRelativePose(scene.bearings_a, scene.bearings_b, 500.0, options, with_guess ? &guess : nullptr);
+    if (!g.success) state.SkipWithError("estimation failed");
+    iterations = g.num_iterations;
+    benchmark::DoNotOptimize(g.b_from_a.rotation(0, 0));
+  }
+  state.counters["samples"] = iterations;
+}
+BENCHMARK(BM_RelativePoseWithGuess150Points10PercentOutliers)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// Absolute pose of the second camera from the first camera's points (the repeat's placement of the camera in an
+// arc's reconstruction), 150 correspondences, 30 % outliers.
+void BM_AbsolutePose150Points30PercentOutliers(benchmark::State& state) {
+  const Rigid3d pose(Eigen::AngleAxisd(0.08, Vector3d(0.1, 1.0, 0.05).normalized()).toRotationMatrix(),
+                     Vector3d(0.2, 0.05, -1.0));
+  const SyntheticTwoView scene = Scene(pose);
+  int iterations = 0;
+  for (auto _ : state) {
+    const AbsolutePose p = EstimateAbsolutePose(scene.points_in_a, scene.bearings_b, 500.0);
+    if (!p.success) state.SkipWithError("estimation failed");
+    iterations = p.num_iterations;
+    benchmark::DoNotOptimize(p.cam_from_world.rotation(0, 0));
+  }
+  state.counters["samples"] = iterations;
+}
+BENCHMARK(BM_AbsolutePose150Points30PercentOutliers)->Unit(benchmark::kMicrosecond);
 
 void BM_PlanarPose150Points30PercentOutliers(benchmark::State& state) {
   const SyntheticTwoView scene = Scene(PlanarPose(0.1, 3.0));
