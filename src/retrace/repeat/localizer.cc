@@ -258,6 +258,7 @@ node_t Localizer::ReferenceNode(const ArcData& arc, feature_t feature, node_t pr
 void Localizer::ClearTracks() {
   for (const TrackedFeature& f : std::vector<TrackedFeature>(tracker_.Features())) tracker_.Remove(f.id);
   last_geometry_.clear();
+  last_pose_.reset();
   reference_node_.clear();
   retry_after_.clear();
 }
@@ -336,6 +337,26 @@ void Localizer::FillCounts(FrameResult* result) const {
   }
 }
 
+std::optional<Rigid3d> Localizer::GuessCurrentFrom(node_t node) const {
+  if (const auto it = last_geometry_.find(node); it != last_geometry_.end()) return it->second;
+  // A key-image not related to the previous frame (the one ahead after a transition): from the previous frame's
+  // absolute pose in its arc's reconstruction, through the arc geometries and the relative scale at their node (the
+  // guess only needs the translation's direction).
+  if (!last_pose_) return std::nullopt;
+  const ArcData* arc = Arc(last_pose_->arc);
+  if (arc == nullptr) return std::nullopt;
+  const Rigid3d& current_from_a = last_pose_->current_from_from;
+  if (node == arc->arc->from) return current_from_a;
+  Rigid3d current_from_b = current_from_a * arc->arc->to_from_from.Inverse();
+  if (node == arc->arc->to) return current_from_b;
+  const ArcData* next = Arc(arc->next);
+  if (next == nullptr || node != next->arc->to) return std::nullopt;
+  const std::optional<double> unit = UnitRatio(arc->arc->id, next->arc->id, +1);
+  if (!unit) return std::nullopt;
+  current_from_b.translation *= *unit;
+  return current_from_b * next->arc->to_from_from.Inverse();
+}
+
 Localizer::CurrentGeometry Localizer::EstimateCurrentGeometry(node_t node_id) {
   CurrentGeometry current;
   current.node = node_id;
@@ -353,9 +374,9 @@ Localizer::CurrentGeometry Localizer::EstimateCurrentGeometry(node_t node_id) {
   current.estimated = true;
   // The previous frame's geometry towards the same key-image is scored first: frame to frame it changes little,
   // and the robust loop then stops after few samples.
-  const auto guess = last_geometry_.find(node_id);
+  const std::optional<Rigid3d> guess = GuessCurrentFrom(node_id);
   current.geometry = EstimateRelativePose(bearings_key, bearings_current, camera_->FocalLength(), geometry_options_,
-                                          guess == last_geometry_.end() ? nullptr : &guess->second);
+                                          guess ? &*guess : nullptr);
   if (current.geometry.success) {
     last_geometry_[node_id] = current.geometry.b_from_a;
   } else {
@@ -475,7 +496,9 @@ void Localizer::Localize(FrameResult* result) {
   std::optional<PlacedCamera> via_pose;
   if (options_.place_by_absolute_pose) {
     const AbsolutePose pose = EstimatePoseInArc(*arc);
+    last_pose_.reset();
     if (pose.success) {
+      last_pose_ = LastPose{arc_, pose.cam_from_world};
       result->sigma_p_pose = pose.sigma_p;
       result->pose_inliers = pose.num_inliers;
       const ArcPosition position_pose = LocateOnArc(pose.cam_from_world, arc->arc->to_from_from);

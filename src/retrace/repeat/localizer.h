@@ -382,6 +382,9 @@ class Localizer {
   bool Bootstrap(const Frame& frame, FrameResult* result);
   void Localize(FrameResult* result);
   CurrentGeometry EstimateCurrentGeometry(node_t node);
+  // The first hypothesis for the current geometry towards `node`: the previous frame's, else one derived from the
+  // previous frame's absolute pose; none when neither relates to `node`.
+  std::optional<Rigid3d> GuessCurrentFrom(node_t node) const;
   // The absolute pose of the current camera in `arc`'s reconstruction, from the tracked features it reconstructs.
   AbsolutePose EstimatePoseInArc(const ArcData& arc) const;
   void ApplyTransition(int direction, FrameResult* result);
@@ -432,8 +435,14 @@ class Localizer {
   std::unordered_map<feature_t, node_t> reference_node_;
   // Frame counter before which a rejected prediction is not retried.
   std::unordered_map<feature_t, size_t> retry_after_;
-  // The last successful current geometry towards each key-image (the next frame's first hypothesis).
+  // The last successful current geometry towards each key-image (the next frame's first hypothesis), and the last
+  // absolute pose of the camera in an arc's reconstruction (the first hypothesis towards a key-image new to it).
   std::unordered_map<node_t, Rigid3d> last_geometry_;
+  struct LastPose {
+    arc_t arc = kInvalidArcId;
+    Rigid3d current_from_from;  // in the arc's frame and unit
+  };
+  std::optional<LastPose> last_pose_;
   // Current bearings of the tracked features (this frame).
   std::unordered_map<feature_t, Vector3d> bearings_;
 };
