@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <numeric>
+#include <optional>
 #include <random>
 
 #include <Eigen/Cholesky>
@@ -23,7 +24,7 @@ bool RansacOptions::Check() const {
 
 bool TwoViewOptions::Check() const {
   return ransac.Check() && refinement_iterations >= 0 && min_inliers >= 5 && min_parallax_px >= 0.0 &&
-         sigma_p_probability > 0.0 && sigma_p_probability < 1.0;
+         sigma_p_probability > 0.0 && sigma_p_probability < 1.0 && guess_preference >= 0.0;
 }
 
 const char* TwoViewFailureName(TwoViewFailure failure) {
@@ -292,9 +293,11 @@ TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const s
   double best_cost = std::numeric_limits<double>::infinity();
   int required = options.ransac.max_iterations;
   int min_iterations = options.ransac.min_iterations;
+  std::optional<Rigid3d> guess_pose;
   if (guess != nullptr && guess->rotation.allFinite() && guess->translation.allFinite() &&
       guess->translation.norm() > 0.0) {
     const Rigid3d pose(guess->rotation, guess->translation.normalized());
+    guess_pose = pose;
     int inliers = 0;
     best_cost = ScorePose(pose, bearings_a, bearings_b, tau2, best_cost, &inliers);
     best_pose = pose;
@@ -344,17 +347,31 @@ TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const s
   }
 
   // Local optimisation: refine on the inliers, re-select, refine again while the inlier set grows.
-  Rigid3d pose = best_pose;
-  std::vector<int> inliers = InlierIndices(pose, bearings_a, bearings_b, tau2);
-  for (int round = 0; round < 3 && static_cast<int>(inliers.size()) >= manifold.dim; ++round) {
-    const Rigid3d refined = RefineOnSampson(bearings_a, bearings_b, inliers, pose, manifold,
-                                            options.refinement_iterations);
-    std::vector<int> refined_inliers = InlierIndices(refined, bearings_a, bearings_b, tau2);
-    if (refined_inliers.size() < inliers.size()) break;
-    pose = refined;
-    const bool same = refined_inliers == inliers;
-    inliers.swap(refined_inliers);
-    if (same) break;
+  const auto optimise = [&](const Rigid3d& start) {
+    Rigid3d pose = start;
+    std::vector<int> inliers = InlierIndices(pose, bearings_a, bearings_b, tau2);
+    for (int round = 0; round < 3 && static_cast<int>(inliers.size()) >= manifold.dim; ++round) {
+      const Rigid3d refined = RefineOnSampson(bearings_a, bearings_b, inliers, pose, manifold,
+                                              options.refinement_iterations);
+      std::vector<int> refined_inliers = InlierIndices(refined, bearings_a, bearings_b, tau2);
+      if (refined_inliers.size() < inliers.size()) break;
+      pose = refined;
+      const bool same = refined_inliers == inliers;
+      inliers.swap(refined_inliers);
+      if (same) break;
+    }
+    return pose;
+  };
+  Rigid3d pose = optimise(best_pose);
+  // A sampled winner that fits barely better than the guess does not replace it (see
+  // TwoViewOptions::guess_preference): both are refined and compared by their MSAC cost.
+  if (guess_pose && options.guess_preference > 0.0) {
+    const Rigid3d from_guess = optimise(*guess_pose);
+    int unused = 0;
+    const double cost = ScorePose(pose, bearings_a, bearings_b, tau2, std::numeric_limits<double>::infinity(), &unused);
+    const double cost_guess =
+        ScorePose(from_guess, bearings_a, bearings_b, tau2, std::numeric_limits<double>::infinity(), &unused);
+    if (cost_guess <= (1.0 + options.guess_preference) * cost) pose = from_guess;
   }
 
   TwoViewGeometry geometry;

@@ -62,6 +62,7 @@ bool LocalizerOptions::Check(std::string* error) const {
   if (!(backward_margin >= 0)) return fail("backward_margin must be >= 0");
   if (!(min_parallax_px >= 0)) return fail("min_parallax_px must be >= 0");
   if (!(position_agreement >= 0) || !(transfer_agreement > 0)) return fail("agreement tolerances must be positive");
+  if (!(stale_margin >= 0)) return fail("stale_margin must be >= 0");
   if (!(max_progress_step > 0) || !(progress_tolerance > 0)) {
     return fail("max_progress_step and progress_tolerance must be > 0");
   }
@@ -272,6 +273,7 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
                                      std::to_string(camera_->width()) + "x" + std::to_string(camera_->height()));
   }
   ++frame_counter_;
+  stale_ = false;
   if (state_ == LocalizerState::kLost) state_ = LocalizerState::kRelocalizing;
   FrameResult result;
   result.frame_index = frame.index;
@@ -300,7 +302,12 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
     }
   }
 
-  if (state_ == LocalizerState::kTracking) {
+  if (state_ == LocalizerState::kTracking && stale_) {
+    result.state = LocalizerState::kLost;
+    result.position_valid = false;
+    result.steering_valid = false;
+    result.steering = 0.0;
+  } else if (state_ == LocalizerState::kTracking) {
     const ArcData* arc = Arc(arc_);
     result.state = LocalizerState::kTracking;
     result.arc = arc_;
@@ -692,6 +699,10 @@ void Localizer::Localize(FrameResult* result) {
   const bool good = current_tracked >= options_.min_features && (geometry_a.usable || geometry_b.usable) &&
                     fused.continuous;
   bad_frames_ = good ? 0 : bad_frames_ + 1;
+  // No placement, and the camera's speed puts it well past the arc's end: it has most likely left the arc, and
+  // nothing says for which one; the frame is reported lost rather than on a stale arc (the tracks are kept).
+  stale_ = !position.valid && progress_ && progress_->speed_known &&
+           ExpectedAlong(*progress_, frame_counter_) > 1.0 + options_.stale_margin;
 
   if (bad_frames_ >= options_.max_bad_frames) {
     spdlog::debug("repeat: lost at frame {} ({} features of arc {}, W_t:a {}, W_t:b {}, position {:.2f} after {:.2f})",
@@ -714,6 +725,7 @@ void Localizer::Localize(FrameResult* result) {
   // absolute pose rejected, placed the camera a third of an arc too far in the simulated town (a transition two
   // frames early).
   const bool decisive = fused.via_pose || (fused.via_from && fused.via_to);
+
   int direction =
       decisive && (had_progress || fused.via_pose) ? DecideTransition(position, options_.backward_margin) : 0;
   if ((direction > 0 && next == nullptr) || (direction < 0 && previous == nullptr)) direction = 0;
@@ -765,7 +777,10 @@ bool PositionContinuous(const std::optional<ArcProgress>& last, size_t frame, do
   const double expected = ExpectedAlong(*last, frame);
   // A camera that covers more than the limit per frame (short arcs) is allowed one frame of its motion as the
   // tolerance (not the motion of all frames since: one noisy speed would then excuse ever larger jumps).
-  const double limit = last->speed_known ? limits.known_speed : limits.unknown_speed;
+  // The speed counts as known once it is the median of three steps (two right after a bootstrap, from placements
+  // of few features, set it a third of an arc per frame too low in the simulated town).
+  const bool speed_known = last->speed_known && last->num_steps >= static_cast<int>(last->steps.size());
+  const double limit = speed_known ? limits.known_speed : limits.unknown_speed;
   return std::abs(along - expected) <= std::max(limit, std::abs(speed));
 }
 

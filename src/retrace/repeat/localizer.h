@@ -121,6 +121,10 @@ struct LocalizerOptions {
   // Sanity check of a transfer: when more than this fraction of an arc's tracked features (and more than 3) drift
   // from their predictions, the transfer is distrusted for that frame instead of the tracks.
   double max_drift_fraction = 0.25;
+  // A frame without any believed placement is reported lost (the tracks are kept) when the last position and the
+  // camera's speed put it more than this (arc lengths) past the arc's end: the arc is then most likely stale (in the
+  // simulated town, three such frames stayed on an arc the camera had left two arcs before).
+  double stale_margin = 0.5;
   // Backward transitions need the camera this far (arc lengths) behind a: hysteresis against flicker right after
   // a forward transition, where W_t:a has almost no baseline.
   double backward_margin = 0.1;
@@ -427,6 +431,7 @@ class Localizer {
   arc_t arc_ = kInvalidArcId;
   arc_t start_arc_ = kInvalidArcId;
   int bad_frames_ = 0;
+  bool stale_ = false;  // this frame: no placement, and the speed puts the camera past the arc (reported lost)
   arc_t last_arc_ = kInvalidArcId;       // the arc where the localizer was last lost
   size_t lost_at_frame_ = 0;             // frame counter of that loss
   std::optional<ArcProgress> progress_;  // last accepted position along the current arc and its speed

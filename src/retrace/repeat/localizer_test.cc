@@ -114,7 +114,8 @@ PlacedCamera Placed(double along, double sigma_p = 0.5) {
 }
 
 TEST(FuseArcPositions, AbsolutePoseFirstThenTheMotionDecides) {
-  const std::optional<ArcProgress> moving(ArcProgress{0.40, 0.15, 4, true});  // expected at frame 5: 0.55
+  // Three steps of 0.15 arc lengths per frame: expected at 0.55 in frame 5.
+  const std::optional<ArcProgress> moving(ArcProgress{0.40, 0.15, 4, true, {0.15, 0.15, 0.15}, 3});
   const ContinuityLimits limits{0.75, 0.3};
   const double agreement = 0.1;
   // The absolute pose, when continuous, decides alone.
@@ -153,7 +154,7 @@ TEST(FuseArcPositions, AbsolutePoseFirstThenTheMotionDecides) {
 TEST(PositionContinuous, BelievesSteadyMotionNotJumps) {
   const auto at = [](double along, size_t frame) { return std::optional<ArcProgress>(ArcProgress{along, 0.0, frame, false}); };
   const auto moving = [](double along, double speed, size_t frame) {
-    return std::optional<ArcProgress>(ArcProgress{along, speed, frame, true});
+    return std::optional<ArcProgress>(ArcProgress{along, speed, frame, true, {speed, speed, speed}, 3});
   };
   const ContinuityLimits limits{0.75, 0.3};
   // Nothing known yet on this arc (after a bootstrap): any position.
@@ -167,6 +168,8 @@ TEST(PositionContinuous, BelievesSteadyMotionNotJumps) {
   EXPECT_FALSE(PositionContinuous(at(0.0, 4), 5, 0.82, limits));
   EXPECT_FALSE(PositionContinuous(at(0.72, 4), 5, 2.0, limits));
   EXPECT_FALSE(PositionContinuous(at(0.9, 4), 5, 0.1, limits));
+  // A speed from fewer than three steps (right after a bootstrap) is used for the prediction, with the loose limit.
+  EXPECT_TRUE(PositionContinuous(ArcProgress{0.17, 0.17, 4, true, {0.17, 0.0, 0.0}, 1}, 5, 0.90, limits));
   // Speed known: the tighter limit around where the speed puts the camera (0.17 + 0.17 = 0.34 here).
   EXPECT_TRUE(PositionContinuous(moving(0.17, 0.17, 4), 5, 0.40, limits));
   EXPECT_TRUE(PositionContinuous(moving(0.17, 0.17, 4), 5, 0.10, limits));

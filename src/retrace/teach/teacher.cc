@@ -104,6 +104,8 @@ struct Teacher::Subrange {
   std::unordered_map<feature_t, FeatureObservation> observations;
   std::unordered_set<feature_t> stored;  // ids already written with the key-image
   int min_features = 0;  // n of this subrange: max(n, fraction of the features tracked from the key-image on)
+  // W(K, f) of the last frame f of the subrange for which it succeeded: the next frame's first hypothesis.
+  std::optional<Rigid3d> last_geometry;
 };
 
 Teacher::Teacher(const CameraModel& camera, const TeachOptions& options, MapDatabase* database)
@@ -113,6 +115,7 @@ Teacher::Teacher(const CameraModel& camera, const TeachOptions& options, MapData
   const double pixel_scale = static_cast<double>(camera.width()) / options_.reference_width;
   max_sigma_p_px_ = options_.max_sigma_p_px * pixel_scale;
   geometry_options_ = options_.geometry;
+
   geometry_options_.ransac.max_error_px = options_.inlier_threshold_px * pixel_scale;
   geometry_options_.min_inliers = std::max(geometry_options_.min_inliers, 8);
   geometry_options_.min_parallax_px = options_.min_parallax_px * pixel_scale;
@@ -211,7 +214,12 @@ void Teacher::EstimateGeometryToKey(FrameState* frame) {
     frame->geometry_ids.push_back(f.id);
   }
   frame->survivors = static_cast<int>(frame->geometry_ids.size());
-  frame->geometry = EstimateRelativePose(bearings_key, bearings_frame, camera_->FocalLength(), geometry_options_);
+  // The previous frame's W(K, f - 1) is the guess: refined on this frame's correspondences, it is kept unless a
+  // sampled hypothesis fits clearly better (TwoViewOptions::guess_preference). In the simulated town the samples
+  // alone settled on mirrored motions (the planar ambiguity) for single frames, once on a key-image's arc.
+  frame->geometry = EstimateRelativePose(bearings_key, bearings_frame, camera_->FocalLength(), geometry_options_,
+                                         subrange_->last_geometry ? &*subrange_->last_geometry : nullptr);
+  if (frame->geometry.success) subrange_->last_geometry = frame->geometry.b_from_a;
 }
 
 bool Teacher::GeometryAcceptable(const FrameState& frame) const {

@@ -99,9 +99,12 @@ struct TeachOptions {
   CornerDetectorOptions detector;
   // Two-view geometry of W(K, f). Tracked correspondences have few outliers, so the adaptive sampling may stop
   // after few samples (the estimator's default minimum is meant for matches).
+  // The previous frame's geometry is the guess of each estimate (TwoViewOptions::guess_preference), without fewer
+  // samples: a guess taken over from an unreliable first frame of a subrange must not stop the sampling early.
   TwoViewOptions geometry = [] {
     TwoViewOptions o;
     o.ransac.min_iterations = 20;
+    o.ransac.min_iterations_with_guess = 20;
     return o;
   }();
   // Wide-baseline matching for gap recovery and loop closing. The ratio is looser than the paper's 0.6 (§4.1)
