@@ -12,18 +12,25 @@
 //  1. all tracked features are aligned to their references (the same pyramid settings as teach,
 //     TrackingPyramidOptions, so the residual threshold R means the same in both phases);
 //  2. the current geometries W_t:a and W_t:b are estimated from the tracked features whose positions in the
-//     key-images a and b are known (robust 5-point, with σ_p, Segvic 2009 eq. (6)); a geometry is "usable" when
+//     key-images a and b are known (robust 5-point, with σ_p, Segvic 2009 eq. (6); the previous frame's geometry,
+//     or one derived from the previous frame's absolute pose, is the first hypothesis); a geometry is "usable" when
 //     it succeeded with σ_p below `max_sigma_p_px`;
-//  3. decomposed point transfer (§4.4): the current arc's points are transferred with the more accurate usable
-//     one of W_t:a / W_t:b, the next arc's with W_t:b, the previous arc's with W_t:a — only through usable
-//     geometries (σ_p gating, §5.2.1);
-//  4. consistency: a tracked feature farther than `max_drift_px` (or 3 σ_p) from its prediction is discontinued —
+//  3. the camera is placed on the arc (FuseArcPositions): by its absolute pose in the arc's reconstruction (P3P on
+//     the tracked features whose points Q the arc stores, σ_p gated like the current geometries), and by W_t:a and
+//     W_t:b brought into the arc's frame and scale (decomposed point transfer, §4.4). The absolute pose is far more
+//     accurate (README); a placement is believed only when it is continuous with the last accepted position and the
+//     camera's speed along the arc (median of its last three steps): within `progress_tolerance` of where they put
+//     the camera, `max_progress_step` while the speed is not known yet;
+//  4. decomposed point transfer (§4.4): the current arc's points are predicted through the more accurate usable one
+//     of W_t:a / W_t:b whose placement agrees with the believed position, the next arc's through W_t:b, the previous
+//     arc's through W_t:a — only through usable geometries (σ_p gating, §5.2.1);
+//  5. consistency: a tracked feature farther than `max_drift_px` (or 3 σ_p) from its prediction is discontinued —
 //     after a sanity check of the transfer itself: when more than `max_drift_fraction` of an arc's tracks disagree
 //     with it, the transfer is distrusted for that frame (no drops, no predictions for that arc);
-//  5. prudence (eqs. (7), (8)): features of the next arc are resumed only when the camera is closer to b than
+//  6. prudence (eqs. (7), (8)): features of the next arc are resumed only when the camera is closer to b than
 //     `next_arc_ratio` (0.5) of the arc length, those of the previous arc only when closer to a than
 //     `previous_arc_ratio` (0.3);
-//  6. resumption: every mapped but untracked feature predicted inside the image is refined against its
+//  7. resumption: every mapped but untracked feature predicted inside the image is refined against its
 //     reference (RefinePrediction, starting at scale = 1 / distance ratio) and accepted only near the
 //     prediction; a rejected feature is retried after `retry_interval` frames. References are cut from the arc's
 //     key-image nearest to the camera. A neighbouring arc that shares too few features with the current geometry
@@ -31,36 +38,37 @@
 //     nodes in its turns) or right after a transition, the features seen in the nearby key-image are predicted by
 //     the rotation between that key-image and the current image (Kabsch on the tracked features seen in both),
 //     aligned, and accepted only when they agree with the median offset of all candidates;
-//  7. topological transition (eq. (9)): forward when the camera centre passes the plane through b's centre
-//     perpendicular to the arc's direction of travel, decided with W_t:b (with W_t:a's position when W_t:b has no
-//     parallax, i.e. the camera is at b); backward symmetrically with W_t:a (with a small margin against
-//     flicker); cancelled when the geometry's σ_p is too large, and when the position along the arc is farther than
-//     max(`max_progress_step`, one frame of motion) from where the last accepted position and the camera's speed
-//     along the arc (median of its last three steps) put it (continuity: such a jump is a bad frame, several of them
-//     make the localizer lost — right after a transition a geometry from few far features once placed the camera a
-//     whole arc ahead). Position and speed carry over into the next arc through the relative scale stored at the
-//     node, and a camera past the new arc's end too makes a second transition (short arcs: kitti07 at 320 px passes
-//     about one arc per frame in its turns). After a transition the features of the arc two behind are dropped and the references are
+//  8. topological transition (eq. (9)): forward when the camera centre passes the plane through b's centre
+//     perpendicular to the arc's direction of travel, i.e. when the believed position along the arc exceeds 1;
+//     backward when it lies more than `backward_margin` behind a. It needs the absolute pose or both current
+//     geometries agreeing, so it is cancelled when no estimate with an acceptable σ_p places the camera. Position
+//     and speed carry over into the next arc through the relative scale stored at the node, and a camera past the
+//     new arc's end too makes a second transition (short arcs: kitti07 at 320 px passes about one arc per frame in
+//     its turns). After a transition the features of the arc two behind are dropped and the references are
 //     redefined (§5.2.2): the new current arc's features are re-aligned against the key-image now approached, the
 //     previous arc's against the key-image just passed; a feature whose new reference does not align at its
 //     current position keeps the old one (re-cutting blindly lost most tracks in kitti07's turns);
-//  8. steering (eq. (10)): w = k * mean(x_t - x*) over the current arc's features, x the horizontal normalised
+//  9. steering (eq. (10)): w = k * mean(x_t - x*) over the current arc's features, x the horizontal normalised
 //     coordinate in the current image and x* in key-image b.
 //
-// Lost is an answer: when fewer than `min_features` of the current arc are tracked or neither current geometry
-// is usable for `max_bad_frames` frames in a row, the tracker is cleared and the same frame is re-initialised by
-// wide-baseline matching against the key-images, exactly as the bootstrap; when that fails the frame is kLost (no
-// arc is reported) and the following frames keep trying (kRelocalizing).
+// Lost is an answer: when fewer than `min_features` of the current arc are tracked, neither current geometry is
+// usable or no placement is continuous for `max_bad_frames` frames in a row, the tracker is cleared and the same
+// frame is re-initialised by wide-baseline matching against the key-images, exactly as the bootstrap; when that
+// fails the frame is kLost (no arc is reported) and the following frames keep trying (kRelocalizing). A frame
+// without any believed placement that the camera's speed puts more than `stale_margin` past the arc's end is
+// reported kLost too (its tracks are kept): the arc is then most likely one the camera has left.
 //
 // Bootstrap (§3.3): the frame is matched (SIFT, ratio 0.8) against the key-images of a given start arc, or —
-// without one — against every key-image (retrieval); after a loss the key-images within
-// `relocalization_neighbourhood` arcs of where it was lost are tried first and the whole map only when none of them
-// verifies. Each candidate is verified geometrically (relative pose on the matches) and the key-image with most
-// inliers wins. Its arc is chosen by which side of the key-image the camera is on (the sign test of eq. (9), which
-// needs no scale). The mapped features of that arc and of its two neighbours seen in the matched key-images are then
-// located in the frame from the displacement of the nearest matched key-points and refined against their
-// references (without the coarsest pyramid level, like every refined prediction); the regular transfer predicts the
-// remaining ones from the next frame on.
+// without one — against every key-image (retrieval); after a loss only the key-images within
+// `relocalization_neighbourhood` arcs of where it was lost, widened by `relocalization_widening` arcs per frame
+// since, and the whole map only after `global_relocalization_frames` (look-alike streets elsewhere verify too).
+// Each candidate is verified geometrically (relative pose on the matches) and the key-image with most inliers
+// wins. Its arc is chosen by which side of the key-image the camera is on (the sign test of eq. (9), which needs no
+// scale), and corrected in the same frame by a transition when the absolute pose places the camera beyond the arc.
+// The mapped features of that arc and of its two neighbours seen in the matched key-images are then located in the
+// frame from the displacement of the nearest matched key-points and refined against their references (without the
+// coarsest pyramid level, like every refined prediction); the regular transfer predicts the remaining ones from the
+// next frame on.
 
 #include <array>
 #include <limits>
