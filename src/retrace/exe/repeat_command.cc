@@ -128,6 +128,52 @@ void WriteTruthPlot(const std::vector<FrameResult>& results, const TopologicalEv
   }
 }
 
+// The position along the reported arc (0 at its first key-image, 1 at its second; a transition at 1) against the
+// true camera centre projected on the same arc, per frame: how early or late transitions are, and how far each
+// estimate places the camera.
+void WritePositionPlot(const std::vector<FrameResult>& results, const TopologicalEvaluation& evaluation,
+                       const std::filesystem::path& path) {
+  PlotSeries truth, fused, pose;
+  truth.label = "true position on the reported arc";
+  truth.color = cv::Scalar(160, 160, 160);
+  truth.thickness = 5;
+  fused.label = "position used for transitions";
+  fused.color = cv::Scalar(60, 160, 40);
+  pose.label = "absolute pose in the arc's reconstruction";
+  pose.color = cv::Scalar(200, 120, 0);
+  for (PlotSeries* s : {&truth, &fused, &pose}) s->style = PlotSeries::Style::kPoints;
+  fused.thickness = 2;
+  pose.thickness = 1;
+  for (size_t i = 0; i < results.size() && i < evaluation.per_frame.size(); ++i) {
+    const FrameResult& r = results[i];
+    const double x = static_cast<double>(r.frame_index);
+    const double t = evaluation.per_frame[i].true_position_on_arc;
+    // After a transition the positions of that frame refer to the arc left; the truth to the arc reached.
+    if (r.transition != 0) continue;
+    if (std::isfinite(t)) {
+      truth.x.push_back(x);
+      truth.y.push_back(t);
+    }
+    if (r.state == LocalizerState::kTracking && r.position_valid) {
+      fused.x.push_back(x);
+      fused.y.push_back(r.position_on_arc);
+    }
+    if (r.state == LocalizerState::kTracking && std::isfinite(r.position_via_pose)) {
+      pose.x.push_back(x);
+      pose.y.push_back(r.position_via_pose);
+    }
+  }
+  PlotOptions options;
+  options.title = "repeat: position along the reported arc against ground truth";
+  options.x_label = "frame";
+  options.y_label = "position on the arc (arc lengths)";
+  options.y_min = -0.5;
+  options.y_max = 1.5;
+  if (!cv::imwrite(path.string(), RenderPlot({truth, fused, pose}, options))) {
+    throw InputError(path.string(), "cannot be written");
+  }
+}
+
 void WriteTrackedPlot(const std::vector<FrameResult>& results, const std::filesystem::path& path) {
   std::map<arc_t, PlotSeries> by_arc;
   PlotSeries lost;
@@ -289,15 +335,19 @@ void RunRepeat(const RepeatArguments& args) {
     std::filesystem::path truth_path = args.output;
     truth_path.replace_extension(".truth.csv");
     std::ofstream truth(truth_path);
-    truth << "frame,true_arc_index,tolerated_arc_index,estimated_arc_index,correct,lost,error\n";
+    truth << "frame,true_arc_index,tolerated_arc_index,estimated_arc_index,correct,lost,error,true_position_on_arc\n";
     for (size_t i = 0; i < results.size(); ++i) {
       const FrameTruth& t = evaluation.per_frame[i];
-      truth << fmt::format("{},{},{},{},{},{},{}\n", results[i].frame_index, t.true_arc_index, t.tolerated_arc_index,
-                           t.estimated_arc_index, t.correct ? 1 : 0, t.lost ? 1 : 0, t.error);
+      truth << fmt::format("{},{},{},{},{},{},{},{}\n", results[i].frame_index, t.true_arc_index,
+                           t.tolerated_arc_index, t.estimated_arc_index, t.correct ? 1 : 0, t.lost ? 1 : 0, t.error,
+                           OptionalNumber(t.true_position_on_arc));
     }
     if (!truth) throw InputError(truth_path.string(), "cannot be written");
     std::cout << "per-frame ground truth: " << truth_path.string() << "\n";
-    if (!args.overlay.empty()) WriteTruthPlot(results, evaluation, args.overlay / "arcs_vs_truth.png");
+    if (!args.overlay.empty()) {
+      WriteTruthPlot(results, evaluation, args.overlay / "arcs_vs_truth.png");
+      WritePositionPlot(results, evaluation, args.overlay / "positions_vs_truth.png");
+    }
   }
 }
 
@@ -322,6 +372,9 @@ void RegisterRepeatCommand(CLI::App& app) {
   cmd->add_option("--max-sigma-p", args->options.max_sigma_p_px, "sigma_p gate of current geometries, px at 320 px")
       ->capture_default_str();
   cmd->add_option("--steering-gain", args->options.steering_gain, "k of eq. (10)")->capture_default_str();
+  cmd->add_flag("!--no-absolute-pose", args->options.place_by_absolute_pose,
+                "Place the camera on the arc by the current geometries alone (the paper), not by its absolute pose in "
+                "the arc's reconstruction");
   cmd->add_flag("!--keep-references", args->options.redefine_references,
                 "Do not redefine feature references at topological transitions (Segvic 2009 5.2.2 does)");
   cmd->callback([args]() {

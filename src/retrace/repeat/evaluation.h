@@ -10,6 +10,7 @@
 // tolerated too (±1 near a node). Frames without an arc (lost / relocalizing) are counted as lost, never as
 // correct.
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,9 @@ struct FrameTruth {
   bool correct = false;
   bool lost = false;
   int error = 0;                 // |estimated - true| in arcs (0 when lost)
+  // The true camera centre projected on the estimated arc (0 at its first key-image, 1 at its second; the repeat's
+  // position_on_arc measured against the truth); NaN when lost.
+  double true_position_on_arc = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct TopologicalEvaluation {

@@ -1,5 +1,7 @@
 #include "retrace/repeat/evaluation.h"
 
+#include <cmath>
+
 #include <gtest/gtest.h>
 
 namespace retrace {
@@ -64,6 +66,12 @@ TEST(EvaluateTopological, CountsCorrectToleratedWrongAndLost) {
   EXPECT_TRUE(e.per_frame[6].lost);
   EXPECT_TRUE(e.per_frame[7].correct);
   EXPECT_NEAR(e.FractionCorrect(), 0.5, 1e-12);
+  // The true position on the reported arc: frame 15 is halfway along arc 11 (x 10..20), 1.5 arcs along arc 10, 1.5
+  // arcs before arc 12; none when lost.
+  EXPECT_NEAR(e.per_frame[0].true_position_on_arc, 0.5, 1e-12);
+  EXPECT_NEAR(e.per_frame[1].true_position_on_arc, 1.5, 1e-12);
+  EXPECT_NEAR(e.per_frame[2].true_position_on_arc, -1.5, 1e-12);
+  EXPECT_TRUE(std::isnan(e.per_frame[6].true_position_on_arc));
 }
 
 TEST(EvaluateTopological, MissingPoseIsAnError) {
