@@ -379,7 +379,7 @@ Localizer::CurrentGeometry Localizer::EstimateCurrentGeometry(node_t node_id) {
   }
   if (static_cast<int>(current.ids.size()) < geometry_options_.min_inliers) return current;
   current.estimated = true;
-  // The previous frame's geometry towards the same key-image is scored first: frame to frame it changes little,
+  // A guess from the previous frame (GuessCurrentFrom) is scored first: frame to frame the geometry changes little,
   // and the robust loop then stops after few samples.
   const std::optional<Rigid3d> guess = GuessCurrentFrom(node_id);
   current.geometry = EstimateRelativePose(bearings_key, bearings_current, camera_->FocalLength(), geometry_options_,
