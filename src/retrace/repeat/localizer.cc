@@ -720,12 +720,10 @@ void Localizer::Localize(FrameResult* result) {
   // Topological transition (Segvic 2009 §5.2.2, eq. (9)) on the fused position: from the second frame on this arc,
   // or at once when the absolute pose placed the camera (a bootstrap that matched the key-image ahead of the camera
   // is corrected in its own frame; the current geometries' placements right after a bootstrap or transition are too
-  // uncertain for that).
-  // A transition needs the absolute pose or both current geometries agreeing: one current geometry alone, with the
-  // absolute pose rejected, placed the camera a third of an arc too far in the simulated town (a transition two
-  // frames early).
+  // uncertain for that). It needs the absolute pose or both current geometries agreeing: one current geometry
+  // alone, with the absolute pose rejected, placed the camera a third of an arc too far in the simulated town (a
+  // transition two frames early).
   const bool decisive = fused.via_pose || (fused.via_from && fused.via_to);
-
   int direction =
       decisive && (had_progress || fused.via_pose) ? DecideTransition(position, options_.backward_margin) : 0;
   if ((direction > 0 && next == nullptr) || (direction < 0 && previous == nullptr)) direction = 0;
