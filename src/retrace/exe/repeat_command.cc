@@ -3,12 +3,13 @@
 // Writes one CSV row per input frame (flushed as written, so a live run can be followed with `tail -f`):
 //   frame,image,timestamp,state,arc,node_from,node_to,tracked,tracked_previous,tracked_current,tracked_next,
 //   resumed,rejected,dropped,drifted,redefined,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,steering,ms,
-//   position_via_from,position_via_to,position_via_pose,sigma_p_pose,pose_inliers
+//   position_via_from,position_via_to,position_via_pose,sigma_p_pose,pose_inliers,key_images_matched
 // frame = 0-based index in the input sequence (after --every/--offset), state = tracking | lost | relocalizing,
 // node ids and arc -1 when not tracking, σ_p columns -1 when not estimated, ms = processing time of the frame,
 // position_on_arc the camera's position along the arc used for transitions (0 at node_from, 1 at node_to), the
 // position_via_* columns the placements it was fused from (W_t:a, W_t:b, the absolute pose in the arc's
-// reconstruction; empty when that estimate gave none).
+// reconstruction; empty when that estimate gave none), key_images_matched the key-images verified by wide-baseline
+// matching in a bootstrap or relocalization frame (0 otherwise).
 
 #include <algorithm>
 #include <chrono>
@@ -248,7 +249,8 @@ void RunRepeat(const RepeatArguments& args) {
   if (!csv) throw InputError(args.output.string(), "cannot be written");
   csv << "frame,image,timestamp,state,arc,node_from,node_to,tracked,tracked_previous,tracked_current,tracked_next,"
          "resumed,rejected,dropped,drifted,redefined,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,"
-         "steering,ms,position_via_from,position_via_to,position_via_pose,sigma_p_pose,pose_inliers\n";
+         "steering,ms,position_via_from,position_via_to,position_via_pose,sigma_p_pose,pose_inliers,"
+         "key_images_matched\n";
   csv.flush();
   if (!args.overlay.empty()) std::filesystem::create_directories(args.overlay);
 
@@ -270,9 +272,9 @@ void RunRepeat(const RepeatArguments& args) {
                          r.tracked_by_role[2], r.resumed, r.rejected, r.dropped, r.drifted, r.redefined, r.sigma_p,
                          r.sigma_p_from, r.sigma_p_to, r.position_valid ? r.position_on_arc : 0.0, r.transition,
                          r.steering_valid ? r.steering : 0.0, 1000.0 * r.seconds)
-          << fmt::format(",{},{},{},{:.3f},{}\n", OptionalNumber(r.position_via_from),
+          << fmt::format(",{},{},{},{:.3f},{},{}\n", OptionalNumber(r.position_via_from),
                          OptionalNumber(r.position_via_to), OptionalNumber(r.position_via_pose), r.sigma_p_pose,
-                         r.pose_inliers);
+                         r.pose_inliers, r.key_images_matched);
       csv.flush();
       if (!csv) throw InputError(args.output.string(), "write failed");
       if (!args.overlay.empty()) {
@@ -372,6 +374,10 @@ void RegisterRepeatCommand(CLI::App& app) {
   cmd->add_option("--max-sigma-p", args->options.max_sigma_p_px, "sigma_p gate of current geometries, px at 320 px")
       ->capture_default_str();
   cmd->add_option("--steering-gain", args->options.steering_gain, "k of eq. (10)")->capture_default_str();
+  cmd->add_option("--retrieval-shortlist", args->options.retrieval_shortlist,
+                  "Key-images verified first when localizing without a start arc, the most similar in appearance "
+                  "(0: all)")
+      ->capture_default_str();
   cmd->add_flag("!--no-absolute-pose", args->options.place_by_absolute_pose,
                 "Place the camera on the arc by the current geometries alone (the paper), not by its absolute pose in "
                 "the arc's reconstruction");

@@ -75,6 +75,9 @@ bool LocalizerOptions::Check(std::string* error) const {
     return fail("relocalization_neighbourhood and relocalization_widening must be >= 0");
   }
   if (global_relocalization_frames < 1) return fail("global_relocalization_frames must be >= 1");
+  if (retrieval_shortlist < 0) return fail("retrieval_shortlist must be >= 0");
+  std::string retrieval_error;
+  if (!retrieval.Check(&retrieval_error)) return fail("retrieval: " + retrieval_error);
   if (!(bootstrap_neighbour_radius_px > 0) || !(bootstrap_radius_px > 0)) return fail("invalid bootstrap radii");
   if (!tracker.Check()) return fail("invalid tracker options");
   if (!geometry.Check()) return fail("invalid geometry options");
@@ -127,6 +130,7 @@ struct Localizer::NodeData {
   std::unordered_map<feature_t, Vector3d> bearings;
   std::unique_ptr<ImagePyramid> pyramid;
   std::optional<WideBaselineFeatures> wide_baseline;
+  std::optional<GlobalDescriptor> appearance;
   std::unordered_map<feature_t, std::unique_ptr<ReferencePatch>> references;  // null = cannot be cut
 };
 
@@ -1062,6 +1066,39 @@ std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBase
   return verified;
 }
 
+std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::Mat& image,
+                                                                    const WideBaselineFeatures& current,
+                                                                    const std::vector<node_t>& candidates,
+                                                                    std::vector<node_t>* tried) {
+  std::vector<node_t> ranked = candidates;
+  const size_t shortlist = static_cast<size_t>(options_.retrieval_shortlist);
+  if (shortlist > 0 && candidates.size() > shortlist) {
+    std::vector<GlobalDescriptor> database;
+    database.reserve(candidates.size());
+    for (const node_t id : candidates) {
+      NodeData& node = Node(id);
+      if (!node.appearance) node.appearance = ComputeGlobalDescriptor(node.node->image, options_.retrieval);
+      database.push_back(*node.appearance);
+    }
+    const std::vector<size_t> order =
+        RankByGlobalDescriptor(ComputeGlobalDescriptor(image, options_.retrieval), database, options_.retrieval);
+    for (size_t i = 0; i < order.size(); ++i) ranked[i] = candidates[order[i]];
+  }
+  const size_t first = shortlist > 0 ? std::min(shortlist, ranked.size()) : ranked.size();
+  std::vector<MatchedKeyImage> verified = MatchKeyImages(current, {ranked.begin(), ranked.begin() + first});
+  int best_inliers = 0;
+  for (const MatchedKeyImage& m : verified) best_inliers = std::max(best_inliers, m.geometry.num_inliers);
+  size_t matched = first;
+  if (best_inliers < options_.retrieval_confident_inliers && first < ranked.size()) {
+    // Not convincing (or nothing verified): the remaining candidates may hold the right key-image.
+    std::vector<MatchedKeyImage> rest = MatchKeyImages(current, {ranked.begin() + first, ranked.end()});
+    verified.insert(verified.end(), std::make_move_iterator(rest.begin()), std::make_move_iterator(rest.end()));
+    matched = ranked.size();
+  }
+  tried->insert(tried->end(), ranked.begin(), ranked.begin() + matched);
+  return verified;
+}
+
 std::vector<node_t> Localizer::NodesNear(arc_t arc_id, int arcs) const {
   std::vector<node_t> nodes;
   const auto add = [&nodes](node_t node) {
@@ -1089,9 +1126,11 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
 
   const WideBaselineFeatures current = ExtractWideBaselineFeatures(frame.image, options_.matching);
   std::vector<MatchedKeyImage> verified;
+  std::vector<node_t> tried;
   if (use_start_arc) {
     const MapArc* arc = Arc(start_arc_)->arc;
-    verified = MatchKeyImages(current, {arc->from, arc->to});
+    tried = {arc->from, arc->to};
+    verified = MatchKeyImages(current, tried);
   } else {
     // After a loss the robot is still near where it was lost: only the key-images within a window of arcs around
     // the last arc are matched, widened with every frame since the loss; the whole map (retrieval) at the start
@@ -1105,13 +1144,16 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
     } else {
       for (const MapNode& node : map_.nodes()) candidates.push_back(node.id);
     }
-    verified = MatchKeyImages(current, candidates);
+    verified = RetrieveKeyImages(frame.image, current, candidates, &tried);
   }
+  result->key_images_matched = static_cast<int>(tried.size());
   if (verified.empty()) return false;
-  const auto best = std::max_element(verified.begin(), verified.end(),
-                                     [](const MatchedKeyImage& x, const MatchedKeyImage& y) {
-                                       return x.geometry.num_inliers < y.geometry.num_inliers;
-                                     });
+  const MatchedKeyImage* best = &*std::max_element(verified.begin(), verified.end(),
+                                                   [](const MatchedKeyImage& x, const MatchedKeyImage& y) {
+                                                     return x.geometry.num_inliers < y.geometry.num_inliers;
+                                                   });
+  const node_t best_node = best->node;
+  const int best_inliers = best->geometry.num_inliers;
 
   // The arc: the given one, or the one on the side of the best key-image where the camera is (eq. (9)'s sign).
   arc_t chosen = start_arc_;
@@ -1139,6 +1181,25 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   }
   if (chosen == kInvalidArcId) return false;
   const ArcData* arc = Arc(chosen);
+  best = nullptr;  // `verified` may grow below
+
+  // The features are located through the key-images of the arc and of its neighbours: verify those the retrieval
+  // did not try (with a start arc, its two key-images only).
+  std::vector<node_t> untried;
+  for (const ArcData* located : {arc, Arc(arc->previous), Arc(arc->next)}) {
+    if (located == nullptr || use_start_arc) continue;
+    for (const node_t node : {located->arc->from, located->arc->to}) {
+      if (std::find(tried.begin(), tried.end(), node) == tried.end() &&
+          std::find(untried.begin(), untried.end(), node) == untried.end()) {
+        untried.push_back(node);
+      }
+    }
+  }
+  result->key_images_matched = static_cast<int>(tried.size() + untried.size());
+  if (!untried.empty()) {
+    std::vector<MatchedKeyImage> more = MatchKeyImages(current, untried);
+    verified.insert(verified.end(), std::make_move_iterator(more.begin()), std::make_move_iterator(more.end()));
+  }
 
   // Locate the mapped features of the arc and of its neighbours (all three are tracked from now on) in the frame:
   // each feature seen in a matched key-image is predicted from the displacement of the nearest matched key-points
@@ -1190,14 +1251,14 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   progress_.reset();
   if (tracker_.NumFeatures() < options_.min_bootstrap_features) {
     spdlog::debug("repeat: bootstrap at frame {} failed: {} features located around arc {} (key-image {}, {} inliers)",
-                  frame.index, tracker_.NumFeatures(), chosen, best->node, best->geometry.num_inliers);
+                  frame.index, tracker_.NumFeatures(), chosen, best_node, best_inliers);
     ClearTracks();
     return false;
   }
   arc_ = chosen;
   start_arc_ = kInvalidArcId;  // the start arc serves the first bootstrap only
   spdlog::debug("repeat: frame {} localized on arc {} by matching key-image {} ({} inliers), {} features",
-                frame.index, arc_, best->node, best->geometry.num_inliers, tracker_.NumFeatures());
+                frame.index, arc_, best_node, best_inliers, tracker_.NumFeatures());
   return true;
 }
 

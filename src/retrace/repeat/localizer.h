@@ -62,13 +62,14 @@
 // without one — against every key-image (retrieval); after a loss only the key-images within
 // `relocalization_neighbourhood` arcs of where it was lost, widened by `relocalization_widening` arcs per frame
 // since, and the whole map only after `global_relocalization_frames` (look-alike streets elsewhere verify too).
-// Each candidate is verified geometrically (relative pose on the matches) and the key-image with most inliers
-// wins. Its arc is chosen by which side of the key-image the camera is on (the sign test of eq. (9), which needs no
+// Candidates are ranked by whole-image appearance (GlobalDescriptor) and the `retrieval_shortlist` most alike are
+// verified geometrically (relative pose on the matches); the rest too unless one of them has
+// `retrieval_confident_inliers`. The key-image with most inliers wins. Its arc is chosen by which side of the key-image the camera is on (the sign test of eq. (9), which needs no
 // scale), and corrected in the same frame by a transition when the absolute pose places the camera beyond the arc.
 // The mapped features of that arc and of its two neighbours seen in the matched key-images are then located in the
 // frame from the displacement of the nearest matched key-points and refined against their references (without the
 // coarsest pyramid level, like every refined prediction); the regular transfer predicts the remaining ones from the
-// next frame on.
+// next frame on. Key-images of these three arcs that retrieval did not verify are verified for this.
 
 #include <array>
 #include <limits>
@@ -81,6 +82,7 @@
 #include "retrace/camera/camera_model.h"
 #include "retrace/dataset/sequence.h"
 #include "retrace/feature/feature_tracker.h"
+#include "retrace/feature/global_descriptor.h"
 #include "retrace/feature/image_pyramid.h"
 #include "retrace/feature/wide_baseline.h"
 #include "retrace/geometry/absolute_pose.h"
@@ -183,6 +185,16 @@ struct LocalizerOptions {
   int relocalization_widening = 1;
   // ... and every key-image of the map once it has been lost for this many frames (a robot carried elsewhere).
   int global_relocalization_frames = 20;
+  // Retrieval: the candidate key-images (the whole map, or the window around a loss) are ranked by whole-image
+  // appearance (GlobalDescriptor) and the most similar `retrieval_shortlist` are verified by wide-baseline matching
+  // first; 0 verifies every candidate. Extracting a key-image's key-points costs ~170 ms at 1226x370, so this
+  // decides how long the first frame takes (kitti07's 18 key-images: 4.9 s when all are verified).
+  int retrieval_shortlist = 5;
+  // ... the other candidates are verified as well unless the best verified key-image has at least this many inliers
+  // (a look-alike street elsewhere in the simulated town verified with 42; the right key-image has hundreds on
+  // kitti07 and 60-150 in the simulated town).
+  int retrieval_confident_inliers = 60;
+  GlobalDescriptorOptions retrieval;
   // Bootstrap: matched key-points nearer than this (px at reference_width) predict a mapped feature's position.
   double bootstrap_neighbour_radius_px = 30.0;
   // Bootstrap: accept a located feature within this distance of its local prediction (px at reference_width).
@@ -261,6 +273,7 @@ struct FrameResult {
   bool steering_valid = false;
   int transition = 0;         // +1 forward, -1 backward, 0 none in this frame (+2: two arcs forward)
   bool bootstrapped = false;  // (re)initialised by wide-baseline matching in this frame
+  int key_images_matched = 0;  // key-images verified by wide-baseline matching in this frame (bootstrap, relocalization)
   double seconds = 0.0;       // processing time of this frame
   std::vector<FeatureMark> marks;  // tracked features and rejected predictions (for overlays)
 };
@@ -390,6 +403,10 @@ class Localizer {
     std::vector<Vector2d> key_points, current_points;  // inlier matches
     std::vector<double> size_ratios;                   // key-point size in the frame / in the key-image
   };
+  // Verifies `candidates` by wide-baseline matching, the most similar in appearance to `image` first (see
+  // LocalizerOptions::retrieval_shortlist); every candidate tried is added to `tried`.
+  std::vector<MatchedKeyImage> RetrieveKeyImages(const cv::Mat& image, const WideBaselineFeatures& current,
+                                                 const std::vector<node_t>& candidates, std::vector<node_t>* tried);
   std::vector<MatchedKeyImage> MatchKeyImages(const WideBaselineFeatures& current,
                                               const std::vector<node_t>& candidates);
   // The key-images of the arcs up to `arcs` arcs before and after `arc`, nearest first.

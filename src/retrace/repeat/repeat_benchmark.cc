@@ -5,6 +5,10 @@
 // transitions, steering, and relocalization by wide-baseline matching when lost) is timed. `tracking_fraction` tells
 // how many frames were localized: a fast run that is mostly lost is no achievement.
 //
+//
+// BM_FindStart*: the latency of the first frame without a start arc (retrieval over every key-image + wide-baseline
+// verification), with the appearance shortlist (argument 5, the default) and verifying every key-image (0).
+//
 //   build/src/retrace/repeat/bench_repeat_repeat --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 
 #include <filesystem>
@@ -122,6 +126,33 @@ BENCHMARK(BM_RepeatKitti)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)->Iter
 
 void BM_RepeatSim(benchmark::State& state) { RunRepeat(*GetSimSetup(), state); }
 BENCHMARK(BM_RepeatSim)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+// One frame localized from scratch (a fresh Localizer, no key-image features cached), `frame` of the repeat drive.
+void RunFindStart(const Setup& setup, size_t frame, benchmark::State& state) {
+  LocalizerOptions options;
+  options.retrieval_shortlist = static_cast<int>(state.range(0));
+  int64_t localized = 0, runs = 0;
+  for (auto _ : state) {
+    Localizer localizer(setup.map, *setup.camera, options);
+    localized += localizer.ProcessFrame(setup.repeat_frames.at(frame)).state == LocalizerState::kTracking;
+    ++runs;
+  }
+  state.counters["localized_fraction"] = runs > 0 ? static_cast<double>(localized) / runs : 0.0;
+  state.counters["key_images"] = static_cast<double>(setup.map.nodes().size());
+}
+
+void BM_FindStartKitti(benchmark::State& state) {
+  const Setup* setup = GetSetup(0);
+  if (setup == nullptr) {
+    state.SkipWithError("kitti07 not found");
+    return;
+  }
+  RunFindStart(*setup, 40, state);  // odd frame 81, the "start in the middle"
+}
+BENCHMARK(BM_FindStartKitti)->Arg(5)->Arg(0)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+void BM_FindStartSim(benchmark::State& state) { RunFindStart(*GetSimSetup(), 100, state); }
+BENCHMARK(BM_FindStartSim)->Arg(5)->Arg(0)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 }  // namespace
 }  // namespace retrace

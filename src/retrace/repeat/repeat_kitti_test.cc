@@ -173,6 +173,28 @@ TEST_F(RepeatKitti, StartInTheMiddle) {
   EXPECT_EQ(run.evaluation.wrong_by_two, 0);
   const int after = static_cast<int>(run.results.size()) - std::max(run.first_localized, 0);
   EXPECT_GE(run.evaluation.correct, static_cast<int>(0.95 * after));
+  // Retrieval verified the appearance shortlist and the key-images around the chosen arc, not the whole map.
+  const int shortlist = LocalizerOptions().retrieval_shortlist;
+  EXPECT_LE(run.results.front().key_images_matched, shortlist + 4) << "of " << map_->nodes().size();
+}
+
+// The appearance shortlist finds the arc that verifying every key-image finds, from the same located features.
+TEST_F(RepeatKitti, RetrievalShortlistAgreesWithMatchingEveryKeyImage) {
+  SubsampledSequence odd(OpenSequence(kitti_), 2, 81);
+  const Frame frame = *odd.Next();
+  LocalizerOptions every;
+  every.retrieval_shortlist = 0;
+  const FrameResult shortlisted = Localizer(*map_, *camera_).ProcessFrame(frame);
+  const FrameResult exhaustive = Localizer(*map_, *camera_, every).ProcessFrame(frame);
+  std::cout << "frame 81 from scratch: shortlist verified " << shortlisted.key_images_matched << " key-images in "
+            << 1000 * shortlisted.seconds << " ms, every key-image " << exhaustive.key_images_matched << " in "
+            << 1000 * exhaustive.seconds << " ms\n";
+  ASSERT_EQ(shortlisted.state, LocalizerState::kTracking);
+  ASSERT_EQ(exhaustive.state, LocalizerState::kTracking);
+  EXPECT_EQ(shortlisted.arc, exhaustive.arc);
+  EXPECT_EQ(exhaustive.key_images_matched, static_cast<int>(map_->nodes().size()));
+  EXPECT_LT(shortlisted.key_images_matched, exhaustive.key_images_matched / 2);
+  EXPECT_GE(shortlisted.tracked, 0.9 * exhaustive.tracked);
 }
 
 // The same repeat at 320 px width (320x97), the resolution of the throughput target: key-images are denser there
