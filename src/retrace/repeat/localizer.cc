@@ -75,7 +75,9 @@ bool LocalizerOptions::Check(std::string* error) const {
     return fail("relocalization_neighbourhood and relocalization_widening must be >= 0");
   }
   if (global_relocalization_frames < 1) return fail("global_relocalization_frames must be >= 1");
-  if (retrieval_shortlist < 0) return fail("retrieval_shortlist must be >= 0");
+  if (retrieval_shortlist < 0 || retrieval_confident_inliers < 0) {
+    return fail("retrieval_shortlist and retrieval_confident_inliers must be >= 0");
+  }
   std::string retrieval_error;
   if (!retrieval.Check(&retrieval_error)) return fail("retrieval: " + retrieval_error);
   if (!(bootstrap_neighbour_radius_px > 0) || !(bootstrap_radius_px > 0)) return fail("invalid bootstrap radii");

@@ -209,6 +209,13 @@ TEST(LocalizerOptions, CheckRejectsBadValues) {
   options.pose.min_inliers = 2;
   EXPECT_FALSE(options.Check(&error));
   EXPECT_NE(error.find("pose"), std::string::npos) << error;
+  options = LocalizerOptions();
+  options.retrieval_shortlist = -1;
+  EXPECT_FALSE(options.Check());
+  options = LocalizerOptions();
+  options.retrieval.patch_size = 4;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("retrieval"), std::string::npos) << error;
 }
 
 TEST(Localizer, MapWithoutImagesIsBadInput) {
