@@ -4,7 +4,16 @@
 // app and sets its callback. The callback throws retrace::InputError on bad input; main() turns that into a
 // one-line message and exit code 1.
 
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+
 #include <CLI/CLI.hpp>
+
+#include "retrace/camera/camera_model.h"
+#include "retrace/map/map.h"
+#include "retrace/repeat/localizer.h"
 
 namespace retrace {
 
@@ -18,5 +27,15 @@ void RegisterCameraInfoCommand(CLI::App& app);
 void RegisterTwoViewCommand(CLI::App& app);
 void RegisterSimCommand(CLI::App& app);
 void RegisterRepeatCommand(CLI::App& app);
+
+// A map for localizing in (`retrace repeat`, `retrace sim drive`): its key-images loaded, the camera it stores (null
+// when none), the teach sequence it names, and `base` with the tracking settings teach stored in the map.
+struct MapForLocalizer {
+  Map map;
+  std::unique_ptr<CameraModel> camera;
+  std::optional<std::string> source_sequence;
+  LocalizerOptions options;
+};
+MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const LocalizerOptions& base);
 
 }  // namespace retrace

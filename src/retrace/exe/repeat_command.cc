@@ -209,35 +209,47 @@ void WriteTrackedPlot(const std::vector<FrameResult>& results, const std::filesy
   cv::imwrite(path.string(), RenderPlot(series, options));
 }
 
+}  // namespace
+
+MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const LocalizerOptions& base) {
+  auto database = MapDatabase::Open(path);
+  MapForLocalizer loaded;
+  loaded.map = database->ReadMap(/*load_images=*/true);
+  if (loaded.map.arcs().empty()) throw InputError(path.string(), "the map has no arcs");
+  if (const auto yaml = database->ReadCameraYaml()) loaded.camera = ParseCameraText(*yaml, path.string());
+  loaded.source_sequence = database->Metadata("source_sequence");
+  // The tracker must pre-smooth frames as teach smoothed the key-images (maps written before this was stored
+  // used the current default).
+  loaded.options = base;
+  if (const auto value = database->Metadata("smoothing_sigma_px")) {
+    loaded.options.smoothing_sigma_px = ParseMetadataNumber(*value, "smoothing_sigma_px", path);
+  }
+  if (const auto value = database->Metadata("reference_width")) {
+    loaded.options.reference_width = static_cast<int>(ParseMetadataNumber(*value, "reference_width", path));
+  }
+  std::string error;
+  if (!loaded.options.Check(&error)) throw InputError(path.string(), "tracking settings stored in the map: " + error);
+  return loaded;
+}
+
+namespace {
+
 void RunRepeat(const RepeatArguments& args) {
-  auto database = MapDatabase::Open(args.map);
-  const Map map = database->ReadMap(/*load_images=*/true);
-  if (map.arcs().empty()) throw InputError(args.map.string(), "the map has no arcs");
+  MapForLocalizer loaded = LoadMapForLocalizer(args.map, args.options);
+  const Map& map = loaded.map;
+  const LocalizerOptions& options = loaded.options;
+  const std::optional<std::string>& source = loaded.source_sequence;
   std::unique_ptr<Sequence> sequence = OpenSequence(args.sequence);
 
   std::unique_ptr<CameraModel> camera;
   if (!args.camera.empty()) {
     camera = ReadCameraFile(args.camera, sequence->image_size());
   } else {
-    const auto yaml = database->ReadCameraYaml();
-    if (!yaml) throw InputError(args.map.string(), "the map stores no camera; give --camera FILE");
-    camera = ParseCameraText(*yaml, args.map.string());
+    if (!loaded.camera) throw InputError(args.map.string(), "the map stores no camera; give --camera FILE");
+    camera = std::move(loaded.camera);
   }
   const int key_width = map.nodes().front().image.cols;
   if (camera->width() != key_width) camera = camera->Scaled(static_cast<double>(key_width) / camera->width());
-  const std::optional<std::string> source = database->Metadata("source_sequence");
-  // The tracker must pre-smooth frames as teach smoothed the key-images (maps written before this was stored
-  // used the current default).
-  LocalizerOptions options = args.options;
-  if (const auto value = database->Metadata("smoothing_sigma_px")) {
-    options.smoothing_sigma_px = ParseMetadataNumber(*value, "smoothing_sigma_px", args.map);
-  }
-  if (const auto value = database->Metadata("reference_width")) {
-    options.reference_width = static_cast<int>(ParseMetadataNumber(*value, "reference_width", args.map));
-  }
-  std::string error;
-  if (!options.Check(&error)) throw InputError(args.map.string(), "tracking settings stored in the map: " + error);
-  database.reset();
 
   if (args.every > 1 || args.offset > 0) {
     sequence = std::make_unique<SubsampledSequence>(std::move(sequence), std::max<size_t>(1, args.every), args.offset);

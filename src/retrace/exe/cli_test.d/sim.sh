@@ -17,3 +17,11 @@ expect sim-unknown-key 1 'bad2.yaml: line 2: rout: unknown key' -- \
 expect sim-missing-file 1 'cannot open the scenario file' -- \
   "$bin" sim render --scenario "$tmp/none.yaml" --out "$tmp/bad"
 expect sim-bad-variant 105 'variant' -- "$bin" sim render --out "$tmp/bad" --variant sideways
+# sim drive (closed loop): bad options, a missing map, a map whose key-images do not fit the scenario's camera.
+expect sim-drive-bad-speed 1 '^retrace: error: sim drive options: speed must be positive$' -- \
+  "$bin" sim drive --map "$tmp/none.db" --out "$tmp/drive" --speed 0
+expect sim-drive-missing-map 1 '^retrace: error: .*none.db' -- "$bin" sim drive --map "$tmp/none.db" --out "$tmp/drive"
+if [[ -f $tmp/repeat_route.db ]]; then
+  expect sim-drive-camera-mismatch 1 "repeat_route.db: key-images are 1226x370 but the scenario's camera is 320x240" -- \
+    "$bin" sim drive --map "$tmp/repeat_route.db" --out "$tmp/drive" --width 320 --height 240 --quiet
+fi

@@ -1,0 +1,100 @@
+#include "retrace/drive/closed_loop.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace retrace {
+
+bool ClosedLoopOptions::Check(std::string* error) const {
+  const auto fail = [error](const char* message) {
+    if (error != nullptr) *error = message;
+    return false;
+  };
+  if (!(speed > 0)) return fail("speed must be positive");
+  if (!(frame_period > 0)) return fail("frame_period must be positive");
+  if (!std::isfinite(steering_gain)) return fail("steering_gain must be finite");
+  if (max_frames < 1) return fail("max_frames must be >= 1");
+  if (!(max_deviation > 0)) return fail("max_deviation must be positive");
+  return true;
+}
+
+double ClosedLoopSummary::MedianDeviation() const {
+  if (deviations.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::vector<double> d = deviations;
+  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+  return d[d.size() / 2];
+}
+
+double ClosedLoopSummary::MaxDeviation() const {
+  if (deviations.empty()) return std::numeric_limits<double>::quiet_NaN();
+  return *std::max_element(deviations.begin(), deviations.end());
+}
+
+double DistanceToPath(const Vector3d& position, const std::vector<TimedPose>& taught, double* along) {
+  const Vector2d p(position.x(), position.z());
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i + 1 < taught.size(); ++i) {
+    const Vector3d& a3 = taught[i].world_from_cam.translation;
+    const Vector3d& b3 = taught[i + 1].world_from_cam.translation;
+    const Vector2d a(a3.x(), a3.z());
+    const Vector2d ab = Vector2d(b3.x(), b3.z()) - a;
+    const double t = ab.squaredNorm() > 0 ? std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
+    const double d = (a + t * ab - p).norm();
+    if (d < best) {
+      best = d;
+      if (along != nullptr) *along = static_cast<double>(i) + t;
+    }
+  }
+  return best;
+}
+
+ClosedLoopSummary DriveClosedLoop(Simulator* simulator, Localizer* localizer, const Map& map,
+                                  const std::vector<TimedPose>& taught, const ClosedLoopOptions& options,
+                                  const std::function<void(const ClosedLoopStep&)>& on_step) {
+  std::string error;
+  if (!options.Check(&error)) throw std::invalid_argument("ClosedLoopOptions: " + error);
+  // The route's last arcs: those whose end node has no arc leaving it.
+  std::vector<arc_t> last_arcs;
+  for (const MapArc& arc : map.arcs()) {
+    if (map.ArcsFrom(arc.to).empty()) last_arcs.push_back(arc.id);
+  }
+
+  ClosedLoopSummary summary;
+  SimFrame view = simulator->Step(0.0, options.speed, 0.0);
+  for (int i = 0; i < options.max_frames; ++i) {
+    Frame frame;
+    frame.index = frame.source_index = static_cast<size_t>(i);
+    frame.timestamp = view.timestamp;
+    frame.image = view.image;
+    const FrameResult result = localizer->ProcessFrame(frame);
+    ++summary.frames;
+    summary.tracking += result.state == LocalizerState::kTracking;
+
+    ClosedLoopStep step;
+    step.view = &view;
+    step.result = &result;
+    step.wheels = result.steering_valid ? -options.steering_gain * result.steering : 0.0;
+    bool past_end = false;
+    if (taught.size() >= 2) {
+      step.deviation = DistanceToPath(view.world_from_cam.translation, taught, &step.along);
+      summary.deviations.push_back(step.deviation);
+      past_end = step.along >= static_cast<double>(taught.size()) - 1.5;
+      summary.left_path = step.deviation > options.max_deviation;
+    } else {
+      past_end = result.state == LocalizerState::kTracking && result.position_valid && result.position_on_arc >= 1.0 &&
+                 std::find(last_arcs.begin(), last_arcs.end(), result.arc) != last_arcs.end();
+    }
+    if (on_step) on_step(step);
+    if (past_end) {
+      summary.reached_end = true;
+      break;
+    }
+    if (summary.left_path) break;
+    view = simulator->Step(step.wheels, options.speed, options.frame_period);
+  }
+  return summary;
+}
+
+}  // namespace retrace
