@@ -42,13 +42,6 @@ std::vector<int> InlierIndices(const Rigid3d& pose, const std::vector<Vector3d>&
   return inliers;
 }
 
-// Rotation by the axis-angle vector w.
-Matrix3d ExpSO3(const Vector3d& w) {
-  const double angle = w.norm();
-  if (angle < 1e-12) return Matrix3d::Identity();
-  return Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
-}
-
 // Squared sum of the residuals (tangent-plane components, radians) of the correspondences `indices` under
 // `pose`, and (when `jtj` is given) the normal equations of the 6 parameters (δω, δt) of the update
 // x_cam <- exp(δω) x_cam + δt, i.e. R <- exp(δω) R, t <- exp(δω) t + δt.

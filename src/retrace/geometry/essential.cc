@@ -13,6 +13,12 @@ Matrix3d CrossProductMatrix(const Vector3d& v) {
   return m;
 }
 
+Matrix3d ExpSO3(const Vector3d& w) {
+  const double angle = w.norm();
+  if (angle < 1e-12) return Matrix3d::Identity() + CrossProductMatrix(w);
+  return Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
+}
+
 Matrix3d EssentialFromPose(const Rigid3d& b_from_a) {
   return CrossProductMatrix(b_from_a.translation) * b_from_a.rotation;
 }

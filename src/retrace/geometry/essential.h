@@ -15,6 +15,9 @@ namespace retrace {
 // Skew-symmetric matrix [v]ₓ with [v]ₓ w = v × w.
 Matrix3d CrossProductMatrix(const Vector3d& v);
 
+// Rotation by the axis-angle vector w (Rodrigues); I + [w]ₓ for |w| below 1e-12.
+Matrix3d ExpSO3(const Vector3d& w);
+
 // E = [t]ₓ R for b_from_a.
 Matrix3d EssentialFromPose(const Rigid3d& b_from_a);
 

@@ -53,13 +53,6 @@ class FivePointSolver {
   opengv::relative_pose::CentralRelativeAdapter adapter_;
 };
 
-// Rotation by the axis-angle vector w (Rodrigues).
-Matrix3d ExpSO3(const Vector3d& w) {
-  const double angle = w.norm();
-  if (angle < 1e-12) return Matrix3d::Identity() + CrossProductMatrix(w);
-  return Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
-}
-
 // R ← exp(δ₀₁₂) R, t ← normalize(t + δ₃ b₁ + δ₄ b₂) with (b₁, b₂) a basis of the tangent plane of the unit t.
 Rigid3d UpdateGeneralPose(const Rigid3d& pose, const double* delta) {
   Vector3d b1, b2;

@@ -179,7 +179,6 @@ bool ValidBearings(const std::vector<Vector3d>& bearings) {
   return true;
 }
 
-
 Rigid3d RefineOnSampson(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
                         const std::vector<int>& indices, const Rigid3d& initial, const PoseManifold& manifold,
                         int max_iterations, double cauchy_scale) {

@@ -802,31 +802,28 @@ FusedArcPosition FuseArcPositions(const std::optional<ArcProgress>& last, size_t
     fused.via_pose = true;
     return fused;
   }
-  const bool pose_rejected = via_pose && via_pose->position.valid;
+  // The current geometries' placements that are believed; a placement that is not makes the frame discontinuous
+  // when none is believed.
+  bool rejected = via_pose && via_pose->position.valid;
   struct Candidate {
     const PlacedCamera* placed;
     bool from;
   };
   std::vector<Candidate> candidates;
   for (const auto& [placed, from] : {std::pair{&via_from, true}, std::pair{&via_to, false}}) {
-    if (placed->has_value() && (*placed)->position.valid) candidates.push_back({&**placed, from});
+    if (!placed->has_value() || !(*placed)->position.valid) continue;
+    if (believed(*placed)) {
+      candidates.push_back({&**placed, from});
+    } else {
+      rejected = true;
+    }
   }
   if (candidates.empty()) {
-    fused.continuous = !pose_rejected;
+    fused.continuous = !rejected;
     return fused;
   }
-  // Believed placements only, the most plausible first: nearest to where the motion puts the camera, or (no
-  // motion known) the lower σ_p.
+  // The most plausible first: nearest to where the motion puts the camera, or (no motion known) the lower σ_p.
   if (last) {
-    candidates.erase(std::remove_if(candidates.begin(), candidates.end(),
-                                    [&](const Candidate& c) {
-                                      return !PositionContinuous(last, frame, c.placed->position.along, limits);
-                                    }),
-                     candidates.end());
-    if (candidates.empty()) {
-      fused.continuous = false;
-      return fused;
-    }
     const double expected = ExpectedAlong(*last, frame);
     std::sort(candidates.begin(), candidates.end(), [expected](const Candidate& x, const Candidate& y) {
       return std::abs(x.placed->position.along - expected) < std::abs(y.placed->position.along - expected);

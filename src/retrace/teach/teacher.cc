@@ -115,7 +115,6 @@ Teacher::Teacher(const CameraModel& camera, const TeachOptions& options, MapData
   const double pixel_scale = static_cast<double>(camera.width()) / options_.reference_width;
   max_sigma_p_px_ = options_.max_sigma_p_px * pixel_scale;
   geometry_options_ = options_.geometry;
-
   geometry_options_.ransac.max_error_px = options_.inlier_threshold_px * pixel_scale;
   geometry_options_.min_inliers = std::max(geometry_options_.min_inliers, 8);
   geometry_options_.min_parallax_px = options_.min_parallax_px * pixel_scale;
