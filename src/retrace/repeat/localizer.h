@@ -187,8 +187,8 @@ struct LocalizerOptions {
   int global_relocalization_frames = 20;
   // Retrieval: the candidate key-images (the whole map, or the window around a loss) are ranked by whole-image
   // appearance (GlobalDescriptor) and the most similar `retrieval_shortlist` are verified by wide-baseline matching
-  // first; 0 verifies every candidate. Extracting a key-image's key-points costs ~170 ms at 1226x370, so this
-  // decides how long the first frame takes (kitti07's 18 key-images: 4.9 s when all are verified).
+  // first; 0 verifies every candidate. Extracting a key-image's key-points costs 187 ms at 1226x370, so this
+  // decides how long the first frame takes (kitti07's 18 key-images: 4.3 s when all are verified, BM_FindStartKitti/0).
   int retrieval_shortlist = 5;
   // ... the other candidates are verified as well unless the best verified key-image has at least this many inliers
   // (a look-alike street elsewhere in the simulated town verified with 42; the right key-image has hundreds on

@@ -8,6 +8,8 @@
 //
 // BM_FindStart*: the latency of the first frame without a start arc (retrieval over every key-image + wide-baseline
 // verification), with the appearance shortlist (argument 5, the default) and verifying every key-image (0).
+// BM_ExtractKeyImage*: what retrieval pays once for each key-image it verifies (wide-baseline key-points and
+// descriptors of one key-image, cached by the localizer afterwards).
 //
 //   build/src/retrace/repeat/bench_repeat_repeat --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 
@@ -19,6 +21,7 @@
 #include <opencv2/core.hpp>
 
 #include "retrace/camera/camera_io.h"
+#include "retrace/feature/wide_baseline.h"
 #include "retrace/dataset/sequence.h"
 #include "retrace/image/image_utils.h"
 #include "retrace/repeat/localizer.h"
@@ -153,6 +156,29 @@ BENCHMARK(BM_FindStartKitti)->Arg(5)->Arg(0)->Unit(benchmark::kMillisecond)->Ite
 
 void BM_FindStartSim(benchmark::State& state) { RunFindStart(*GetSimSetup(), 100, state); }
 BENCHMARK(BM_FindStartSim)->Arg(5)->Arg(0)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+void ExtractKeyImages(const Setup& setup, benchmark::State& state) {
+  const WideBaselineOptions matching = LocalizerOptions().matching;
+  size_t next = 0;
+  for (auto _ : state) {
+    const cv::Mat& image = setup.map.nodes()[next++ % setup.map.nodes().size()].image;
+    benchmark::DoNotOptimize(ExtractWideBaselineFeatures(image, matching));
+  }
+  state.counters["width"] = setup.camera->width();
+}
+
+void BM_ExtractKeyImageKitti(benchmark::State& state) {
+  const Setup* setup = GetSetup(0);
+  if (setup == nullptr) {
+    state.SkipWithError("kitti07 not found");
+    return;
+  }
+  ExtractKeyImages(*setup, state);
+}
+BENCHMARK(BM_ExtractKeyImageKitti)->Unit(benchmark::kMillisecond);
+
+void BM_ExtractKeyImageSim(benchmark::State& state) { ExtractKeyImages(*GetSimSetup(), state); }
+BENCHMARK(BM_ExtractKeyImageSim)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace retrace
