@@ -74,7 +74,8 @@ cv::Mat DrawOverlay(const cv::Mat& gray, const FrameResult& result) {
   cv::cvtColor(gray, image, cv::COLOR_GRAY2BGR);
   const int half = std::max(3, gray.cols / 200);
   for (const FeatureMark& mark : result.marks) {
-    const cv::Point p(static_cast<int>(std::lround(mark.position.x())), static_cast<int>(std::lround(mark.position.y())));
+    const cv::Point p(static_cast<int>(std::lround(mark.position.x())),
+                      static_cast<int>(std::lround(mark.position.y())));
     const cv::Scalar color = kRoleColors[static_cast<int>(mark.role)];
     if (mark.tracked) {
       cv::rectangle(image, p - cv::Point(half, half), p + cv::Point(half, half), color, 1);
@@ -321,8 +322,8 @@ void RunRepeat(const RepeatArguments& args) {
   }
   std::string timing;
   if (results.size() > 1) {
-    timing = fmt::format("; {:.1f} frames/s after the first frame ({:.0f} ms)", (results.size() - 1) / std::max(seconds, 1e-9),
-                         1000.0 * results.front().seconds);
+    timing = fmt::format("; {:.1f} frames/s after the first frame ({:.0f} ms)",
+                         (results.size() - 1) / std::max(seconds, 1e-9), 1000.0 * results.front().seconds);
   }
   if (!tracked_ms.empty()) {
     std::nth_element(tracked_ms.begin(), tracked_ms.begin() + tracked_ms.size() / 2, tracked_ms.end());

@@ -285,8 +285,9 @@ bool CutWindow(const cv::Mat& image, double px, double py, int w, int stride, bo
   // Compare in units where the scale column is a corner displacement (scale step * half window).
   const Eigen::Vector3d unit(1.0, 1.0, 1.0 / (half * stride));
   const Eigen::Matrix3d normalised = unit.asDiagonal() * schur * unit.asDiagonal();
-  const double min_eigenvalue =
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>().computeDirect(normalised, Eigen::EigenvaluesOnly).eigenvalues()(0);
+  const double min_eigenvalue = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>()
+                                    .computeDirect(normalised, Eigen::EigenvaluesOnly)
+                                    .eigenvalues()(0);
   if (!(min_eigenvalue / n > kMinEigenvaluePerPixel)) return false;
   *inverse_hessian = hessian.inverse().cast<float>();
   // Without the scale parameter (coarse levels): invert the 4x4 system of (dx, dy, lambda, delta).
@@ -298,7 +299,8 @@ bool CutWindow(const cv::Mat& image, double px, double py, int w, int stride, bo
   const Eigen::Matrix4d reduced_inverse = reduced.inverse();
   inverse_hessian_translation->setZero();
   for (int i = 0; i < 4; ++i) {
-    for (int j = 0; j < 4; ++j) (*inverse_hessian_translation)(keep[i], keep[j]) = static_cast<float>(reduced_inverse(i, j));
+    for (int j = 0; j < 4; ++j)
+      (*inverse_hessian_translation)(keep[i], keep[j]) = static_cast<float>(reduced_inverse(i, j));
   }
   return true;
 }
@@ -484,7 +486,8 @@ LevelOutcome IterateLevel(const cv::Mat& image, const WindowView& window, bool e
       for (int l = 0; l < kLanes; ++l) sums[q] += acc[q][l];
     }
     ++*iterations;
-    if (iteration >= settings.give_up_iteration && sums[5] > n * settings.give_up_rms * settings.give_up_rms * s.lambda * s.lambda) {
+    if (iteration >= settings.give_up_iteration &&
+        sums[5] > n * settings.give_up_rms * settings.give_up_rms * s.lambda * s.lambda) {
       return LevelOutcome::kGiveUp;
     }
     Eigen::Matrix<float, 5, 1> b;

@@ -25,7 +25,8 @@ bool GlobalDescriptorOptions::Check(std::string* error) const {
 GlobalDescriptor ComputeGlobalDescriptor(const cv::Mat& image, const GlobalDescriptorOptions& options) {
   std::string error;
   if (!options.Check(&error)) throw std::invalid_argument("GlobalDescriptorOptions: " + error);
-  if (image.empty() || image.type() != CV_8UC1) throw std::invalid_argument("ComputeGlobalDescriptor: needs 8-bit gray");
+  if (image.empty() || image.type() != CV_8UC1)
+    throw std::invalid_argument("ComputeGlobalDescriptor: needs 8-bit gray");
   const int height = std::max(8, static_cast<int>(std::lround(options.width * double(image.rows) / image.cols)));
   cv::Mat thumbnail;
   cv::resize(image, thumbnail, cv::Size(options.width, height), 0, 0, cv::INTER_AREA);
@@ -70,7 +71,8 @@ std::vector<size_t> RankByGlobalDescriptor(const GlobalDescriptor& query, const 
   for (size_t i = 0; i < database.size(); ++i) distances[i] = GlobalDescriptorDistance(query, database[i], options);
   std::vector<size_t> order(database.size());
   std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&distances](size_t x, size_t y) { return distances[x] < distances[y]; });
+  std::stable_sort(order.begin(), order.end(),
+                   [&distances](size_t x, size_t y) { return distances[x] < distances[y]; });
   return order;
 }
 

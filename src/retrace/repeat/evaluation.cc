@@ -93,7 +93,8 @@ TopologicalEvaluation EvaluateTopological(const Map& map, const std::vector<Time
       if (it != route.end()) {
         frame.estimated_arc_index = static_cast<int>(it - route.begin());
         const Vector3d d = nodes[frame.estimated_arc_index + 1] - nodes[frame.estimated_arc_index];
-        if (d.squaredNorm() > 0) frame.true_position_on_arc = (p - nodes[frame.estimated_arc_index]).dot(d) / d.squaredNorm();
+        if (d.squaredNorm() > 0)
+          frame.true_position_on_arc = (p - nodes[frame.estimated_arc_index]).dot(d) / d.squaredNorm();
       }
     }
     ++evaluation.frames;

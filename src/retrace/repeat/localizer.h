@@ -64,12 +64,13 @@
 // since, and the whole map only after `global_relocalization_frames` (look-alike streets elsewhere verify too).
 // Candidates are ranked by whole-image appearance (GlobalDescriptor) and the `retrieval_shortlist` most alike are
 // verified geometrically (relative pose on the matches); the rest too unless one of them has
-// `retrieval_confident_inliers`. The key-image with most inliers wins. Its arc is chosen by which side of the key-image the camera is on (the sign test of eq. (9), which needs no
-// scale), and corrected in the same frame by a transition when the absolute pose places the camera beyond the arc.
-// The mapped features of that arc and of its two neighbours seen in the matched key-images are then located in the
-// frame from the displacement of the nearest matched key-points and refined against their references (without the
-// coarsest pyramid level, like every refined prediction); the regular transfer predicts the remaining ones from the
-// next frame on. Key-images of these three arcs that retrieval did not verify are verified for this.
+// `retrieval_confident_inliers`. The key-image with most inliers wins. Its arc is chosen by which side of the
+// key-image the camera is on (the sign test of eq. (9), which needs no scale), and corrected in the same frame by a
+// transition when the absolute pose places the camera beyond the arc. The mapped features of that arc and of its two
+// neighbours seen in the matched key-images are then located in the frame from the displacement of the nearest
+// matched key-points and refined against their references (without the coarsest pyramid level, like every refined
+// prediction); the regular transfer predicts the remaining ones from the next frame on. Key-images of these three
+// arcs that retrieval did not verify are verified for this.
 
 #include <array>
 #include <limits>
@@ -273,7 +274,8 @@ struct FrameResult {
   bool steering_valid = false;
   int transition = 0;         // +1 forward, -1 backward, 0 none in this frame (+2: two arcs forward)
   bool bootstrapped = false;  // (re)initialised by wide-baseline matching in this frame
-  int key_images_matched = 0;  // key-images verified by wide-baseline matching in this frame (bootstrap, relocalization)
+  int key_images_matched =
+      0;  // key-images verified by wide-baseline matching in this frame (bootstrap, relocalization)
   double seconds = 0.0;       // processing time of this frame
   std::vector<FeatureMark> marks;  // tracked features and rejected predictions (for overlays)
 };

@@ -69,7 +69,8 @@ bool TeachOptions::Check(std::string* error) const {
   if (reference_width <= 0) return fail("reference_width must be positive");
   if (!(max_sigma_p_px > 0)) return fail("max_sigma_p_px (r_p) must be positive");
   if (min_features < 8) return fail("min_features (n) must be at least 8");
-  if (!(min_features_fraction >= 0 && min_features_fraction < 1)) return fail("min_features_fraction must lie in [0, 1)");
+  if (!(min_features_fraction >= 0 && min_features_fraction < 1))
+    return fail("min_features_fraction must lie in [0, 1)");
   if (!(max_residual > 0)) return fail("max_residual (R) must be positive");
   if (max_corners < min_features) return fail("max_corners must be at least min_features");
   if (min_matched_inliers < 8) return fail("min_matched_inliers must be at least 8");
@@ -501,7 +502,8 @@ void Teacher::RelateFramesByMatching(size_t a, size_t b) {
     std::unordered_map<feature_t, double> depth_in_previous;
     if (previous_arc != nullptr && previous_arc->to == from) {
       const Rigid3d& to_from_from = previous_arc->to_from_from;
-      for (const ArcPoint& p : previous_arc->points) depth_in_previous[p.feature_id] = (to_from_from * p.point_in_from).norm();
+      for (const ArcPoint& p : previous_arc->points)
+        depth_in_previous[p.feature_id] = (to_from_from * p.point_in_from).norm();
     }
     std::vector<double> depth_previous, depth_this;
     for (size_t i = 0; i < matched.matches.size(); ++i) {
