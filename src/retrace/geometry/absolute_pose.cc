@@ -7,6 +7,8 @@
 #include <opengv/absolute_pose/methods.hpp>
 #include <random>
 
+#include <Eigen/LU>
+
 #include "retrace/geometry/essential.h"
 #include "retrace/geometry/sigma_p.h"
 #include "retrace/geometry/triangulation.h"
@@ -234,6 +236,20 @@ AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world,
   result.sigma_p =
       SigmaPFromSumSquares(sum_squares, result.num_inliers, options.sigma_p_probability);  // eq. (6)
   result.rms_residual_px = std::sqrt(sum_squares / (2.0 * result.num_inliers));
+  // Covariance of the camera centre from the normal equations at the solution (see AbsolutePose).
+  if (result.num_inliers > 3) {
+    Eigen::Matrix<double, 6, 6> jtj;
+    Eigen::Matrix<double, 6, 1> jtr;
+    const double cost = NormalEquations(pose, points_in_world, bearings, inliers, &jtj, &jtr);
+    const double variance = cost / (2.0 * result.num_inliers - 6.0);
+    const Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(jtj);
+    if (lu.isInvertible()) {
+      const Matrix3d translation_covariance = variance * lu.inverse().bottomRightCorner<3, 3>();
+      const Matrix3d& r = pose.rotation;
+      result.centre_covariance = r.transpose() * translation_covariance * r;
+      result.covariance_valid = result.centre_covariance.allFinite();
+    }
+  }
   result.success = true;
   return result;
 }

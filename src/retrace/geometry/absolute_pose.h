@@ -65,6 +65,12 @@ struct AbsolutePose {
   double sigma_p = std::numeric_limits<double>::infinity();
   // RMS of the inliers' residual components, pixels.
   double rms_residual_px = std::numeric_limits<double>::infinity();
+  // Covariance of the camera centre C = -Rᵀt in the world frame (unit of the points²), first order: s² (JᵀJ)⁻¹ of
+  // the refinement's normal equations restricted to the translation (C moves with -Rᵀ δt and not with δω at first
+  // order), s² the residual variance per component (sum of squares / (2n - 6)). It treats the points as exact, so
+  // it is a lower bound on how well the camera is placed. Valid when `covariance_valid`.
+  Matrix3d centre_covariance = Matrix3d::Zero();
+  bool covariance_valid = false;
   int num_iterations = 0;  // samples drawn
 };
 

@@ -1,0 +1,405 @@
+#include "retrace/repeat/belief.h"
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <string>
+
+namespace retrace {
+namespace {
+
+constexpr double kInvSqrt2Pi = 0.3989422804014327;
+
+double Median(std::vector<double> values) {
+  const size_t mid = values.size() / 2;
+  std::nth_element(values.begin(), values.begin() + mid, values.end());
+  if (values.size() % 2 == 1) return values[mid];
+  const double upper = values[mid];
+  return 0.5 * (upper + *std::max_element(values.begin(), values.begin() + mid));
+}
+
+// Frames the teach drive spent on an arc (its key-images' source frames), at least 1.
+double TeachFrames(const Map& map, const MapArc& arc) {
+  const MapNode* from = map.FindNode(arc.from);
+  const MapNode* to = map.FindNode(arc.to);
+  if (from == nullptr || to == nullptr || from->source_frame < 0 || to->source_frame < 0) return 1.0;
+  return std::max<double>(1.0, std::abs(static_cast<double>(to->source_frame - from->source_frame)));
+}
+
+}  // namespace
+
+bool PlaceBeliefOptions::Check(std::string* error) const {
+  const auto fail = [&](const std::string& message) {
+    if (error != nullptr) *error = message;
+    return false;
+  };
+  if (bins_per_arc < 2) return fail("bins_per_arc must be >= 2");
+  if (!(relative_speed_noise >= 0) || !(position_noise > 0)) return fail("motion noise must be positive");
+  if (!(unknown_speed_max > unknown_speed_min)) return fail("unknown_speed_max must exceed unknown_speed_min");
+  if (speed_steps < 1 || speed_memory_frames < 1) return fail("speed_steps and speed_memory_frames must be >= 1");
+  if (!(jump_probability > 0) || !(jump_probability < 1)) return fail("jump_probability must be in (0, 1)");
+  if (!(outlier_range > 0)) return fail("outlier_range must be positive");
+  if (reach < 1) return fail("reach must be >= 1");
+  if (!(node_tolerance >= 0) || !(node_tolerance < 0.5)) return fail("node_tolerance must be in [0, 0.5)");
+  if (!(min_confidence > 0) || !(min_confidence <= 1)) return fail("min_confidence must be in (0, 1]");
+  if (!(min_inlier_probability > 0) || !(min_inlier_probability < 1)) {
+    return fail("min_inlier_probability must be in (0, 1)");
+  }
+  return true;
+}
+
+PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : options_(options) {
+  std::string error;
+  if (!options_.Check(&error)) throw std::invalid_argument("PlaceBeliefOptions: " + error);
+  for (const MapArc& arc : map.arcs()) {
+    index_[arc.id] = static_cast<int>(arcs_.size());
+    ArcNode node;
+    node.id = arc.id;
+    arcs_.push_back(node);
+  }
+  // The graph: an arc continues into every arc leaving its end node except the one straight back.
+  for (const MapArc& arc : map.arcs()) {
+    ArcNode& node = arcs_[index_.at(arc.id)];
+    for (const MapArc* next : map.ArcsFrom(arc.to)) {
+      if (next->to == arc.from) continue;  // straight back
+      node.successors.push_back(index_.at(next->id));
+      node.successor_ids.push_back(next->id);
+    }
+    for (const MapArc* previous : map.ArcsTo(arc.from)) {
+      if (previous->from == arc.to) continue;
+      node.predecessors.push_back(index_.at(previous->id));
+      node.predecessor_ids.push_back(previous->id);
+    }
+  }
+  // Lengths in one common unit: breadth first from each component's first arc, through the scales stored at the
+  // nodes (ℓ_out = s ℓ_in, design §1), else through the teach frames spent on each arc.
+  std::vector<bool> known(arcs_.size(), false);
+  for (size_t seed = 0; seed < arcs_.size(); ++seed) {
+    if (known[seed]) continue;
+    known[seed] = true;
+    arcs_[seed].length = 1.0;
+    std::deque<int> queue{static_cast<int>(seed)};
+    while (!queue.empty()) {
+      const int k = queue.front();
+      queue.pop_front();
+      const MapArc& arc = *map.FindArc(arcs_[k].id);
+      const auto visit = [&](int other, bool forward) {
+        if (known[other]) return;
+        const MapArc& next = *map.FindArc(arcs_[other].id);
+        const std::optional<double> scale =
+            forward ? map.ScaleAt(arc.to, arc.id, next.id) : map.ScaleAt(arc.from, next.id, arc.id);
+        double ratio = TeachFrames(map, next) / TeachFrames(map, arc);
+        if (scale && *scale > 0 && std::isfinite(*scale)) ratio = forward ? *scale : 1.0 / *scale;
+        arcs_[other].length = arcs_[k].length * ratio;
+        known[other] = true;
+        queue.push_back(other);
+      };
+      for (const int s : arcs_[k].successors) visit(s, true);
+      for (const int p : arcs_[k].predecessors) visit(p, false);
+    }
+  }
+  mass_.assign(arcs_.size() * options_.bins_per_arc, 0.0);
+  scratch_.assign(mass_.size(), 0.0);
+  Reset();
+}
+
+void PlaceBelief::Reset() {
+  if (!mass_.empty()) std::fill(mass_.begin(), mass_.end(), 1.0 / mass_.size());
+  last_place_.reset();
+  steps_.clear();
+  speed_.reset();
+  estimate_ = PlaceEstimate();
+  ComputeEstimate();
+  estimate_.evidence = false;
+  estimate_.tracking = false;
+}
+
+int PlaceBelief::Index(arc_t arc) const {
+  const auto it = index_.find(arc);
+  return it == index_.end() ? -1 : it->second;
+}
+
+double PlaceBelief::ArcLength(arc_t arc) const {
+  const int k = Index(arc);
+  return k < 0 ? 1.0 : arcs_[k].length;
+}
+
+const std::vector<arc_t>& PlaceBelief::Successors(arc_t arc) const {
+  static const std::vector<arc_t> kNone;
+  const int k = Index(arc);
+  return k < 0 ? kNone : arcs_[k].successor_ids;
+}
+
+const std::vector<arc_t>& PlaceBelief::Predecessors(arc_t arc) const {
+  static const std::vector<arc_t> kNone;
+  const int k = Index(arc);
+  return k < 0 ? kNone : arcs_[k].predecessor_ids;
+}
+
+double PlaceBelief::Mass(arc_t arc) const {
+  const int k = Index(arc);
+  if (k < 0) return 0.0;
+  const int bins = options_.bins_per_arc;
+  double sum = 0.0;
+  for (int i = 0; i < bins; ++i) sum += mass_[k * bins + i];
+  return sum;
+}
+
+std::optional<double> PlaceBelief::SpeedOn(arc_t arc) const {
+  if (!speed_) return std::nullopt;
+  return *speed_ / ArcLength(arc);
+}
+
+void PlaceBelief::DepositAt(std::vector<double>* target, int index, double along, double mass) const {
+  // Linear interpolation between the two nearest bin centres (clamped at the arc's ends).
+  const int bins = options_.bins_per_arc;
+  const double f = std::clamp(along * bins - 0.5, 0.0, bins - 1.0);
+  const int i0 = std::min(static_cast<int>(f), bins - 1);
+  const double w = f - i0;
+  (*target)[index * bins + i0] += (1.0 - w) * mass;
+  if (w > 0.0 && i0 + 1 < bins) (*target)[index * bins + i0 + 1] += w * mass;
+}
+
+void PlaceBelief::Deposit(std::vector<double>* target, int index, double along, double distance, double mass,
+                          int depth) const {
+  const ArcNode& arc = arcs_[index];
+  const double moved = along + distance / arc.length;
+  if ((moved >= 0.0 && moved < 1.0) || depth > 8) {
+    DepositAt(target, index, std::clamp(moved, 0.0, 1.0), mass);
+    return;
+  }
+  if (moved >= 1.0) {
+    // Past the end: into each following arc (a junction splits the mass), or piled at the route's end.
+    if (arc.successors.empty()) {
+      DepositAt(target, index, 1.0, mass);
+      return;
+    }
+    const double rest = (moved - 1.0) * arc.length;
+    const double share = mass / arc.successors.size();
+    for (const int next : arc.successors) Deposit(target, next, 0.0, rest, share, depth + 1);
+    return;
+  }
+  if (arc.predecessors.empty()) {
+    DepositAt(target, index, 0.0, mass);
+    return;
+  }
+  const double rest = moved * arc.length;  // negative
+  const double share = mass / arc.predecessors.size();
+  for (const int previous : arc.predecessors) Deposit(target, previous, 1.0, rest, share, depth + 1);
+}
+
+void PlaceBelief::Predict(int frames) {
+  if (mass_.empty() || frames < 1) return;
+  const int bins = options_.bins_per_arc;
+  std::fill(scratch_.begin(), scratch_.end(), 0.0);
+  const double largest = *std::max_element(mass_.begin(), mass_.end());
+  // Displacement taps (quantiles of the motion distribution, equal weights): a Gaussian with the speed known, a
+  // uniform spread without it. Bins far below the largest one (the uniform floor) stay where they are: moving a
+  // flat floor changes nothing that matters.
+  constexpr int kTaps = 9;
+  // Standard normal quantiles at (j + 0.5) / kTaps.
+  static const double kNormalQuantiles[kTaps] = {-1.5932, -0.9674, -0.5895, -0.2822, 0.0,
+                                                 0.2822,  0.5895,  0.9674,  1.5932};
+  const double frames_d = static_cast<double>(frames);
+  for (size_t k = 0; k < arcs_.size(); ++k) {
+    const double length = arcs_[k].length;
+    double taps[kTaps];
+    if (speed_) {
+      const double mean = *speed_ * frames_d;
+      const double sigma = std::sqrt(frames_d * (std::pow(options_.relative_speed_noise * *speed_, 2) +
+                                                 std::pow(options_.position_noise * length, 2)));
+      for (int j = 0; j < kTaps; ++j) taps[j] = mean + sigma * kNormalQuantiles[j];
+    } else {
+      const double low = options_.unknown_speed_min * frames_d * length;
+      const double high = options_.unknown_speed_max * frames_d * length;
+      for (int j = 0; j < kTaps; ++j) taps[j] = low + (high - low) * (j + 0.5) / kTaps;
+    }
+    for (int i = 0; i < bins; ++i) {
+      const double m = mass_[k * bins + i];
+      if (m <= 1e-7 * largest) {
+        scratch_[k * bins + i] += m;
+        continue;
+      }
+      const double along = (i + 0.5) / bins;
+      for (int j = 0; j < kTaps; ++j) Deposit(&scratch_, static_cast<int>(k), along, taps[j], m / kTaps, 0);
+    }
+  }
+  // Jumps: a small fraction of the mass anywhere on the map.
+  double total = 0.0;
+  for (const double m : scratch_) total += m;
+  const double floor = options_.jump_probability / scratch_.size();
+  const double keep = (1.0 - options_.jump_probability) / (total > 0 ? total : 1.0);
+  for (size_t c = 0; c < mass_.size(); ++c) mass_[c] = keep * scratch_[c] + floor;
+}
+
+void PlaceBelief::ReachableOffsets(int index, int reach, std::vector<std::pair<int, double>>* offsets) const {
+  // Breadth first along the graph in both directions; each arc once, at its fewest hops.
+  offsets->clear();
+  std::vector<std::pair<int, double>> frontier_forward{{index, 0.0}}, frontier_backward{{index, 0.0}};
+  std::vector<int> seen{index};
+  offsets->push_back({index, 0.0});
+  for (int hop = 0; hop < reach; ++hop) {
+    std::vector<std::pair<int, double>> next_forward, next_backward;
+    for (const auto& [k, offset] : frontier_forward) {
+      for (const int s : arcs_[k].successors) {
+        if (std::find(seen.begin(), seen.end(), s) != seen.end()) continue;
+        seen.push_back(s);
+        next_forward.push_back({s, offset + arcs_[k].length});
+      }
+    }
+    for (const auto& [k, offset] : frontier_backward) {
+      for (const int p : arcs_[k].predecessors) {
+        if (std::find(seen.begin(), seen.end(), p) != seen.end()) continue;
+        seen.push_back(p);
+        next_backward.push_back({p, offset - arcs_[p].length});
+      }
+    }
+    offsets->insert(offsets->end(), next_forward.begin(), next_forward.end());
+    offsets->insert(offsets->end(), next_backward.begin(), next_backward.end());
+    frontier_forward.swap(next_forward);
+    frontier_backward.swap(next_backward);
+  }
+}
+
+std::vector<double> PlaceBelief::Update(const std::vector<PlaceMeasurement>& measurements, size_t frame) {
+  std::vector<double> inlier_probabilities;
+  const int bins = options_.bins_per_arc;
+  std::vector<std::pair<int, double>> offsets;
+  for (const PlaceMeasurement& m : measurements) {
+    const int k = Index(m.arc);
+    if (k < 0 || !std::isfinite(m.along) || !(m.sigma > 0) || mass_.empty()) {
+      inlier_probabilities.push_back(0.0);
+      continue;
+    }
+    const double epsilon = std::clamp(m.outlier_probability, 1e-6, 1.0 - 1e-6);
+    const double outlier = epsilon / options_.outlier_range;
+    // Every place explains the measurement as an outlier; the places on k's line within reach also as an inlier.
+    ReachableOffsets(k, options_.reach, &offsets);
+    const double length_k = arcs_[k].length;
+    std::vector<std::pair<size_t, double>> inliers;  // cell, prior mass times the inlier likelihood
+    double total_inlier = 0.0;
+    for (const auto& [j, offset] : offsets) {
+      const double width = arcs_[j].length / (bins * length_k);  // a bin in k's arc lengths
+      const double variance = m.sigma * m.sigma + width * width / 12.0;
+      const double norm = (1.0 - epsilon) * kInvSqrt2Pi / std::sqrt(variance);
+      for (int i = 0; i < bins; ++i) {
+        const double x = (offset + (i + 0.5) / bins * arcs_[j].length) / length_k;
+        const double d2 = (x - m.along) * (x - m.along) / variance;
+        if (d2 > 60.0) continue;
+        const size_t cell = static_cast<size_t>(j) * bins + i;
+        const double inlier = mass_[cell] * norm * std::exp(-0.5 * d2);
+        inliers.push_back({cell, inlier});
+        total_inlier += inlier;
+      }
+    }
+    double total_outlier = 0.0;
+    for (double& c : mass_) {
+      c *= outlier;
+      total_outlier += c;
+    }
+    for (const auto& [cell, inlier] : inliers) mass_[cell] += inlier;
+    const double total = total_outlier + total_inlier;
+    inlier_probabilities.push_back(total > 0 ? total_inlier / total : 0.0);
+    if (total > 0) {
+      for (double& c : mass_) c /= total;
+    } else {
+      Reset();
+    }
+  }
+  ComputeEstimate();
+  estimate_.evidence = false;
+  for (const double p : inlier_probabilities) estimate_.evidence |= p >= options_.min_inlier_probability;
+  estimate_.tracking = estimate_.evidence && estimate_.confidence >= options_.min_confidence;
+
+  // The speed from the steps of the estimated position between frames with evidence.
+  if (estimate_.evidence && estimate_.arc != kInvalidArcId) {
+    const GraphPlace place{estimate_.arc, estimate_.along};
+    std::optional<double> step;
+    if (last_place_ && frame > last_place_frame_ &&
+        frame - last_place_frame_ <= static_cast<size_t>(options_.speed_memory_frames)) {
+      const std::optional<double> distance = Distance(*last_place_, place, options_.reach);
+      if (distance) step = *distance / static_cast<double>(frame - last_place_frame_);
+    }
+    if (step) {
+      steps_.insert(steps_.begin(), *step);
+      if (static_cast<int>(steps_.size()) > options_.speed_steps) steps_.pop_back();
+    } else {
+      steps_.clear();
+    }
+    speed_ = steps_.size() >= 2 ? std::optional<double>(Median(steps_)) : std::nullopt;
+    last_place_ = place;
+    last_place_frame_ = frame;
+  } else if (last_place_ && frame > last_place_frame_ + options_.speed_memory_frames) {
+    steps_.clear();
+    speed_.reset();
+    last_place_.reset();
+  }
+  return inlier_probabilities;
+}
+
+void PlaceBelief::ComputeEstimate() {
+  const int bins = options_.bins_per_arc;
+  const size_t n = arcs_.size();
+  if (n == 0) return;
+  // Mass per arc, near its start (within node_tolerance) and near its end.
+  std::vector<double> whole(n, 0.0), head(n, 0.0), tail(n, 0.0);
+  for (size_t k = 0; k < n; ++k) {
+    for (int i = 0; i < bins; ++i) {
+      const double m = mass_[k * bins + i];
+      const double centre = (i + 0.5) / bins;
+      whole[k] += m;
+      if (centre < options_.node_tolerance) head[k] += m;
+      if (centre > 1.0 - options_.node_tolerance) tail[k] += m;
+    }
+  }
+  int best = -1;
+  double best_confidence = -1.0;
+  for (size_t k = 0; k < n; ++k) {
+    double confidence = whole[k];
+    for (const int s : arcs_[k].successors) confidence += head[s];
+    for (const int p : arcs_[k].predecessors) confidence += tail[p];
+    if (confidence > best_confidence + 1e-12 ||
+        (std::abs(confidence - best_confidence) <= 1e-12 && best >= 0 && whole[k] > whole[best])) {
+      best = static_cast<int>(k);
+      best_confidence = confidence;
+    }
+  }
+  estimate_.arc = arcs_[best].id;
+  estimate_.confidence = std::min(1.0, best_confidence);
+  // Posterior mean and spread of the position on the arc: its own bins and the tolerated bins of its neighbours,
+  // in its arc lengths.
+  double sum = 0.0, sum_x = 0.0, sum_xx = 0.0;
+  const auto add = [&](int j, int i, double offset) {
+    const double m = mass_[j * bins + i];
+    const double x = (offset + (i + 0.5) / bins * arcs_[j].length) / arcs_[best].length;
+    sum += m;
+    sum_x += m * x;
+    sum_xx += m * x * x;
+  };
+  for (int i = 0; i < bins; ++i) add(best, i, 0.0);
+  for (const int s : arcs_[best].successors) {
+    for (int i = 0; i < bins && (i + 0.5) / bins < options_.node_tolerance; ++i) add(s, i, arcs_[best].length);
+  }
+  for (const int p : arcs_[best].predecessors) {
+    for (int i = bins - 1; i >= 0 && (i + 0.5) / bins > 1.0 - options_.node_tolerance; --i) {
+      add(p, i, -arcs_[p].length);
+    }
+  }
+  estimate_.along = sum > 0 ? sum_x / sum : 0.5;
+  estimate_.sigma = sum > 0 ? std::sqrt(std::max(0.0, sum_xx / sum - estimate_.along * estimate_.along)) : 1.0;
+}
+
+std::optional<double> PlaceBelief::Distance(const GraphPlace& from, const GraphPlace& to, int max_arcs) const {
+  const int a = Index(from.arc);
+  const int b = Index(to.arc);
+  if (a < 0 || b < 0) return std::nullopt;
+  if (a == b) return (to.along - from.along) * arcs_[a].length;
+  std::vector<std::pair<int, double>> offsets;
+  ReachableOffsets(a, max_arcs, &offsets);
+  for (const auto& [j, offset] : offsets) {
+    if (j == b) return offset + to.along * arcs_[b].length - from.along * arcs_[a].length;
+  }
+  return std::nullopt;
+}
+
+}  // namespace retrace

@@ -1,0 +1,201 @@
+#include "retrace/repeat/belief.h"
+
+#include <gtest/gtest.h>
+
+namespace retrace {
+namespace {
+
+// A linear route of `arcs` arcs (nodes 0..arcs, arc k from node k to k + 1, taught 10 frames apart), with the
+// stored relative scale `scales[k]` at node k + 1 (ℓ_{k+1} = s ℓ_k) when given.
+Map LinearMap(int arcs, const std::vector<double>& scales = {}) {
+  Map map;
+  for (int i = 0; i <= arcs; ++i) {
+    MapNode node;
+    node.id = i;
+    node.source_frame = 10 * i;
+    map.AddNode(node);
+  }
+  for (int k = 0; k < arcs; ++k) {
+    MapArc arc;
+    arc.id = k;
+    arc.from = k;
+    arc.to = k + 1;
+    map.AddArc(arc);
+  }
+  for (size_t k = 0; k < scales.size(); ++k) {
+    map.AddScale({static_cast<node_t>(k + 1), static_cast<arc_t>(k), static_cast<arc_t>(k + 1), scales[k]});
+  }
+  return map;
+}
+
+PlaceMeasurement Pose(arc_t arc, double along, double sigma = 0.03) { return {arc, along, sigma, 0.02}; }
+
+// Feeds one frame: motion, then the measurements.
+void Frame(PlaceBelief* belief, size_t frame, const std::vector<PlaceMeasurement>& measurements) {
+  belief->Predict(1);
+  belief->Update(measurements, frame);
+}
+
+TEST(PlaceBelief, LengthsFollowTheStoredScalesElseTheTeachFrames) {
+  Map map = LinearMap(3, {2.0});
+  // Arc 2's key-image is 30 frames after node 2 (three times arc 1's 10 frames) and node 2 stores no scale.
+  map.MutableNode(3)->source_frame = 50;
+  const PlaceBelief belief(map);
+  EXPECT_DOUBLE_EQ(belief.ArcLength(0), 1.0);
+  EXPECT_DOUBLE_EQ(belief.ArcLength(1), 2.0);
+  EXPECT_DOUBLE_EQ(belief.ArcLength(2), 6.0);
+  ASSERT_TRUE(belief.Distance({0, 0.5}, {2, 0.5}, 3).has_value());
+  EXPECT_DOUBLE_EQ(*belief.Distance({0, 0.5}, {2, 0.5}, 3), 0.5 + 2.0 + 3.0);
+  EXPECT_DOUBLE_EQ(*belief.Distance({2, 0.5}, {0, 0.5}, 3), -5.5);
+  EXPECT_FALSE(belief.Distance({0, 0.5}, {2, 0.5}, 1).has_value());
+}
+
+TEST(PlaceBelief, ConsistentPlacementsConcentrateItIntoTracking) {
+  PlaceBelief belief(LinearMap(10));
+  // Before any evidence: uniform, not tracking.
+  EXPECT_FALSE(belief.estimate().tracking);
+  EXPECT_LT(belief.estimate().confidence, 0.2);
+  for (int t = 0; t < 4; ++t) Frame(&belief, t + 1, {Pose(4, 0.2 + 0.1 * t)});
+  const PlaceEstimate& estimate = belief.estimate();
+  EXPECT_TRUE(estimate.tracking);
+  EXPECT_EQ(estimate.arc, 4);
+  EXPECT_GT(estimate.confidence, 0.99);
+  EXPECT_NEAR(estimate.along, 0.5, 0.05);
+  ASSERT_TRUE(belief.SpeedOn(4).has_value());
+  EXPECT_NEAR(*belief.SpeedOn(4), 0.1, 0.03);
+}
+
+TEST(PlaceBelief, WithoutEvidenceItSpreadsAndIsNotTracking) {
+  PlaceBelief belief(LinearMap(40));
+  for (int t = 0; t < 4; ++t) Frame(&belief, t + 1, {Pose(4, 0.2 + 0.25 * t)});
+  ASSERT_TRUE(belief.estimate().tracking);
+  // Frames without a placement: the prediction moves on at the speed (a quarter arc per frame) but the frame has
+  // no evidence of its own, so it is not `tracking`.
+  for (int t = 4; t < 8; ++t) {
+    Frame(&belief, t + 1, {});
+    EXPECT_FALSE(belief.estimate().evidence);
+    EXPECT_FALSE(belief.estimate().tracking);
+  }
+  // 0.95 + 4 x 0.25 = 1.95 arcs past arc 4's start: near node 6.
+  const std::optional<double> moved = belief.Distance({4, 0.0}, {belief.estimate().arc, belief.estimate().along}, 3);
+  ASSERT_TRUE(moved.has_value());
+  EXPECT_NEAR(*moved, 1.95, 0.15);
+  // Much later, the speed is forgotten and the mass is spread over many arcs: the confidence drops.
+  for (int t = 8; t < 20; ++t) Frame(&belief, t + 1, {});
+  EXPECT_FALSE(belief.SpeedOn(5).has_value());
+  EXPECT_LT(belief.estimate().confidence, 0.8);
+}
+
+TEST(PlaceBelief, MotionCarriesTheMassAcrossSeveralArcsInOneFrame) {
+  // Short arcs: the camera covers 2.5 arcs per frame (dense key-images, a low frame rate) — faster than a camera
+  // of unknown speed is expected to move, so the first placements count as outliers until they agree for a few
+  // frames; then the speed is known.
+  PlaceBelief belief(LinearMap(60));
+  const auto place = [](int t) { return Pose(1 + (5 * t) / 2, (5 * t) % 2 == 0 ? 0.2 : 0.7); };
+  int t = 0;
+  for (; t < 12 && !(belief.estimate().tracking && belief.SpeedOn(0)); ++t) Frame(&belief, t + 1, {place(t)});
+  ASSERT_TRUE(belief.estimate().tracking) << "not tracking after " << t << " frames";
+  ASSERT_TRUE(belief.SpeedOn(0).has_value());
+  EXPECT_NEAR(*belief.SpeedOn(0), 2.5, 0.1);
+  const GraphPlace last{belief.estimate().arc, belief.estimate().along};
+  EXPECT_EQ(last.arc, place(t - 1).arc);
+  // One frame without a placement: the prediction alone carries the mass 2.5 arcs on.
+  belief.Predict(1);
+  belief.Update({}, t + 1);
+  ASSERT_TRUE(belief.Distance(last, {belief.estimate().arc, belief.estimate().along}, 4).has_value());
+  EXPECT_NEAR(*belief.Distance(last, {belief.estimate().arc, belief.estimate().along}, 4), 2.5, 0.3);
+  // A placement in the reconstruction of the arc of the last frame, 2.5 arc lengths past where it was (the camera
+  // passed two key-images since), is evidence for the arc two or three ahead of it.
+  const GraphPlace predicted{belief.estimate().arc, belief.estimate().along};
+  Frame(&belief, t + 2, {Pose(predicted.arc, predicted.along + 2.5)});
+  EXPECT_TRUE(belief.estimate().evidence);
+  const std::optional<double> moved =
+      belief.Distance(predicted, {belief.estimate().arc, belief.estimate().along}, 4);
+  ASSERT_TRUE(moved.has_value());
+  EXPECT_NEAR(*moved, 2.5, 0.05);
+  EXPECT_GE(belief.estimate().arc, predicted.arc + 2);
+}
+
+TEST(PlaceBelief, AtAJunctionTheMassSpreadsIntoEveryOutgoingArc) {
+  // 0 -> 1 -> 2, and at node 2 two branches: arc 2 to node 3 and arc 3 to node 4.
+  Map map = LinearMap(2);
+  for (node_t id : {3, 4}) {
+    MapNode node;
+    node.id = id;
+    node.source_frame = 30;  // both branches taught over 10 frames
+    map.AddNode(node);
+  }
+  MapArc left;
+  left.id = 2;
+  left.from = 2;
+  left.to = 3;
+  map.AddArc(left);
+  MapArc right;
+  right.id = 3;
+  right.from = 2;
+  right.to = 4;
+  map.AddArc(right);
+  PlaceBelief belief(map);
+  ASSERT_EQ(belief.Successors(1).size(), 2u);
+  for (int t = 0; t < 4; ++t) Frame(&belief, t + 1, {Pose(1, 0.3 + 0.2 * t)});  // 0.9 on arc 1
+  for (int t = 4; t < 6; ++t) Frame(&belief, t + 1, {});                    // then 1.3: past the junction
+  EXPECT_NEAR(belief.Mass(2), belief.Mass(3), 1e-9);
+  EXPECT_GT(belief.Mass(2) + belief.Mass(3), 0.8);
+  EXPECT_FALSE(belief.estimate().tracking);
+  // Evidence on one branch decides.
+  Frame(&belief, 7, {Pose(3, 0.5)});
+  EXPECT_EQ(belief.estimate().arc, 3);
+  EXPECT_TRUE(belief.estimate().tracking);
+}
+
+TEST(PlaceBelief, OneWrongPlacementDoesNotMoveItButConsistentEvidenceDoes) {
+  PlaceBelief belief(LinearMap(30));
+  for (int t = 0; t < 5; ++t) Frame(&belief, t + 1, {Pose(4, 0.1 + 0.1 * t)});
+  ASSERT_EQ(belief.estimate().arc, 4);
+  // A placement two arcs ahead (an absolute pose from a few wrong features): an outlier, no evidence this frame.
+  const std::vector<double> inlier = [&] {
+    belief.Predict(1);
+    return belief.Update({Pose(4, 2.6)}, 6);
+  }();
+  EXPECT_LT(inlier[0], 0.5);
+  EXPECT_EQ(belief.estimate().arc, 4);
+  EXPECT_FALSE(belief.estimate().tracking);
+  // The robot was carried to arc 20: placements there, frame after frame, win after a few frames, and the frames in
+  // between are not `tracking`.
+  int first_tracking = -1;
+  for (int t = 0; t < 10; ++t) {
+    Frame(&belief, 7 + t, {Pose(20, 0.2 + 0.05 * t)});
+    if (belief.estimate().tracking && first_tracking < 0) first_tracking = t;
+    if (belief.estimate().tracking) {
+      EXPECT_EQ(belief.estimate().arc, 20);
+    }
+  }
+  EXPECT_GE(first_tracking, 1);
+  EXPECT_LE(first_tracking, 6);
+}
+
+TEST(PlaceBelief, NearANodeTheNeighbouringArcCountsForTheConfidence) {
+  PlaceBelief belief(LinearMap(10));
+  for (int t = 0; t < 5; ++t) Frame(&belief, t + 1, {Pose(3, 0.6 + 0.1 * t)});  // 1.0: on node 4
+  const PlaceEstimate& estimate = belief.estimate();
+  EXPECT_TRUE(estimate.arc == 3 || estimate.arc == 4);
+  EXPECT_GT(belief.Mass(3), 0.2);
+  EXPECT_GT(belief.Mass(4), 0.2);
+  EXPECT_TRUE(estimate.tracking);
+  EXPECT_GT(estimate.confidence, 0.95);
+}
+
+TEST(PlaceBelief, OptionsAreChecked) {
+  PlaceBeliefOptions options;
+  options.bins_per_arc = 1;
+  std::string error;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("bins_per_arc"), std::string::npos);
+  options = PlaceBeliefOptions();
+  options.jump_probability = 0.0;
+  EXPECT_FALSE(options.Check());
+  EXPECT_THROW(PlaceBelief(LinearMap(2), options), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace retrace
