@@ -23,25 +23,68 @@ namespace retrace {
 
 namespace {
 
-// Command-line overrides of a scenario shared by `sim render` and `sim drive` (negative / zero = keep).
-void ApplyOverrides(int frames, int width, int height, int64_t seed, Scenario* scenario) {
-  if (frames >= 0) scenario->num_frames = frames;
-  if (width > 0) {
-    if (scenario->camera.fx > 0.0) {
-      const double s = static_cast<double>(width) / scenario->camera.width;
-      scenario->camera.fx *= s;
-      scenario->camera.fy *= s;
-      if (scenario->camera.cx >= 0) scenario->camera.cx = (scenario->camera.cx + 0.5) * s - 0.5;
-      if (scenario->camera.cy >= 0) scenario->camera.cy = (scenario->camera.cy + 0.5) * s - 0.5;
-    }
-    scenario->camera.width = width;
-  }
-  if (height > 0) scenario->camera.height = height;
-  if (seed >= 0) {
-    scenario->seed = static_cast<uint64_t>(seed);
-    scenario->town.seed = scenario->seed;
-    scenario->drive.wobble_seed = scenario->seed;
-  }
+// Overrides (negative / zero = keep) shared by `sim render` and `sim drive`.
+void ApplyBasicOverrides(int width, int height, int64_t seed, ScenarioOverrides* overrides) {
+  if (width > 0) overrides->width = width;
+  if (height > 0) overrides->height = height;
+  if (seed >= 0) overrides->seed = seed;
+}
+
+struct RenderArguments {
+  std::string scenario;
+  std::string out;
+  std::string variant = "teach";
+  int frames = -1;
+  int width = 0;
+  int height = 0;
+  int64_t seed = -1;
+  std::string route;
+  int segments = 0;
+  double speed = 0.0;
+  double frame_rate = 0.0;
+  int pedestrians = 0;
+  std::string lighting;
+  std::string repeat_lighting;
+  double lateral_offset = 0.0;
+  int threads = 0;
+  std::string contact_sheet;
+  int sheet_every = 10;
+  bool quiet = false;
+};
+
+// `sim render`: a teach or repeat drive of the scenario with the command line's overrides.
+void RunRender(const CLI::App& command, const RenderArguments& args) {
+  Scenario scenario = args.scenario.empty() ? Scenario() : ReadScenario(args.scenario);
+  const auto given = [&](const char* name) { return command.get_option(name)->count() > 0; };
+  ScenarioOverrides overrides;
+  if (given("--frames")) overrides.frames = args.frames;
+  if (given("--width")) overrides.width = args.width;
+  if (given("--height")) overrides.height = args.height;
+  if (given("--seed")) overrides.seed = args.seed;
+  if (given("--route")) overrides.route = args.route;
+  if (given("--segments")) overrides.segments = args.segments;
+  if (given("--speed")) overrides.max_speed = args.speed;
+  if (given("--frame-rate")) overrides.frame_rate = args.frame_rate;
+  if (given("--pedestrians")) overrides.pedestrians = args.pedestrians;
+  if (given("--lighting")) overrides.lighting = args.lighting;
+  if (given("--repeat-lighting")) overrides.repeat_lighting = args.repeat_lighting;
+  if (given("--lateral-offset")) overrides.lateral_offset = args.lateral_offset;
+  if (const std::string bad = overrides.Apply(&scenario); !bad.empty()) throw InputError("", bad);
+  if (args.threads > 0) scenario.render.num_threads = args.threads;
+  const std::string problem = scenario.Validate();
+  if (!problem.empty()) throw InputError(args.scenario.empty() ? "command line" : args.scenario, problem);
+  const ScenarioVariant v = args.variant == "repeat" ? ScenarioVariant::kRepeat : ScenarioVariant::kTeach;
+  Simulator simulator(ApplyVariant(scenario, v));
+  RecordOptions options;
+  options.progress = !args.quiet;
+  options.contact_sheet = args.contact_sheet;
+  options.contact_sheet_every = std::max(1, args.sheet_every);
+  const RecordSummary summary = RecordSequence(&simulator, args.out, options);
+  std::cout << fmt::format("wrote {} frames ({:.0f} m of a {:.0f} m route, {} variant) to {} in {:.1f} s ({:.1f} "
+                           "fps)\n",
+                           summary.frames, summary.driven_m, summary.route_length_m, args.variant, args.out,
+                           summary.seconds, summary.frames / std::max(1e-9, summary.seconds));
+  if (!args.contact_sheet.empty()) std::cout << "contact sheet: " << args.contact_sheet << "\n";
 }
 
 struct DriveArguments {
@@ -59,7 +102,9 @@ struct DriveArguments {
 // `sim drive`: the repeat variant of the scenario driven by the localizer's steering (closed loop).
 void RunDrive(const DriveArguments& args) {
   Scenario scenario = args.scenario.empty() ? Scenario() : ReadScenario(args.scenario);
-  ApplyOverrides(-1, args.width, args.height, args.seed, &scenario);
+  ScenarioOverrides overrides;
+  ApplyBasicOverrides(args.width, args.height, args.seed, &overrides);
+  if (const std::string bad = overrides.Apply(&scenario); !bad.empty()) throw InputError("", bad);
   const std::string problem = scenario.Validate();
   if (!problem.empty()) throw InputError(args.scenario.empty() ? "command line" : args.scenario, problem);
   std::string error;
@@ -172,48 +217,48 @@ void RegisterSimCommand(CLI::App& app) {
 
   CLI::App* render = sim->add_subcommand(
       "render", "Render a drive into a KITTI-layout sequence (image_0/, times.txt, poses.txt, calib.txt)");
-  auto scenario_path = std::make_shared<std::string>();
-  auto out_dir = std::make_shared<std::string>();
-  auto variant = std::make_shared<std::string>("teach");
-  auto frames = std::make_shared<int>(-1);
-  auto width = std::make_shared<int>(0);
-  auto height = std::make_shared<int>(0);
-  auto seed = std::make_shared<int64_t>(-1);
-  auto threads = std::make_shared<int>(0);
-  auto contact_sheet = std::make_shared<std::string>();
-  auto sheet_every = std::make_shared<int>(10);
-  auto quiet = std::make_shared<bool>(false);
-  render->add_option("--scenario", *scenario_path, "Scenario file (YAML/JSON); default: the built-in scenario");
-  render->add_option("--out", *out_dir, "Output folder of the sequence")->required();
-  render->add_option("--variant", *variant, "teach, or repeat (other sun and exposure, 1 m lateral offset, wobble)")
+  auto render_args = std::make_shared<RenderArguments>();
+  const Scenario defaults;
+  std::string presets;
+  for (const LightingPreset& p : LightingPresets()) {
+    presets += fmt::format("{}{} ({})", presets.empty() ? "" : ", ", p.name, p.description);
+  }
+  render->add_option("--scenario", render_args->scenario, "Scenario file (YAML/JSON); default: the built-in scenario");
+  render->add_option("--out", render_args->out, "Output folder of the sequence")->required();
+  render->add_option("--variant", render_args->variant,
+                     "teach, or repeat (other sun and exposure, 1 m lateral offset, wobble)")
       ->check(CLI::IsMember({"teach", "repeat"}));
-  render->add_option("--frames", *frames, "Number of frames (0 = whole route); overrides the scenario");
-  render->add_option("--width", *width, "Image width; overrides the scenario (keeps the field of view)");
-  render->add_option("--height", *height, "Image height; overrides the scenario");
-  render->add_option("--seed", *seed, "Seed of the drive and the town; overrides the scenario");
-  render->add_option("--threads", *threads, "Render threads; overrides the scenario");
-  render->add_option("--contact-sheet", *contact_sheet, "Also write a PNG with every Nth frame");
-  render->add_option("--contact-sheet-every", *sheet_every, "N for --contact-sheet (default 10)");
-  render->add_flag("--quiet", *quiet, "No progress bar");
-  render->callback([=]() {
-    Scenario scenario = scenario_path->empty() ? Scenario() : ReadScenario(*scenario_path);
-    const std::string source = scenario_path->empty() ? "command line" : *scenario_path;
-    ApplyOverrides(*frames, *width, *height, *seed, &scenario);
-    if (*threads > 0) scenario.render.num_threads = *threads;
-    const std::string problem = scenario.Validate();
-    if (!problem.empty()) throw InputError(source, problem);
-    const ScenarioVariant v = *variant == "repeat" ? ScenarioVariant::kRepeat : ScenarioVariant::kTeach;
-    Simulator simulator(ApplyVariant(scenario, v));
-    RecordOptions options;
-    options.progress = !*quiet;
-    options.contact_sheet = *contact_sheet;
-    options.contact_sheet_every = std::max(1, *sheet_every);
-    const RecordSummary summary = RecordSequence(&simulator, *out_dir, options);
-    std::cout << fmt::format("wrote {} frames ({:.0f} m of a {:.0f} m route, {} variant) to {} in {:.1f} s ({:.1f} fps)\n",
-                             summary.frames, summary.driven_m, summary.route_length_m, *variant, *out_dir,
-                             summary.seconds, summary.frames / std::max(1e-9, summary.seconds));
-    if (!contact_sheet->empty()) std::cout << "contact sheet: " << *contact_sheet << "\n";
-  });
+  render->add_option("--frames", render_args->frames, "Number of frames (0 = whole route); overrides the scenario");
+  render->add_option("--width", render_args->width, "Image width; overrides the scenario (keeps the field of view)");
+  render->add_option("--height", render_args->height, "Image height; overrides the scenario");
+  render->add_option("--seed", render_args->seed, "Seed of the drive and the town; overrides the scenario");
+  render->add_option("--route", render_args->route,
+                     fmt::format("Route type: auto (seeded, --segments streets), loop (around blocks) or crossing (a "
+                                 "figure eight that crosses itself); default {}",
+                                 defaults.route.type));
+  render->add_option("--segments", render_args->segments,
+                     fmt::format("Streets of an auto route (about 60 m each); default {}", defaults.route.segments));
+  render->add_option("--speed", render_args->speed,
+                     fmt::format("Top speed on straight streets, m/s (slower in turns); default {}",
+                                 defaults.drive.max_speed));
+  render->add_option("--frame-rate", render_args->frame_rate,
+                     fmt::format("Frames per second; default {}", defaults.frame_rate));
+  render->add_option("--pedestrians", render_args->pedestrians,
+                     fmt::format("Walking pedestrians in the town; default {}", defaults.town.num_pedestrians));
+  render->add_option("--lighting", render_args->lighting,
+                     "Light of the teach drive (sun, sky and exposure): " + presets +
+                         "; default the scenario's (sun at 160 deg, 55 deg high)");
+  render->add_option("--repeat-lighting", render_args->repeat_lighting,
+                     "Light of the repeat variant, as --lighting; default the scenario's (sun at 250 deg, 25 deg "
+                     "high)");
+  render->add_option("--lateral-offset", render_args->lateral_offset,
+                     fmt::format("Repeat variant: metres right of the teach drive; default {}",
+                                 defaults.repeat.lateral_offset));
+  render->add_option("--threads", render_args->threads, "Render threads; overrides the scenario");
+  render->add_option("--contact-sheet", render_args->contact_sheet, "Also write a PNG with every Nth frame");
+  render->add_option("--contact-sheet-every", render_args->sheet_every, "N for --contact-sheet (default 10)");
+  render->add_flag("--quiet", render_args->quiet, "No progress bar");
+  render->callback([render, render_args]() { RunRender(*render, *render_args); });
 
   CLI::App* drive = sim->add_subcommand(
       "drive", "Drive the scenario's repeat variant with retrace's steering in a taught map (closed loop)");

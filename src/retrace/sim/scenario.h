@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -41,8 +42,10 @@ struct CameraSpec {
 
 struct RouteSpec {
   // "auto": a seeded drive of `segments` junction-to-junction streets with turns; "loop": around the rectangle of
-  // blocks [loop_i0, loop_i1] x [loop_j0, loop_j1] (junction indices); "waypoints": the given town-frame points
-  // (X east, Y north, metres), driven as given (no lane offset).
+  // blocks [loop_i0, loop_i1] x [loop_j0, loop_j1] (junction indices); "crossing": a figure eight over the 2 x 2
+  // blocks from junction (loop_i0, loop_j0) that crosses itself at (loop_i0 + 1, loop_j0 + 1) (town.h,
+  // FigureEightJunctions); "waypoints": the given town-frame points (X east, Y north, metres), driven as given (no
+  // lane offset).
   std::string type = "auto";
   int segments = 8;
   int loop_i0 = 0, loop_j0 = 0, loop_i1 = 2, loop_j1 = 1;
@@ -91,6 +94,39 @@ struct Scenario {
 
   // Returns an explanation of the first invalid field, or "" when the scenario is valid.
   std::string Validate() const;
+};
+
+// A named light for the command line: the sun, the sky and the exposure a camera would choose in it.
+struct LightingPreset {
+  const char* name;
+  const char* description;
+  Lighting lighting;
+  double exposure;
+};
+
+// noon, low-sun, dusk, overcast.
+const std::vector<LightingPreset>& LightingPresets();
+// The preset of that name, nullptr when there is none.
+const LightingPreset* FindLightingPreset(const std::string& name);
+
+// Changes to a scenario given on the command line (`retrace sim render`, `sim drive`); an unset field keeps the
+// scenario's value. Apply's messages name the options as the command line spells them.
+struct ScenarioOverrides {
+  std::optional<int> frames;             // --frames: num_frames (0 = the whole route)
+  std::optional<int> width;              // --width: camera width, the field of view kept
+  std::optional<int> height;             // --height
+  std::optional<int64_t> seed;           // --seed: seed of the world, the auto route and the wobble
+  std::optional<std::string> route;      // --route: route.type (auto, loop, crossing)
+  std::optional<int> segments;           // --segments: route.segments of an auto route
+  std::optional<double> max_speed;       // --speed: drive.max_speed, m/s
+  std::optional<double> frame_rate;      // --frame-rate: frames per second
+  std::optional<int> pedestrians;        // --pedestrians: town.num_pedestrians
+  std::optional<std::string> lighting;   // --lighting: preset of the teach drive (sun, sky, exposure)
+  std::optional<std::string> repeat_lighting;  // --repeat-lighting: preset of the repeat variant
+  std::optional<double> lateral_offset;  // --lateral-offset: repeat.lateral_offset, metres right of the teach drive
+
+  // Applies the set fields; returns "" or a one-line explanation of the first bad value.
+  std::string Apply(Scenario* scenario) const;
 };
 
 enum class ScenarioVariant { kTeach, kRepeat };

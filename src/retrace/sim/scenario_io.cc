@@ -147,8 +147,9 @@ Scenario ParseNode(const YAML::Node& root, const Reader& r) {
   if (const YAML::Node n = root["route"]) {
     r.CheckMap(n, "route", {"type", "segments", "loop", "waypoints"});
     r.String(n, "route", "type", &s.route.type);
-    if (s.route.type != "auto" && s.route.type != "loop" && s.route.type != "waypoints") {
-      r.Fail(n["type"], "route.type", "expected auto, loop or waypoints, got '" + s.route.type + "'");
+    if (s.route.type != "auto" && s.route.type != "loop" && s.route.type != "crossing" &&
+        s.route.type != "waypoints") {
+      r.Fail(n["type"], "route.type", "expected auto, loop, crossing or waypoints, got '" + s.route.type + "'");
     }
     r.Integer(n, "route", "segments", &s.route.segments);
     if (const YAML::Node l = n["loop"]) {
@@ -320,10 +321,12 @@ std::string ScenarioToYaml(const Scenario& s) {
   line(fmt::format("  camera_forward: {}     # metres ahead of the rear axle", s.vehicle.camera_forward));
   line(fmt::format("  camera_tilt_deg: {}      # downward tilt", s.vehicle.camera_tilt_deg));
   line("route:");
-  line(fmt::format("  type: {}              # auto (seeded drive with turns), loop (around blocks), waypoints",
+  line(fmt::format("  type: {}              # auto (seeded drive with turns), loop (around blocks), crossing "
+                   "(figure eight), waypoints",
                    s.route.type));
   line(fmt::format("  segments: {}            # auto: number of junction-to-junction streets", s.route.segments));
-  line(fmt::format("  loop: [{}, {}, {}, {}]      # loop: junction indices [i0, j0, i1, j1] of the rectangle",
+  line(fmt::format("  loop: [{}, {}, {}, {}]      # loop: junction indices [i0, j0, i1, j1] of the rectangle; "
+                   "crossing: i0, j0 = its south-west junction",
                    s.route.loop_i0, s.route.loop_j0, s.route.loop_i1, s.route.loop_j1));
   std::string points;
   for (const auto& p : s.route.waypoints) points += fmt::format("{}[{}, {}]", points.empty() ? "" : ", ", p.x(), p.y());

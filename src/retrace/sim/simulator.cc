@@ -14,6 +14,8 @@ std::vector<Vector2d> ResolveRoute(const Scenario& scenario, const TownLayout& l
   std::vector<Vector2d> junctions;
   if (r.type == "loop") {
     junctions = LoopRouteJunctions(layout, r.loop_i0, r.loop_j0, r.loop_i1, r.loop_j1);
+  } else if (r.type == "crossing") {
+    junctions = FigureEightJunctions(layout, r.loop_i0, r.loop_j0);
   } else {
     junctions = RandomRouteJunctions(layout, r.segments, scenario.seed);
   }

@@ -445,6 +445,13 @@ std::vector<Vector2d> LoopRouteJunctions(const TownLayout& layout, int i0, int j
   return points;
 }
 
+std::vector<Vector2d> FigureEightJunctions(const TownLayout& layout, int i0, int j0) {
+  const int steps[][2] = {{1, 0}, {1, 1}, {1, 2}, {0, 2}, {0, 1}, {1, 1}, {2, 1}, {2, 0}, {1, 0}};
+  std::vector<Vector2d> points;
+  for (const auto& [di, dj] : steps) points.push_back(layout.Junction(i0 + di, j0 + dj));
+  return points;
+}
+
 std::vector<Vector2d> RandomRouteJunctions(const TownLayout& layout, int num_segments, uint64_t seed) {
   SimRandom rng(HashCombine(seed, 0x7047e));
   const int nx = static_cast<int>(layout.street_x.size()), ny = static_cast<int>(layout.street_y.size());

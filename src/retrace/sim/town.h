@@ -67,6 +67,10 @@ TownLayout BuildTown(const TownOptions& options, Scene* scene);
 // Routes through the town as lists of junctions, turned into the right lane by LaneRoute.
 // A loop around the rectangle of blocks [i0, i1] x [j0, j1] (junction indices), counter-clockwise.
 std::vector<Vector2d> LoopRouteJunctions(const TownLayout& layout, int i0, int j0, int i1, int j1);
+// A figure eight over the 2 x 2 blocks whose south-west junction is (i0, j0), crossing itself at the junction
+// (i0 + 1, j0 + 1): north through it, counter-clockwise around the north-west block, east through it, clockwise
+// around the south-east block, back to the start (i0 + 1, j0). Eight junction-to-junction streets.
+std::vector<Vector2d> FigureEightJunctions(const TownLayout& layout, int i0, int j0);
 // A random drive of `num_segments` junction-to-junction segments from a junction near the south-west, without
 // U-turns and preferring not to revisit streets; seeded.
 std::vector<Vector2d> RandomRouteJunctions(const TownLayout& layout, int num_segments, uint64_t seed);

@@ -17,6 +17,16 @@ expect sim-unknown-key 1 'bad2.yaml: line 2: rout: unknown key' -- \
 expect sim-missing-file 1 'cannot open the scenario file' -- \
   "$bin" sim render --scenario "$tmp/none.yaml" --out "$tmp/bad"
 expect sim-bad-variant 105 'variant' -- "$bin" sim render --out "$tmp/bad" --variant sideways
+# Overrides of the drive: a crossing route at 12 m/s, 5 Hz, 70 pedestrians, dusk repeat 2.5 m to the side; bad values.
+expect sim-overrides 0 'wrote 2 frames .* repeat variant' -- "$bin" sim render --out "$tmp/crossing" --variant repeat \
+  --frames 2 --width 80 --height 60 --route crossing --speed 12 --frame-rate 5 --pedestrians 70 --lighting noon \
+  --repeat-lighting dusk --lateral-offset 2.5 --quiet
+expect sim-bad-speed 1 '^retrace: error: --speed: must be in \(0, 50\] m/s, got 0$' -- \
+  "$bin" sim render --out "$tmp/bad" --speed 0
+expect sim-bad-lighting 1 "^retrace: error: --lighting: unknown lighting 'sunset' \(noon, low-sun, dusk or " -- \
+  "$bin" sim render --out "$tmp/bad" --lighting sunset
+expect sim-bad-route 1 "^retrace: error: --route: unknown route 'spiral'" -- \
+  "$bin" sim render --out "$tmp/bad" --route spiral
 # sim drive (closed loop): bad options, a missing map, a map whose key-images do not fit the scenario's camera.
 expect sim-drive-bad-speed 1 '^retrace: error: sim drive options: speed must be positive$' -- \
   "$bin" sim drive --map "$tmp/none.db" --out "$tmp/drive" --speed 0
