@@ -2,13 +2,55 @@
 
 // Topological ground truth for repeat runs (design §9).
 //
-// The key-images of a linear route have true camera positions (their teach frames' ground-truth poses). The true
-// position of a repeat frame is projected onto the polyline through them; the true arc is the segment it projects
-// onto: between the last key-image passed and the next one (before the first key-image: the first arc; after the
-// last: the last arc). A frame is correct when the estimated arc equals the true one; near a node (projection
-// within `near_node_fraction` of the arc's length from one of its ends) the arc on the other side of that node is
-// tolerated too (±1 near a node). Frames without an arc (lost / relocalizing) are counted as lost, never as
-// correct.
+// The key-images have true camera positions (their teach frames' ground-truth poses); the route's arcs, in driving
+// order (RouteArcs), are the segments of the polyline through them. The true arc of a repeat frame is the one
+// between the last key-image it passed and the next one (before the first key-image: the first arc; after the last
+// one of a linear route: the last arc). The segment nearest to the frame's true position is not always that arc:
+// a route may cross or retrace itself, and a frame driving a little to the side of the taught path can then be
+// nearer to a part of the route driven at another time, many arcs away:
+//
+//      pass 2  \   /  pass 1         figure-8 crossing: near X a frame of pass 1 can be nearer to a segment of
+//               \ /                  pass 2 (and the other way round) although the two passes cross at an acute
+//                X                   angle;
+//               / \                  street driven out and back:  ---->----  a frame of the way back
+//                                                                 ----<----  can be nearer to the way out.
+//
+// So the truth follows the drive (design §9: "only onto the parts travelled in the same direction and in order along
+// the drive"). The true segments of all records are labelled together as the best path of a hidden-Markov model,
+// found by dynamic programming (Viterbi) over (record, segment):
+//  - Heading. A segment is a candidate for a frame only when the camera's optical axis (z axis of world_from_cam)
+//    is less than `max_heading_difference_deg` from the segment's direction of travel (first key-image to second).
+//    The optical axis rather than the direction of motion between records: it is defined when the camera stands
+//    still, in the first record and across dropped frames, free of the ground truth's jitter at low speed, and for
+//    the forward-looking cameras of teach and repeat it is the direction of travel (reversing is left to the order
+//    rule). This alone separates the two directions of a street driven out and back.
+//  - Order. Between consecutive records, the position along the route (arc length of the clamped projection onto
+//    the segment) may advance by at most (1 + speed_tolerance) times the distance the camera travelled, and go back
+//    only by what it travelled against its optical axis (a reversing camera), by (1 + speed_tolerance) times that.
+//    Both allow `order_slack` plus the two positions' distances from their segments: the projection of a camera
+//    beside the route jumps at the corners of the polyline. This separates the passes of a crossing, the laps of a
+//    circular route and an out-and-back street at its turning point.
+//  - Cost of a path: the sum over records of the distance from the true position to its segment, plus
+//    `violation_cost` for each record whose segment fails the heading test and for each step that breaks the order
+//    rule. The rules are soft only so that a labelling always exists (a gap in the ground truth, a camera looking
+//    backwards): with the default cost, one broken rule outweighs a kilometre of distance summed over the records.
+//  - Records are taken in processing order; frames may be dropped (the order rule scales with the distance
+//    travelled) and the repeat may start anywhere on the route (the first record's segment is free).
+//  - Work: records x segments^2 comparisons at most (pruned by cost); 15 ms for 735 records on 127 arcs.
+// Where the nearest segments obey both rules (a route that neither crosses nor retraces itself, a repeat close to it)
+// they are the labels, as with the former nearest-segment rule.
+//
+// A circular route (RouteArcs ends with the teacher's loop-closing arc from the last key-image L back to an early
+// one, c) is unrolled for as many laps as the repeat can drive: arcs 0 .. n-1, loop, c .. n-1, loop, c ... A frame
+// past L is on the loop arc and then on the arcs after c again, never on the first lap's arcs at the same place. L
+// and c are about the same place: the loop arc spans the signed gap from L to c along the direction of travel into
+// L, and when c is behind L the later laps enter arc c where L is (a frame that has not passed L is on the arc into
+// L, one that has is on arc c).
+//
+// A frame is correct when the estimated arc equals the true one; near a node (raw projection within
+// `near_node_fraction` of the arc's length from one of its ends) the arc on the other side of that node along the
+// drive is tolerated too (±1 near a node). The error counts arcs along the drive, either way (around the cycle on a
+// circular route). Frames without an arc (lost / relocalizing) are counted as lost, never as correct.
 
 #include <limits>
 #include <string>
@@ -19,19 +61,34 @@
 
 namespace retrace {
 
-// The arcs of a linear route in driving order (following each node's first outgoing arc from the node without an
-// incoming one; a loop-closing arc is not followed twice). Empty when the map has no arcs.
+// The arcs of a route in driving order: from the node without an incoming (non-loop) arc, each node's first unused
+// outgoing arc that is not a loop-closing one. A circular route (the teacher's loop-closing arc, kind "loop", from
+// the last node back to a node of the route) ends with that arc, once. Empty when the map has no arcs.
 std::vector<arc_t> RouteArcs(const Map& map);
 
 struct TopologicalTruthOptions {
   // Near a node the neighbouring arc across that node is tolerated: within this fraction of the arc length.
   double near_node_fraction = 0.15;
+  // Heading: a segment is a candidate only when the camera's optical axis is less than this from its direction.
+  double max_heading_difference_deg = 90.0;
+  // Order: the position along the route may advance by (1 + this) times the distance travelled between records
+  // (a semicircle is π/2 times its chord, so dropped frames in a U-turn still fit).
+  double speed_tolerance = 1.0;
+  // Order: allowance on each step, in the units of the ground truth (metres for KITTI and the simulator).
+  double order_slack = 1.0;
+  // Cost of a heading mismatch or a broken order rule, in the units of the ground truth (an equivalent distance).
+  double violation_cost = 1000.0;
+
+  bool Check() const {
+    return near_node_fraction >= 0.0 && near_node_fraction <= 0.5 && max_heading_difference_deg > 0.0 &&
+           max_heading_difference_deg <= 180.0 && speed_tolerance >= 0.0 && order_slack >= 0.0 && violation_cost > 0.0;
+  }
 };
 
 // One repeat frame to evaluate: its index in the source sequence (to find its true pose) and the estimate.
 struct RepeatRecord {
   size_t source_index = 0;
-  bool localized = false;          // state tracking
+  bool localized = false;  // state tracking
   arc_t arc = kInvalidArcId;
 };
 
@@ -41,7 +98,7 @@ struct FrameTruth {
   int tolerated_arc_index = -1;  // the other arc tolerated near a node, -1 when none
   bool correct = false;
   bool lost = false;
-  int error = 0;                 // |estimated - true| in arcs (0 when lost)
+  int error = 0;  // arcs along the drive between estimated and true (0 when lost; the route's size when off it)
   // The true camera centre projected on the estimated arc (0 at its first key-image, 1 at its second; the repeat's
   // position_on_arc measured against the truth); NaN when lost.
   double true_position_on_arc = std::numeric_limits<double>::quiet_NaN();
@@ -51,8 +108,8 @@ struct TopologicalEvaluation {
   int frames = 0;
   int correct = 0;
   int lost = 0;
-  int wrong = 0;          // localized on an arc that is neither true nor tolerated
-  int wrong_by_two = 0;   // ... at least two arcs away from the true one
+  int wrong = 0;         // localized on an arc that is neither true nor tolerated
+  int wrong_by_two = 0;  // ... at least two arcs away from the true one
   std::vector<FrameTruth> per_frame;
 
   double FractionCorrect() const { return frames > 0 ? static_cast<double>(correct) / frames : 0.0; }
@@ -62,8 +119,9 @@ struct TopologicalEvaluation {
 
 // `key_truth[i]` is the true pose of frame i of the teach sequence (key-images are found by
 // MapNode::source_frame), `repeat_truth[i]` the true pose of frame i of the repeat sequence (RepeatRecord::
-// source_index); both in the same world frame (for pseudo-repeat on one recording they are the same list). Throws
-// std::invalid_argument when a frame has no pose.
+// source_index); both in the same world frame (for pseudo-repeat on one recording they are the same list).
+// `records` in processing order. Throws std::invalid_argument when a frame has no pose, the map has no route or the
+// options fail Check().
 TopologicalEvaluation EvaluateTopological(const Map& map, const std::vector<TimedPose>& key_truth,
                                           const std::vector<TimedPose>& repeat_truth,
                                           const std::vector<RepeatRecord>& records,

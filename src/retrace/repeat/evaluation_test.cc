@@ -1,13 +1,26 @@
 #include "retrace/repeat/evaluation.h"
 
+#include <algorithm>
 #include <cmath>
+#include <functional>
+#include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
 namespace retrace {
 namespace {
 
-// A straight route along x: key-images at frames 0, 10, 20, 30 (x = frame), arcs 0, 1, 2.
+// A camera looking along `forward` (horizontal; the world's z axis up), x right and y down.
+Matrix3d LookingAlong(const Vector3d& forward) {
+  Matrix3d rotation;
+  rotation.col(2) = forward.normalized();
+  rotation.col(1) = Vector3d(0, 0, -1);
+  rotation.col(0) = rotation.col(1).cross(rotation.col(2));
+  return rotation;
+}
+
+// A straight route along x: key-images at frames 0, 10, 20, 30 (x = frame), arcs 0, 1, 2; the camera looks along x.
 struct StraightRoute {
   Map map;
   std::vector<TimedPose> truth;
@@ -15,6 +28,7 @@ struct StraightRoute {
     for (int i = 0; i <= 40; ++i) {
       TimedPose pose;
       pose.timestamp = i;
+      pose.world_from_cam.rotation = LookingAlong(Vector3d::UnitX());
       pose.world_from_cam.translation = Vector3d(i, 0.3 * (i % 2), 0);
       truth.push_back(pose);
     }
@@ -39,17 +53,18 @@ TEST(RouteArcs, FollowsTheChain) {
   EXPECT_EQ(RouteArcs(route.map), (std::vector<arc_t>{10, 11, 12}));
 }
 
+// The probes go back and forth along the route; the camera, looking along +x, drives them forward and reversing.
 TEST(EvaluateTopological, CountsCorrectToleratedWrongAndLost) {
   const StraightRoute route;
   const std::vector<RepeatRecord> records = {
-      {15, true, 11},            // correct
-      {15, true, 10},            // wrong by one (mid-arc)
-      {5, true, 12},             // wrong by two
-      {11, true, 10},            // near node 1: arc 0 tolerated
-      {13, true, 10},            // not near a node any more: wrong
-      {29, true, 12},            // near node 3: the next arc tolerated
+      {15, true, 11},              // correct
+      {15, true, 10},              // wrong by one (mid-arc)
+      {5, true, 12},               // wrong by two
+      {11, true, 10},              // near node 1: arc 0 tolerated
+      {13, true, 10},              // not near a node any more: wrong
+      {29, true, 12},              // near node 3: the next arc tolerated
       {25, false, kInvalidArcId},  // lost
-      {38, true, 12},            // beyond the last key-image: last arc
+      {38, true, 12},              // beyond the last key-image: last arc
   };
   const TopologicalEvaluation e = EvaluateTopological(route.map, route.truth, route.truth, records);
   EXPECT_EQ(e.frames, 8);
@@ -77,6 +92,224 @@ TEST(EvaluateTopological, CountsCorrectToleratedWrongAndLost) {
 TEST(EvaluateTopological, MissingPoseIsAnError) {
   const StraightRoute route;
   EXPECT_THROW(EvaluateTopological(route.map, route.truth, route.truth, {{100, true, 10}}), std::invalid_argument);
+}
+
+// Routes that cross or retrace themselves (design §9: the truth follows the direction of travel and the order along
+// the drive). A drive follows a polyline of waypoints in the ground plane (z = 0), the camera looking the way it
+// drives; the point at arc length s is `offset(s)` to the right of the polyline (negative: left). Waypoints are 10 m
+// apart along the route where it turns, so the key-images of the teach drive (one every 10 m) sit on the corners.
+struct Waypoints {
+  std::vector<Vector2d> points;
+
+  TimedPose At(double s, double offset) const {
+    size_t i = 0;
+    for (; i + 2 < points.size(); ++i) {
+      const double leg = (points[i + 1] - points[i]).norm();
+      if (s <= leg) break;
+      s -= leg;
+    }
+    const Vector2d heading = (points[i + 1] - points[i]).normalized();
+    const Vector2d right(heading.y(), -heading.x());
+    const Vector2d p = points[i] + s * heading + offset * right;
+    TimedPose pose;
+    pose.timestamp = s;
+    pose.world_from_cam.rotation = LookingAlong(Vector3d(heading.x(), heading.y(), 0));
+    pose.world_from_cam.translation = Vector3d(p.x(), p.y(), 0);
+    return pose;
+  }
+};
+
+constexpr double kKeySpacing = 10.0;  // metres between key-images of the teach drive (one frame per metre)
+constexpr arc_t kFirstArcId = 100;
+
+// Teach: frames at s = 0, 1, ..., length; key-images every 10 frames and at the last frame (as the teacher does);
+// arc k (id 100 + k) from key-image k to k + 1. With `loop_to` >= 0 the route is circular: a loop-closing arc from
+// the last key-image to key-image `loop_to`.
+struct TaughtRoute {
+  Map map;
+  std::vector<TimedPose> truth;
+  int num_arcs = 0;  // without the loop-closing one
+
+  TaughtRoute(const Waypoints& route, int length, int loop_to = -1) {
+    for (int i = 0; i <= length; ++i) truth.push_back(route.At(i, 0.0));
+    std::vector<int> key_frames;
+    for (int i = 0; i <= length; i += static_cast<int>(kKeySpacing)) key_frames.push_back(i);
+    if (key_frames.back() != length) key_frames.push_back(length);
+    for (size_t k = 0; k < key_frames.size(); ++k) {
+      MapNode node;
+      node.id = static_cast<node_t>(k);
+      node.source_frame = key_frames[k];
+      map.AddNode(node);
+    }
+    num_arcs = static_cast<int>(key_frames.size()) - 1;
+    for (int k = 0; k < num_arcs; ++k) {
+      MapArc arc;
+      arc.id = kFirstArcId + k;
+      arc.from = k;
+      arc.to = k + 1;
+      map.AddArc(arc);
+    }
+    if (loop_to >= 0) {
+      MapArc arc;
+      arc.id = kFirstArcId + num_arcs;
+      arc.from = num_arcs;
+      arc.to = loop_to;
+      arc.kind = "loop";
+      map.AddArc(arc);
+    }
+  }
+};
+
+// A repeat drive: frame i at arc length s[i] of the route, reporting `arc_index(s)` (the arc it is truly on).
+struct RepeatDrive {
+  std::vector<double> s;
+  std::vector<TimedPose> truth;
+  std::vector<RepeatRecord> records;
+
+  RepeatDrive(const Waypoints& route, const std::vector<double>& at, const std::function<double(double)>& offset,
+              const std::function<int(double)>& arc_index) {
+    for (const double si : at) {
+      records.push_back({truth.size(), true, kFirstArcId + arc_index(si)});
+      s.push_back(si);
+      truth.push_back(route.At(si, offset(si)));
+    }
+  }
+};
+
+std::vector<double> Every(double step, double first, double last) {
+  std::vector<double> at;
+  for (double s = first; s <= last + 1e-9; s += step) at.push_back(s);
+  return at;
+}
+
+double OneMetreRight(double) { return 1.0; }
+
+int ArcAt(double s) { return static_cast<int>(std::floor(s / kKeySpacing)); }
+
+// Every frame on its true arc counts as correct, and mid-arc (away from the tolerance near the nodes) the true arc is
+// exactly the one the frame was driven on.
+void ExpectAllCorrect(const TopologicalEvaluation& e, const RepeatDrive& drive,
+                      const std::function<int(double)>& arc_index) {
+  ASSERT_EQ(e.per_frame.size(), drive.s.size());
+  EXPECT_EQ(e.correct, e.frames);
+  EXPECT_EQ(e.wrong_by_two, 0);
+  for (size_t i = 0; i < drive.s.size(); ++i) {
+    const double s = drive.s[i];
+    EXPECT_TRUE(e.per_frame[i].correct) << "frame at s = " << s << ": true arc " << e.per_frame[i].true_arc_index
+                                        << ", driven on " << arc_index(s);
+    const double fraction = s / kKeySpacing - std::floor(s / kKeySpacing);
+    if (fraction > 0.2 && fraction < 0.8) {
+      EXPECT_EQ(e.per_frame[i].true_arc_index, arc_index(s)) << "s = " << s;
+    }
+  }
+}
+
+// A figure-8: north-east through the middle, round the top, south-east through the middle again; the two passes cross
+// at (20, 15) at 74 degrees (less than 90: the heading alone cannot tell them apart), at s = 25 and s = 135.
+//
+//   (0,40) +<---------------+ (40,40)
+//          |                ^
+//   (0,30) +.              .+ (40,30)
+//             `.        .'
+//                `.  .'
+//                  X (20,15)
+//                .'  `.
+//             .'        `.
+//    (0,0) +'              `+ (40,0)
+const Waypoints kFigureEight{{{0, 0}, {40, 30}, {40, 40}, {0, 40}, {0, 30}, {40, 0}}};
+constexpr int kFigureEightLength = 160;
+
+TEST(EvaluateTopological, SelfCrossingRouteFollowsTheDrive) {
+  const TaughtRoute taught(kFigureEight, kFigureEightLength);
+  EXPECT_EQ(taught.num_arcs, 16);
+  // 1 m to the right of the taught path: near the crossing the other pass is nearer (the nearest segment was 11 arcs
+  // off for 4 frames).
+  const RepeatDrive drive(kFigureEight, Every(1.0, 0.5, 159.5), OneMetreRight, ArcAt);
+  const TopologicalEvaluation e = EvaluateTopological(taught.map, taught.truth, drive.truth, drive.records);
+  ExpectAllCorrect(e, drive, ArcAt);
+}
+
+TEST(EvaluateTopological, DroppedFramesAndStartInTheMiddle) {
+  const TaughtRoute taught(kFigureEight, kFigureEightLength);
+  // From just before the first crossing, every other frame, then nothing for 60 m (the top of the figure), then
+  // every other frame over the second crossing to the end.
+  std::vector<double> at = Every(2.0, 20.5, 38.5);
+  for (const double s : Every(2.0, 100.5, 158.5)) at.push_back(s);
+  const RepeatDrive drive(kFigureEight, at, OneMetreRight, ArcAt);
+  const TopologicalEvaluation e = EvaluateTopological(taught.map, taught.truth, drive.truth, drive.records);
+  ExpectAllCorrect(e, drive, ArcAt);
+}
+
+// A street driven east and back west in the other lane, 3 m to the north (a U-turn at x = 60). The repeat drives 2 m
+// to the left of the taught path on both ways, nearer to the other lane than to its own, back on the taught path
+// around the U-turn (a car cannot turn in 3 m with an offset of 2 m inside the turn).
+//
+//   (3,3) +<------------------------+ (60,3)
+//                                   ^
+//   (0,0) +------------------------>+ (60,0)
+const Waypoints kOutAndBack{{{0, 0}, {60, 0}, {60, 3}, {3, 3}}};
+constexpr int kOutAndBackLength = 120;
+
+double LeftOfTheStreet(double s) { return -2.0 * std::clamp((std::abs(s - 61.5) - 4.0) / 4.0, 0.0, 1.0); }
+
+TEST(EvaluateTopological, RouteRetracedInTheOppositeDirection) {
+  const TaughtRoute taught(kOutAndBack, kOutAndBackLength);
+  const RepeatDrive drive(kOutAndBack, Every(1.0, 0.5, 119.5), LeftOfTheStreet, ArcAt);
+  const TopologicalEvaluation e = EvaluateTopological(taught.map, taught.truth, drive.truth, drive.records);
+  ExpectAllCorrect(e, drive, ArcAt);
+
+  // Starting on the way back, and a single frame on it: only the heading tells the lanes apart.
+  const RepeatDrive back(kOutAndBack, Every(1.0, 80.5, 119.5), LeftOfTheStreet, ArcAt);
+  ExpectAllCorrect(EvaluateTopological(taught.map, taught.truth, back.truth, back.records), back, ArcAt);
+  const RepeatDrive one(kOutAndBack, {95.5}, LeftOfTheStreet, ArcAt);
+  const TopologicalEvaluation single = EvaluateTopological(taught.map, taught.truth, one.truth, one.records);
+  EXPECT_EQ(single.per_frame[0].true_arc_index, 9);
+}
+
+// Around a 40 m x 20 m block (120 m) and on along the first street; the teacher closes the loop from the last
+// key-image onto key-image 1 (s = 10, where the drive passes again at s = 130). The repeat drives two laps: past the
+// last key-image it is on the loop arc and then on arcs 1, 2, ... again, never on the first lap's arcs at the same
+// place (from s = 120 on, the drive is where arcs 0 and 1 are).
+const Waypoints kBlock{{{0, 0}, {40, 0}, {40, 20}, {0, 20}, {0, 0}, {40, 0}, {40, 20}, {0, 20}, {0, 0}}};
+
+// The arc driven at s when the last key-image is at s = `last` (the loop arc between it and key-image 1 when the
+// last key-image is before s = 130, where key-image 1 is).
+std::function<int(double)> CircularArcs(int last, int num_arcs) {
+  return [last, num_arcs](double s) {
+    if (s < last) return std::min(ArcAt(s), num_arcs - 1);
+    if (s < 130.0) return num_arcs;
+    return ArcAt(s - 120.0);
+  };
+}
+
+TEST(EvaluateTopological, CircularRouteGoesOnOverTheLoopArc) {
+  // The last key-image where key-image 1 is, 3 m before it, and 6 m past it.
+  for (const int last : {130, 127, 136}) {
+    SCOPED_TRACE("last key-image at s = " + std::to_string(last));
+    const TaughtRoute taught(kBlock, last, /*loop_to=*/1);
+    std::vector<arc_t> expected_route;
+    for (int k = 0; k <= taught.num_arcs; ++k) expected_route.push_back(kFirstArcId + k);
+    EXPECT_EQ(RouteArcs(taught.map), expected_route) << "the route ends with the loop-closing arc";
+    const auto arcs = CircularArcs(last, taught.num_arcs);
+    const RepeatDrive drive(kBlock, Every(1.0, 0.5, 239.5), OneMetreRight, arcs);
+    ExpectAllCorrect(EvaluateTopological(taught.map, taught.truth, drive.truth, drive.records), drive, arcs);
+  }
+
+  // Just past the last key-image the loop arc is tolerated; arc 12 reported on arc 1 of the second lap is two arcs
+  // along the drive off (12, loop, 1), not eleven.
+  const TaughtRoute taught(kBlock, 130, /*loop_to=*/1);
+  const arc_t loop = kFirstArcId + 13;
+  RepeatDrive probes(kBlock, {115.5, 125.5, 130.5, 135.5}, OneMetreRight, CircularArcs(130, 13));
+  probes.records[2].arc = loop;
+  probes.records[3].arc = kFirstArcId + 12;
+  const TopologicalEvaluation p = EvaluateTopological(taught.map, taught.truth, probes.truth, probes.records);
+  EXPECT_EQ(p.per_frame[1].true_arc_index, 12);
+  EXPECT_EQ(p.per_frame[2].true_arc_index, 1);
+  EXPECT_EQ(p.per_frame[2].estimated_arc_index, 13);
+  EXPECT_TRUE(p.per_frame[2].correct);
+  EXPECT_EQ(p.per_frame[3].true_arc_index, 1);
+  EXPECT_FALSE(p.per_frame[3].correct);
+  EXPECT_EQ(p.per_frame[3].error, 2);
 }
 
 }  // namespace
