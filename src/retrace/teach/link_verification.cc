@@ -1,0 +1,48 @@
+#include "retrace/teach/link_verification.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace retrace {
+namespace {
+
+// Angle (degrees) from the unit direction m to the set {normalize(a u + b v) : a, b >= 0}, the shorter great-circle
+// arc from u to v (unit directions).
+double AngleToArcDeg(const Vector3d& m, const Vector3d& u, const Vector3d& v) {
+  const double to_ends = std::min(AngleBetweenDeg(m, u), AngleBetweenDeg(m, v));
+  const Vector3d normal = u.cross(v);
+  if (normal.norm() < 1e-9) return to_ends;  // parallel or opposite: the arc is its end points
+  // The closest point of the arc's great circle to m is m projected onto the plane of u and v; it belongs to the
+  // arc when it is a non-negative combination of u and v.
+  const Vector3d n = normal.normalized();
+  const Vector3d p = m - m.dot(n) * n;
+  if (p.norm() < 1e-12) return to_ends;
+  const double uv = u.dot(v), pu = p.dot(u), pv = p.dot(v);
+  const double det = 1.0 - uv * uv;
+  const double a = (pu - uv * pv) / det, b = (pv - uv * pu) / det;
+  if (a < 0 || b < 0) return to_ends;
+  return std::min(to_ends, AngleBetweenDeg(m, p));
+}
+
+}  // namespace
+
+MotionAgreement CompareComposedMotion(const Rigid3d& y_from_x, const Rigid3d& z_from_y, const Rigid3d& z_from_x) {
+  MotionAgreement agreement;
+  agreement.rotation_deg = RotationErrorDeg(z_from_y.rotation * y_from_x.rotation, z_from_x.rotation);
+  // x_Z = R_ZY (R_YX x_X + λ t_YX) + μ t_ZY: the translation is λ R_ZY t_YX + μ t_ZY with unknown λ, μ >= 0.
+  const Vector3d first = z_from_y.rotation * y_from_x.translation;
+  const Vector3d& second = z_from_y.translation;
+  const Vector3d& measured = z_from_x.translation;
+  if (measured.norm() == 0.0) return agreement;
+  if (first.norm() == 0.0 && second.norm() == 0.0) return agreement;
+  if (first.norm() == 0.0) {
+    agreement.direction_deg = AngleBetweenDeg(measured, second);
+  } else if (second.norm() == 0.0) {
+    agreement.direction_deg = AngleBetweenDeg(measured, first);
+  } else {
+    agreement.direction_deg = AngleToArcDeg(measured.normalized(), first.normalized(), second.normalized());
+  }
+  return agreement;
+}
+
+}  // namespace retrace
