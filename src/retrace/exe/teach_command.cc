@@ -124,6 +124,12 @@ void RunTeach(const TeachArguments& args) {
     std::cout << fmt::format("  gaps: {} recovered by matching, {} not recovered\n", stats.gaps_recovered,
                              stats.gaps_unrecovered);
   }
+  for (const RejectedLink& link : stats.rejected_links) {
+    std::cout << fmt::format("  rejected {} link: key-image {} (frame {}) -> {} (frame {}), {} inliers, {} trackable, "
+                             "sigma_p {:.2f} px: {}\n",
+                             link.kind, link.from, link.from_frame, link.to, link.to_frame, link.inliers,
+                             link.trackable, link.sigma_p, link.reason);
+  }
   std::cout << fmt::format("  features per arc: median {:.0f}, min {:.0f}; sigma_p: median {:.2f}, max {:.2f} px "
                            "(r_p = {:.2f} px)\n",
                            map_stats.median_arc_features, map_stats.min_arc_features, map_stats.median_sigma_p,

@@ -5,11 +5,13 @@
 #include <optional>
 #include <unordered_set>
 
+#include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
 #include "retrace/geometry/relative_pose.h"
 #include "retrace/geometry/scale.h"
+#include "retrace/teach/link_verification.h"
 #include "retrace/util/error.h"
 
 namespace retrace {
@@ -75,6 +77,8 @@ bool TeachOptions::Check(std::string* error) const {
   if (max_corners < min_features) return fail("max_corners must be at least min_features");
   if (min_matched_inliers < 8) return fail("min_matched_inliers must be at least 8");
   if (min_loop_inliers < min_matched_inliers) return fail("min_loop_inliers must be at least min_matched_inliers");
+  if (!(max_link_rotation_disagreement_deg > 0) || !(max_link_direction_disagreement_deg > 0))
+    return fail("the link disagreement limits must be positive");
   if (!(inlier_threshold_px > 0)) return fail("inlier_threshold_px must be positive");
   if (!(min_parallax_px >= 0)) return fail("min_parallax_px must not be negative");
   if (matching_interval < 2) return fail("matching_interval must be at least 2");
@@ -107,6 +111,24 @@ struct Teacher::Subrange {
   int min_features = 0;  // n of this subrange: max(n, fraction of the features tracked from the key-image on)
   // W(K, f) of the last frame f of the subrange for which it succeeded: the next frame's first hypothesis.
   std::optional<Rigid3d> last_geometry;
+};
+
+// A gap arc K -> G registered without its arc: what committing it takes once the key-image after G confirms it.
+struct Teacher::PendingGap {
+  MapArc arc;                              // id assigned when committed
+  std::optional<NodeScale> scale_at_from;  // at K, between the arc reaching K and this one (arc_out assigned then)
+  std::vector<FeatureObservation> from_observations, to_observations;  // its features in K and in G
+  std::unordered_map<feature_t, double> depth_at_to;                  // for the scale at G
+  MatchableImage from_image;  // K, prepared for matching
+  // The frames tracked from G on, with W(G, f): the witnesses of the gap arc.
+  struct TrackedFrame {
+    std::string name;
+    cv::Mat image;
+    ImagePyramid pyramid;
+    Rigid3d from_gap;
+  };
+  std::vector<TrackedFrame> frames_after;
+  RejectedLink report;  // filled in but for the reason
 };
 
 Teacher::Teacher(const CameraModel& camera, const TeachOptions& options, MapDatabase* database)
@@ -165,6 +187,11 @@ void Teacher::AddFrame(const Frame& frame) {
   track(current.get());
   EstimateGeometryToKey(current.get());
   if (GeometryAcceptable(*current)) {
+    // A gap arc waiting for confirmation keeps the frames tracked from its key-image (its witnesses).
+    if (pending_gap_ && subrange_->node == pending_gap_->arc.to && current->geometry.success) {
+      pending_gap_->frames_after.push_back(
+          {current->frame.name, current->frame.image, current->pyramid, current->geometry.b_from_a});
+    }
     previous_ = std::move(current);
     return;
   }
@@ -190,7 +217,7 @@ void Teacher::AddFrame(const Frame& frame) {
   spdlog::debug("teach: tracking failed at frame {} ({} of the key-image's features survive)", frame.name,
                 current->survivors);
   if (options_.recover_gaps && RecoverGap(current.get())) {
-    ++statistics_.gaps_recovered;
+    // Counted as recovered when it is confirmed (ResolvePendingGap).
   } else {
     ++statistics_.gaps_unrecovered;
     spdlog::warn("teach: cannot relate frame {} to the last key-image; the map is disconnected there", frame.name);
@@ -279,7 +306,13 @@ void Teacher::StartSubrange(FrameState* frame) {
 }
 
 void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool with_arc) {
+  // A gap arc still waiting for confirmation is settled by this key-image: by the tracked arc reaching it from the
+  // gap's key-image, or, when there is none, rejected.
+  std::unique_ptr<PendingGap> earlier_gap = std::move(pending_gap_);
+  const node_t from_node = subrange_ ? subrange_->node : kInvalidNodeId;
   MapNode node = NodeFromFrame(static_cast<node_t>(map_.nodes().size()), frame->frame);
+  // A gap arc is held back until the drive after it confirms it (TeachOptions::verify_links).
+  const bool hold_back = with_arc && reason == KeyImageReason::kGap && options_.verify_links;
 
   std::optional<MapArc> arc;
   std::optional<NodeScale> scale;
@@ -288,10 +321,11 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
   // the arc leaving it when that arc is registered. Corners that never make it into an arc are not kept.
   std::vector<std::pair<node_t, std::vector<FeatureObservation>>> additions;
   std::unordered_set<feature_t> arc_features;
+  std::unique_ptr<PendingGap> gap;
   if (with_arc) {
     const TwoViewGeometry& w = frame->geometry;
     arc.emplace();
-    arc->id = static_cast<arc_t>(map_.arcs().size());
+    arc->id = hold_back ? kInvalidArcId : static_cast<arc_t>(map_.arcs().size());
     arc->from = subrange_->node;
     arc->to = node.id;
     arc->to_from_from = w.b_from_a;
@@ -315,11 +349,21 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
         depth_in_this_arc.push_back(w.depths_a[i]);
       }
     }
-    additions.emplace_back(subrange_->node, std::move(from_additions));
     // Design §3.3: the two geometries meeting at the key-image differ by one scalar, the median of depth ratios.
     if (last_arc_ != kInvalidArcId && map_.FindArc(last_arc_)->to == subrange_->node) {
       const ScaleEstimate estimate = EstimateScaleFromDistances(depth_in_previous_arc, depth_in_this_arc, 5);
       if (estimate.success) scale = NodeScale{subrange_->node, last_arc_, arc->id, estimate.scale};
+    }
+    if (hold_back) {
+      gap = std::make_unique<PendingGap>();
+      gap->from_observations = std::move(from_additions);
+      gap->scale_at_from = scale;
+      gap->from_image = subrange_->matchable;
+      gap->report = {"gap", arc->from, arc->to, map_.FindNode(arc->from)->source_frame, node.source_frame,
+                     w.num_inliers, static_cast<int>(arc->points.size()), w.sigma_p, ""};
+      scale.reset();
+    } else {
+      additions.emplace_back(subrange_->node, std::move(from_additions));
     }
   }
 
@@ -327,11 +371,21 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
   subrange_->node = node.id;
   for (const feature_t id : arc_features) {
     if (const auto it = subrange_->observations.find(id); it != subrange_->observations.end()) {
-      node.features.push_back(it->second);
-      subrange_->stored.insert(id);
+      if (gap) {
+        // Stored with the gap arc when it is confirmed, or with the next arc when that one keeps the feature.
+        gap->to_observations.push_back(it->second);
+      } else {
+        node.features.push_back(it->second);
+        subrange_->stored.insert(id);
+      }
     }
   }
-  Commit(&node, arc ? &*arc : nullptr, scale ? &*scale : nullptr, additions);
+  if (gap) {
+    gap->arc = std::move(*arc);
+    gap->depth_at_to = std::move(depth_at_to);
+    arc.reset();
+  }
+  Commit(&node, arc ? &*arc : nullptr, scale ? std::vector<NodeScale>{*scale} : std::vector<NodeScale>{}, additions);
 
   map_.AddNode(std::move(node));
   if (arc) {
@@ -344,11 +398,20 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
   if (scale) map_.AddScale(*scale);
   ++statistics_.key_images;
   ++statistics_.key_images_by_reason[static_cast<int>(reason)];
+  if (reason == KeyImageReason::kGap && !gap) ++statistics_.gaps_recovered;
   spdlog::debug("teach: key-image {} at frame {} ({}), {} features", map_.nodes().back().id, frame->frame.name,
                 KeyImageReasonName(reason), map_.nodes().back().features.size());
+
+  if (earlier_gap) {
+    pending_gap_ = std::move(earlier_gap);
+    const MapArc* next = nullptr;
+    if (with_arc && reason != KeyImageReason::kGap && from_node == pending_gap_->arc.to) next = map_.FindArc(last_arc_);
+    ResolvePendingGap(next);
+  }
+  pending_gap_ = std::move(gap);
 }
 
-void Teacher::Commit(const MapNode* node, const MapArc* arc, const NodeScale* scale,
+void Teacher::Commit(const MapNode* node, const MapArc* arc, const std::vector<NodeScale>& scales,
                      const std::vector<std::pair<node_t, std::vector<FeatureObservation>>>& extra_observations) {
   for (const auto& [node_id, observations] : extra_observations) {
     MapNode* existing = map_.MutableNode(node_id);
@@ -360,7 +423,7 @@ void Teacher::Commit(const MapNode* node, const MapArc* arc, const NodeScale* sc
   if (node != nullptr) database_->WriteNode(*node);
   for (const auto& [node_id, observations] : extra_observations) database_->WriteObservations(node_id, observations);
   if (arc != nullptr) database_->WriteArc(*arc);
-  if (scale != nullptr) database_->WriteScale(*scale);
+  for (const NodeScale& scale : scales) database_->WriteScale(scale);
   transaction->Commit();
 }
 
@@ -394,6 +457,27 @@ bool Teacher::RecoverGap(FrameState* frame) {
                 matched.matches.size(), matched.geometry.num_inliers, matched.num_trackable,
                 matched.geometry.sigma_p);
   if (!AcceptableMatchedGeometry(matched, options_.min_matched_inliers)) return false;
+  if (options_.verify_links && last_arc_ != kInvalidArcId && map_.FindArc(last_arc_)->to == subrange_->node) {
+    // The key-image before the gap may be out of reach of matching, but it must not contradict the gap arc (the
+    // frames after the gap confirm it, ResolvePendingGap).
+    const MapArc* previous = map_.FindArc(last_arc_);
+    const MatchableImage previous_image = PrepareForMatching(map_.FindNode(previous->from)->image);
+    std::string description;
+    const WitnessVerdict verdict = WeighWitness(
+        previous_image, current, previous->to_from_from, matched.geometry.b_from_a,
+        fmt::format("key-image {} (before {})", previous->from, previous->to), &description);
+    if (verdict == WitnessVerdict::kContradicts) {
+      // The frame becomes the next node, a disconnected key-image (AddFrame).
+      statistics_.rejected_links.push_back({"gap", subrange_->node, static_cast<node_t>(map_.nodes().size()),
+                                            map_.FindNode(subrange_->node)->source_frame,
+                                            static_cast<int64_t>(frame->frame.source_index),
+                                            matched.geometry.num_inliers, matched.num_trackable,
+                                            matched.geometry.sigma_p, description});
+      spdlog::warn("teach: gap candidate from key-image {} to frame {} rejected: {}", subrange_->node,
+                   frame->frame.name, description);
+      return false;
+    }
+  }
 
   // Trackable matches restart the tracker; over a gap the appearance may have changed too much for most of them,
   // and the arc then has few features to localize with, but it keeps the graph connected, which is its purpose.
@@ -418,6 +502,100 @@ bool Teacher::RecoverGap(FrameState* frame) {
   return true;
 }
 
+void Teacher::ResolvePendingGap(const MapArc* next) {
+  std::unique_ptr<PendingGap> gap = std::move(pending_gap_);
+  if (!gap) return;
+  // The recovered geometry must hold for the drive after it: K matched with a frame f tracked from G measures the
+  // gap arc followed by W(G, f). The last frame that relates to K decides: the farther from G, the more the camera
+  // has moved away from whatever made K and G look alike.
+  std::string reason =
+      gap->frames_after.empty()
+          ? "no frame was tracked after the gap"
+          : fmt::format("none of the {} frames tracked after the gap (to {}) relates to key-image {}",
+                        gap->frames_after.size(), gap->frames_after.back().name, gap->arc.from);
+  {
+    ScopedTimer timer(&statistics_.seconds_matching);
+    for (auto it = gap->frames_after.rbegin(); it != gap->frames_after.rend(); ++it) {
+      MatchableImage after;
+      after.image = it->image;
+      after.pyramid = it->pyramid;
+      after.features = ExtractWideBaselineFeatures(it->image, options_.matching);
+      std::string description;
+      const WitnessVerdict verdict =
+          WeighWitness(gap->from_image, after, gap->arc.to_from_from, it->from_gap,
+                       fmt::format("frame {} (tracked from {})", it->name, gap->arc.to), &description);
+      if (verdict == WitnessVerdict::kUnrelated) continue;
+      reason = verdict == WitnessVerdict::kConfirms ? "" : description;
+      break;
+    }
+  }
+  if (!reason.empty()) {
+    // The map stays disconnected at the gap's key-image.
+    gap->report.reason = reason;
+    statistics_.rejected_links.push_back(gap->report);
+    ++statistics_.gaps_unrecovered;
+    --statistics_.key_images_by_reason[static_cast<int>(KeyImageReason::kGap)];
+    ++statistics_.key_images_by_reason[static_cast<int>(KeyImageReason::kDisconnected)];
+    spdlog::warn("teach: gap arc from key-image {} to {} rejected ({}); the map is disconnected there",
+                 gap->arc.from, gap->arc.to, reason);
+    return;
+  }
+
+  MapArc& arc = gap->arc;
+  arc.id = static_cast<arc_t>(map_.arcs().size());
+  std::vector<NodeScale> scales;
+  if (gap->scale_at_from) {
+    gap->scale_at_from->arc_out = arc.id;
+    scales.push_back(*gap->scale_at_from);
+  }
+  // The scale at the gap's key-image, between the gap arc and the tracked arc after it (design §3.3).
+  std::vector<double> depth_in_gap, depth_in_next;
+  if (next != nullptr) {
+    for (const ArcPoint& p : next->points) {
+      if (const auto it = gap->depth_at_to.find(p.feature_id); it != gap->depth_at_to.end()) {
+        depth_in_gap.push_back(it->second);
+        depth_in_next.push_back(p.point_in_from.norm());
+      }
+    }
+  }
+  if (const ScaleEstimate estimate = EstimateScaleFromDistances(depth_in_gap, depth_in_next, 5); estimate.success) {
+    scales.push_back(NodeScale{arc.to, arc.id, next->id, estimate.scale});
+  }
+  // Its features in the gap's key-image, but for those the next arc has stored there already.
+  std::unordered_set<feature_t> stored_at_to;
+  for (const FeatureObservation& f : map_.FindNode(arc.to)->features) stored_at_to.insert(f.feature_id);
+  std::vector<FeatureObservation> to_observations;
+  for (const FeatureObservation& f : gap->to_observations) {
+    if (!stored_at_to.count(f.feature_id)) to_observations.push_back(f);
+  }
+  Commit(nullptr, &arc, scales,
+         {{arc.from, std::move(gap->from_observations)}, {arc.to, std::move(to_observations)}});
+  spdlog::debug("teach: gap arc {} from key-image {} to {} confirmed", arc.id, arc.from, arc.to);
+  map_.AddArc(std::move(arc));
+  for (const NodeScale& scale : scales) map_.AddScale(scale);
+  ++statistics_.gaps_recovered;
+}
+
+Teacher::WitnessVerdict Teacher::WeighWitness(const MatchableImage& x, const MatchableImage& z,
+                                              const Rigid3d& y_from_x, const Rigid3d& z_from_y,
+                                              const std::string& name, std::string* description) {
+  const MatchedGeometry matched = RelateByMatching(*camera_, x, z, MatchingOptions());
+  if (!AcceptableMatchedGeometry(matched, options_.min_matched_inliers)) {
+    *description = fmt::format("{} does not relate ({} inliers, sigma_p {:.2f} px)", name,
+                               matched.geometry.num_inliers, matched.geometry.sigma_p);
+    spdlog::debug("teach: link witness {}", *description);
+    return WitnessVerdict::kUnrelated;
+  }
+  const MotionAgreement agreement = CompareComposedMotion(y_from_x, z_from_y, matched.geometry.b_from_a);
+  const bool agrees = agreement.rotation_deg <= options_.max_link_rotation_disagreement_deg &&
+                      agreement.direction_deg <= options_.max_link_direction_disagreement_deg;
+  *description = fmt::format("{} {} ({} inliers; rotation {:.1f} deg, direction {:.1f} deg off the composed motion)",
+                             name, agrees ? "agrees" : "disagrees", matched.geometry.num_inliers,
+                             agreement.rotation_deg, agreement.direction_deg);
+  spdlog::debug("teach: link witness {}", *description);
+  return agrees ? WitnessVerdict::kConfirms : WitnessVerdict::kContradicts;
+}
+
 void Teacher::Finish() {
   if (finished_) return;
   finished_ = true;
@@ -425,6 +603,8 @@ void Teacher::Finish() {
   if (previous_ && subrange_ && previous_->frame.index != subrange_->frame_index && previous_->geometry.success) {
     RegisterKeyImage(previous_.get(), KeyImageReason::kEnd, /*with_arc=*/true);
   }
+  // A gap arc still waiting for the key-image after it has none: it cannot be confirmed.
+  if (pending_gap_) ResolvePendingGap(nullptr);
   if (options_.close_loop && map_.nodes().size() >= 3) CloseLoop();
   if (database_ != nullptr) database_->Checkpoint();
 }
@@ -441,7 +621,7 @@ void Teacher::BuildByMatching() {
   if (frames_.empty()) return;
   const auto register_node = [&](size_t index, KeyImageReason reason) {
     MapNode node = NodeFromFrame(static_cast<node_t>(map_.nodes().size()), frames_[index]);
-    Commit(&node, nullptr, nullptr, {});
+    Commit(&node, nullptr, {}, {});
     node_of_frame_[index] = node.id;
     map_.AddNode(std::move(node));
     ++statistics_.key_images;
@@ -463,6 +643,9 @@ void Teacher::RelateFramesByMatching(size_t a, size_t b) {
     ScopedTimer timer(&statistics_.seconds_matching);
     matched = RelateByMatching(*camera_, MatchableFrame(a), MatchableFrame(b), MatchingOptions());
   }
+  // Arcs join consecutive frames of the drive here, so they cannot link places that are not neighbours; they are
+  // not witnessed (TeachOptions::verify_links): a halfway frame as witness also turned down arcs whose own
+  // geometry was right, and splitting those made one-frame arcs worse than the arcs it removed (simulated town).
   const bool acceptable =
       AcceptableMatchedGeometry(matched, options_.min_features) && matched.num_trackable >= options_.min_features;
   spdlog::debug("teach (matching): frames {}-{}: {} inliers, {} trackable, sigma_p {:.2f} px{}", a, b,
@@ -529,7 +712,7 @@ void Teacher::RelateFramesByMatching(size_t a, size_t b) {
     const ScaleEstimate estimate = EstimateScaleFromDistances(depth_previous, depth_this, 5);
     if (estimate.success) scale = NodeScale{from, previous_arc->id, arc->id, estimate.scale};
   }
-  Commit(&node, arc ? &*arc : nullptr, scale ? &*scale : nullptr,
+  Commit(&node, arc ? &*arc : nullptr, scale ? std::vector<NodeScale>{*scale} : std::vector<NodeScale>{},
          arc ? std::vector<std::pair<node_t, std::vector<FeatureObservation>>>{{arc->from, std::move(from_additions)}}
              : std::vector<std::pair<node_t, std::vector<FeatureObservation>>>{});
   node_of_frame_[b] = node.id;
@@ -556,13 +739,17 @@ MatchableImage Teacher::PrepareForMatching(const cv::Mat& image) const {
 void Teacher::CloseLoop() {
   ScopedTimer timer(&statistics_.seconds_matching);
   // The last key-image is matched with each of the first few (where the drive began, the last key-image may lie
-  // between two of them); the best geometrically verified candidate closes the loop.
+  // between two of them); geometrically verified candidates are tried from the best supported on, and the first
+  // that the drive around it confirms closes the loop.
   constexpr size_t kCandidates = 5;
   const MapNode& last = map_.nodes().back();
   const MatchableImage last_image = PrepareForMatching(last.image);
-  const MapNode* best_node = nullptr;
-  MatchableImage best_image;
-  MatchedGeometry best;
+  struct Candidate {
+    const MapNode* node;
+    MatchableImage image;
+    MatchedGeometry matched;
+  };
+  std::vector<Candidate> candidates;
   const size_t num_candidates = std::min(kCandidates, map_.nodes().size() - 2);
   for (size_t c = 0; c < num_candidates; ++c) {
     const MapNode& node = map_.nodes()[c];
@@ -571,40 +758,96 @@ void Teacher::CloseLoop() {
     spdlog::debug("teach: loop closing with key-image {}: {} matches, {} inliers, sigma_p {:.2f} px", node.id,
                   matched.matches.size(), matched.geometry.num_inliers, matched.geometry.sigma_p);
     // A wrong loop closure is worse than none: more support is required than for a gap.
-    if (AcceptableMatchedGeometry(matched, options_.min_loop_inliers) &&
-        (best_node == nullptr || matched.geometry.num_inliers > best.geometry.num_inliers)) {
-      best_node = &node;
-      best_image = std::move(image);
-      best = std::move(matched);
+    if (AcceptableMatchedGeometry(matched, options_.min_loop_inliers)) {
+      candidates.push_back({&node, std::move(image), std::move(matched)});
     }
   }
-  if (best_node == nullptr) {
-    spdlog::info("teach: loop not closed (the last key-image shares no reliable geometry with the first {})",
-                 num_candidates);
+  std::stable_sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+    return a.matched.geometry.num_inliers > b.matched.geometry.num_inliers;
+  });
+  // A candidate L -> F is kept when the drive after F confirms it: L matched with F's successor S measures the link
+  // followed by the tracked arc F -> S (link_verification.h). The other neighbours, F's predecessor and L's, may be
+  // out of the matching's reach, but must not contradict it. Returns "" when the candidate is confirmed.
+  const auto verify = [&](const Candidate& candidate) -> std::string {
+    const node_t first = candidate.node->id;
+    const Rigid3d& f_from_l = candidate.matched.geometry.b_from_a;
+    std::string description;
+    bool confirmed = false;
+    for (const MapArc* arc : map_.ArcsFrom(first)) {
+      const MatchableImage image = PrepareForMatching(map_.FindNode(arc->to)->image);
+      if (WeighWitness(last_image, image, f_from_l, arc->to_from_from,
+                       fmt::format("key-image {} (after {})", arc->to, first),
+                       &description) != WitnessVerdict::kConfirms) {
+        return description;
+      }
+      confirmed = true;
+    }
+    if (!confirmed) return fmt::format("key-image {} has no arc after it to confirm the link", first);
+    for (const MapArc* arc : map_.ArcsTo(first)) {
+      const MatchableImage image = PrepareForMatching(map_.FindNode(arc->from)->image);
+      if (WeighWitness(last_image, image, f_from_l, arc->to_from_from.Inverse(),
+                       fmt::format("key-image {} (before {})", arc->from, first),
+                       &description) == WitnessVerdict::kContradicts) {
+        return description;
+      }
+    }
+    for (const MapArc* arc : map_.ArcsTo(last.id)) {
+      const MatchableImage image = PrepareForMatching(map_.FindNode(arc->from)->image);
+      if (WeighWitness(image, candidate.image, arc->to_from_from, f_from_l,
+                       fmt::format("key-image {} (before {})", arc->from, last.id),
+                       &description) == WitnessVerdict::kContradicts) {
+        return description;
+      }
+    }
+    return "";
+  };
+  const Candidate* best = nullptr;
+  for (const Candidate& candidate : candidates) {
+    std::string reason;
+    if (options_.verify_links) reason = verify(candidate);
+    if (reason.empty()) {
+      best = &candidate;
+      break;
+    }
+    const MatchedGeometry& matched = candidate.matched;
+    statistics_.rejected_links.push_back({"loop", last.id, candidate.node->id, last.source_frame,
+                                          candidate.node->source_frame, matched.geometry.num_inliers,
+                                          matched.num_trackable, matched.geometry.sigma_p, reason});
+    spdlog::info("teach: loop candidate from key-image {} to {} ({} inliers, sigma_p {:.2f} px) rejected: {}",
+                 last.id, candidate.node->id, matched.geometry.num_inliers, matched.geometry.sigma_p, reason);
+  }
+  if (best == nullptr) {
+    if (candidates.empty()) {
+      spdlog::info("teach: loop not closed (the last key-image shares no reliable geometry with the first {})",
+                   num_candidates);
+    } else {
+      spdlog::info("teach: loop not closed (no candidate confirmed)");
+    }
     return;
   }
+  const MatchedGeometry& matched = best->matched;
   MapArc arc;
   arc.id = static_cast<arc_t>(map_.arcs().size());
   arc.from = last.id;
-  arc.to = best_node->id;
-  arc.to_from_from = best.geometry.b_from_a;
-  arc.sigma_p = best.geometry.sigma_p;
+  arc.to = best->node->id;
+  arc.to_from_from = matched.geometry.b_from_a;
+  arc.sigma_p = matched.geometry.sigma_p;
   arc.kind = "loop";
   std::vector<FeatureObservation> last_observations, first_observations;
-  for (size_t i = 0; i < best.matches.size(); ++i) {
-    if (!best.trackable[i]) continue;
+  for (size_t i = 0; i < matched.matches.size(); ++i) {
+    if (!matched.trackable[i]) continue;
     const feature_t id = next_feature_id_++;
-    const Vector2d in_last = best.PositionInA(last_image, i);
-    arc.points.push_back({id, best.geometry.points_in_a[i]});
+    const Vector2d in_last = matched.PositionInA(last_image, i);
+    arc.points.push_back({id, matched.geometry.points_in_a[i]});
     last_observations.push_back({id, in_last, cv::Mat()});
-    first_observations.push_back({id, best.position_in_b[i], cv::Mat()});
+    first_observations.push_back({id, matched.position_in_b[i], cv::Mat()});
   }
-  const node_t last_id = last.id, first_id = best_node->id;
-  Commit(nullptr, &arc, nullptr, {{last_id, std::move(last_observations)}, {first_id, std::move(first_observations)}});
+  const node_t last_id = last.id, first_id = best->node->id;
+  Commit(nullptr, &arc, {}, {{last_id, std::move(last_observations)}, {first_id, std::move(first_observations)}});
   map_.AddArc(std::move(arc));
   statistics_.loop_closed = true;
   spdlog::info("teach: loop closed between key-images {} and {} ({} inliers, {} trackable, sigma_p {:.2f} px)",
-               last_id, first_id, best.geometry.num_inliers, best.num_trackable, best.geometry.sigma_p);
+               last_id, first_id, matched.geometry.num_inliers, matched.num_trackable, matched.geometry.sigma_p);
 }
 
 }  // namespace retrace

@@ -18,7 +18,16 @@
 //
 // Loop closing. After the last frame, the last key-image is matched with the first ones (the first five: where
 // the drive began, the last key-image may lie between two of them); the best geometrically verified candidate
-// gets an arc from the last key-image and the graph becomes circular.
+// that the drive around it confirms gets an arc from the last key-image and the graph becomes circular.
+//
+// Links made by matching are verified beyond their pair of images (link_verification.h): a link A -> B is kept when
+// the drive after B confirms it and no other neighbour contradicts it. A loop candidate L -> F needs L, matched with
+// the key-image after F, to show the motion of the link followed by the tracked arc from F; F's and L's
+// predecessors, matched with L and F, may fail to relate but must not disagree. A gap arc K -> G is held back until
+// the next key-image: K matched with the frames tracked from G on (the last one that relates decides) must show the
+// gap arc followed by the tracked W(G, f), and K's predecessor matched with G must not disagree. Until then, and for
+// good when it is not confirmed, the map is disconnected at G. Every rejected candidate is reported
+// (TeachStatistics::rejected_links).
 //
 // The relative scale between consecutive arcs is stored at their common node (median of depth ratios of the
 // features reconstructed in both, design §3.3).
@@ -94,6 +103,19 @@ struct TeachOptions {
   int min_matched_inliers = 20;
   // The same for closing a loop, stricter: a wrong loop closure is worse than none.
   int min_loop_inliers = 30;
+  // Keep a link made by matching (loop, gap) only when the drive after it confirms it (see above and
+  // link_verification.h): a witness relates when its matching has min_matched_inliers within r_p, and it agrees when
+  // its motion lies within the limits below of the link composed with the witness's tracked motion. A look-alike
+  // place fools one pair of images, rarely also the pair one arc further on. false: one pair suffices.
+  bool verify_links = true;
+  // How far a witness's rotation may lie from the composed one, degrees. A link counts as false when its rotation is
+  // more than 5 degrees off the truth, a witness composes two geometries: half of that. The witnesses of the true
+  // links of the simulator tests disagree by 0.1-0.8 degrees.
+  double max_link_rotation_disagreement_deg = 2.5;
+  // The same for the translation direction: degrees from the directions the composition allows for any positive
+  // scales of its two parts (each geometry has its own unit). A link counts as false when its direction is more
+  // than 10 degrees off; the witnesses of the true links of the simulator tests disagree by 0.6-5.1 degrees.
+  double max_link_direction_disagreement_deg = 10.0;
 
   FeatureTrackerOptions tracker;
   CornerDetectorOptions detector;
@@ -123,6 +145,19 @@ struct TeachOptions {
 enum class KeyImageReason { kStart, kSigmaP, kFeatures, kGap, kEnd, kDisconnected, kMatching };
 const char* KeyImageReasonName(KeyImageReason reason);
 
+// A link that wide-baseline matching proposed but verification turned down (TeachOptions::verify_links).
+struct RejectedLink {
+  std::string kind;  // "loop" or "gap"
+  node_t from = kInvalidNodeId;
+  node_t to = kInvalidNodeId;
+  int64_t from_frame = -1;  // source frames of the two key-images
+  int64_t to_frame = -1;
+  int inliers = 0;    // of the link's own geometry
+  int trackable = 0;  // its matches the tracker follows (the features the arc would have kept)
+  double sigma_p = 0.0;
+  std::string reason;
+};
+
 struct TeachStatistics {
   int frames = 0;
   int key_images = 0;
@@ -130,6 +165,8 @@ struct TeachStatistics {
   int gaps_recovered = 0;
   int gaps_unrecovered = 0;
   bool loop_closed = false;
+  // Link candidates whose own geometry was acceptable but which the drive around them did not confirm.
+  std::vector<RejectedLink> rejected_links;
   // Wall time per stage, seconds.
   double seconds_pyramid = 0, seconds_tracking = 0, seconds_geometry = 0, seconds_detection = 0,
          seconds_matching = 0, seconds_storage = 0;
@@ -155,6 +192,7 @@ class Teacher {
  private:
   struct FrameState;
   struct Subrange;
+  struct PendingGap;
 
   // Two-view geometry between the subrange's key-image and `frame` from the features tracked since the key-image.
   void EstimateGeometryToKey(FrameState* frame);
@@ -163,8 +201,19 @@ class Teacher {
   // observations (tracked features plus new corners), the scale at the previous key-image; then starts a subrange.
   void RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool with_arc);
   // Relates the current key-image and `frame` by wide-baseline matching; on success registers `frame` as a key-image
-  // reached by a "gap" arc. Returns false when the two images cannot be related.
+  // reached by a "gap" arc, held back until the frames after it confirm it (ResolvePendingGap). Returns false when
+  // the two images cannot be related (or the key-image before the gap contradicts the relation).
   bool RecoverGap(FrameState* frame);
+  // Weighs the held-back gap arc K -> G with the frames tracked after G (the last one that relates to K decides) and
+  // commits it when they confirm it; otherwise rejects it (the map stays disconnected at G). `next`: the tracked arc
+  // from G to the key-image just registered (null when there is none; the relative scale at G needs it).
+  void ResolvePendingGap(const MapArc* next);
+  // What a witness of a link says (link_verification.h).
+  enum class WitnessVerdict { kConfirms, kContradicts, kUnrelated };
+  // Matches X with Z and compares the measured motion with `y_from_x` followed by `z_from_y`; `description` says
+  // what was found, for the report.
+  WitnessVerdict WeighWitness(const MatchableImage& x, const MatchableImage& z, const Rigid3d& y_from_x,
+                              const Rigid3d& z_from_y, const std::string& name, std::string* description);
   // Starts a subrange at `frame`: references redefined there, new corners detected.
   void StartSubrange(FrameState* frame);
   void CloseLoop();
@@ -175,7 +224,7 @@ class Teacher {
   MatchedGeometryOptions MatchingOptions() const;
   bool AcceptableMatchedGeometry(const MatchedGeometry& matched, int min_inliers) const;
   MatchableImage PrepareForMatching(const cv::Mat& image) const;
-  void Commit(const MapNode* node, const MapArc* arc, const NodeScale* scale,
+  void Commit(const MapNode* node, const MapArc* arc, const std::vector<NodeScale>& scales,
               const std::vector<std::pair<node_t, std::vector<FeatureObservation>>>& extra_observations);
 
   std::unique_ptr<CameraModel> camera_;
@@ -197,6 +246,8 @@ class Teacher {
   std::unordered_map<feature_t, double> last_arc_depth_at_to_;
   feature_t next_feature_id_ = 0;
   bool finished_ = false;
+  // The gap arc waiting for the key-image after it (TeachOptions::verify_links).
+  std::unique_ptr<PendingGap> pending_gap_;
 
   // Mapping by matching: the buffered frames, their prepared images, the node of each key-image frame, and the
   // feature id given to a key-point (frame, key-point index).
