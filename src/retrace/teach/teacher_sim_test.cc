@@ -1,7 +1,11 @@
-// Teach in the simulator, where ground truth is exact: loop closing, gap recovery, key-image density.
+// Teach in the simulator, where ground truth is exact: loop closing, gap recovery, links onto look-alike places,
+// key-image density.
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -31,6 +35,97 @@ Scenario SmallTown() {
 
 // Nodes reachable from the first node over arcs in either direction.
 size_t ReachableNodes(const Map& map) { return ChainKeyImagePoses(map).size(); }
+
+// Why a link between two key-images is false against ground truth, or "" when it is true (issue 13): the two
+// key-images are far apart or look in directions too different to see the same place, or the link's rotation or
+// (unless the true baseline is tiny) translation direction disagrees with their true relative pose.
+std::string FalseLinkReason(const Map& map, const MapArc& arc, const std::vector<TimedPose>& truth) {
+  const Rigid3d& from = truth[map.FindNode(arc.from)->source_frame].world_from_cam;
+  const Rigid3d& to = truth[map.FindNode(arc.to)->source_frame].world_from_cam;
+  const Rigid3d true_to_from_from = to.Inverse() * from;
+  const double metres = true_to_from_from.translation.norm();
+  const double views_deg = AngleBetweenDeg(from.rotation.col(2), to.rotation.col(2));
+  const double rotation_deg = RotationErrorDeg(arc.to_from_from.rotation, true_to_from_from.rotation);
+  const double direction_deg = AngleBetweenDeg(arc.to_from_from.translation, true_to_from_from.translation);
+  std::ostringstream reason;
+  if (metres > 30.0) reason << "key-images " << metres << " m apart; ";
+  if (views_deg > 60.0) reason << "views " << views_deg << " deg apart; ";
+  if (rotation_deg > 5.0) reason << "rotation " << rotation_deg << " deg off; ";
+  if (metres > 1.0 && direction_deg > 10.0) reason << "translation direction " << direction_deg << " deg off; ";
+  return reason.str();
+}
+
+// The false ones among the links made by matching (loop and gap arcs), described; `links` counts all of them.
+std::vector<std::string> FalseLinks(const Map& map, const std::vector<TimedPose>& truth, int* links = nullptr) {
+  std::vector<std::string> false_links;
+  if (links != nullptr) *links = 0;
+  for (const MapArc& arc : map.arcs()) {
+    if (arc.kind != "loop" && arc.kind != "gap") continue;
+    if (links != nullptr) ++*links;
+    const std::string reason = FalseLinkReason(map, arc, truth);
+    if (reason.empty()) continue;
+    std::ostringstream description;
+    description << arc.kind << " arc " << arc.id << " from key-image " << arc.from << " (frame "
+                << map.FindNode(arc.from)->source_frame << ") to " << arc.to << " (frame "
+                << map.FindNode(arc.to)->source_frame << "), " << arc.num_features() << " features: " << reason;
+    false_links.push_back(description.str());
+  }
+  return false_links;
+}
+
+std::string Join(const std::vector<std::string>& lines) {
+  std::string joined;
+  for (const std::string& line : lines) joined += line + "\n";
+  return joined;
+}
+
+// The town of look-alike facades and zebra crossings of issue 13, as `retrace sim render --seed 11 --frames 300
+// --width 320 --height 240`: its last frame (at a crossing) matches frame 6 (at another crossing, 151 m away).
+// Rendered once for the tests that use it.
+const RecordedDrive& LookAlikeTown() {
+  static const RecordedDrive drive = [] {
+    Scenario scenario;
+    scenario.seed = 11;
+    scenario.town.seed = 11;
+    scenario.drive.wobble_seed = 11;
+    scenario.num_frames = 300;
+    scenario.camera.width = 320;
+    scenario.camera.height = 240;
+    return RecordDrive(scenario);
+  }();
+  return drive;
+}
+
+struct Taught {
+  Map map;
+  TeachStatistics statistics;
+};
+
+// Teaches the given frames of the drive, in this order (each keeps its frame number as source index).
+Taught Teach(const RecordedDrive& drive, const std::vector<size_t>& frames, const TeachOptions& options) {
+  Teacher teacher(*drive.camera, options, nullptr);
+  for (size_t i = 0; i < frames.size(); ++i) {
+    Frame frame = drive.frames[frames[i]];
+    frame.index = i;
+    teacher.AddFrame(frame);
+  }
+  teacher.Finish();
+  return {teacher.map(), teacher.statistics()};
+}
+
+std::vector<size_t> FrameRange(size_t first, size_t last) {
+  std::vector<size_t> frames;
+  for (size_t f = first; f <= last; ++f) frames.push_back(f);
+  return frames;
+}
+
+void PrintRejected(const TeachStatistics& stats) {
+  for (const RejectedLink& r : stats.rejected_links) {
+    std::cout << "rejected " << r.kind << " link " << r.from << " (frame " << r.from_frame << ") -> " << r.to
+              << " (frame " << r.to_frame << "): " << r.inliers << " inliers, " << r.trackable
+              << " trackable, sigma_p " << r.sigma_p << " px: " << r.reason << "\n";
+  }
+}
 
 TEST(TeachSim, CircularRouteClosesTheLoop) {
   Scenario scenario = SmallTown();
@@ -72,6 +167,9 @@ TEST(TeachSim, CircularRouteClosesTheLoop) {
                         drive.truth[map.nodes().back().source_frame].world_from_cam;
   EXPECT_LT(RotationErrorDeg(map.arcs().back().to_from_from.rotation, truth.rotation), 1.0);
   EXPECT_LT(AngleBetweenDeg(map.arcs().back().to_from_from.translation, truth.translation), 10.0);
+  int links = 0;
+  EXPECT_EQ(Join(FalseLinks(map, drive.truth, &links)), "");
+  EXPECT_EQ(links, 1);
 }
 
 TEST(TeachSim, FrameGapIsBridgedByMatching) {
@@ -117,6 +215,74 @@ TEST(TeachSim, FrameGapIsBridgedByMatching) {
             << rotation_error << " deg, translation direction error " << direction_error << " deg\n";
   EXPECT_LT(rotation_error, 10.0);
   EXPECT_LT(direction_error, 45.0);
+}
+
+TEST(TeachSim, LookAlikeCrossingDoesNotCloseTheLoop) {
+  const RecordedDrive& drive = LookAlikeTown();
+  ASSERT_EQ(drive.frames.size(), 300u);
+  if (std::getenv("RETRACE_DEBUG")) spdlog::set_level(spdlog::level::debug);
+  // The premise: with one pair of images as evidence (verification off), the last key-image is linked to a
+  // key-image at the other crossing.
+  TeachOptions single_pair;
+  single_pair.verify_links = false;
+  const Taught unverified = Teach(drive, FrameRange(0, 299), single_pair);
+  ASSERT_TRUE(unverified.statistics.loop_closed);
+  const std::vector<std::string> premise = FalseLinks(unverified.map, drive.truth);
+  ASSERT_EQ(premise.size(), 1u);
+  std::cout << "without verification: " << premise[0] << "\n";
+
+  const Taught taught = Teach(drive, FrameRange(0, 299), TeachOptions());
+  const TeachStatistics& stats = taught.statistics;
+  PrintRejected(stats);
+  EXPECT_EQ(Join(FalseLinks(taught.map, drive.truth)), "");
+  EXPECT_FALSE(stats.loop_closed);
+  EXPECT_EQ(taught.map.arcs().size() + 1, taught.map.nodes().size()) << "a linear graph";
+  // The candidate is reported, with its reason: the key-image after its target does not relate to the last one.
+  ASSERT_EQ(stats.rejected_links.size(), 1u);
+  const RejectedLink& rejected = stats.rejected_links[0];
+  EXPECT_EQ(rejected.kind, "loop");
+  EXPECT_EQ(rejected.from, taught.map.nodes().back().id);
+  EXPECT_EQ(rejected.from_frame, 299);
+  EXPECT_LT(rejected.to_frame, 20);
+  EXPECT_GE(rejected.inliers, TeachOptions().min_loop_inliers) << "its own geometry passed the single-pair test";
+  EXPECT_NE(rejected.reason.find("after"), std::string::npos) << rejected.reason;
+}
+
+// A recording that resumes elsewhere: the frames before the last crossing of the look-alike town, then the drive
+// from its frame 6, at the other crossing. The frame after the jump matches the key-image before it (as the loop
+// candidate above does); the frames tracked after it do not, and the map must stay disconnected there.
+TEST(TeachSim, GapOntoALookAlikePlaceStaysDisconnected) {
+  const RecordedDrive& drive = LookAlikeTown();
+  std::vector<size_t> frames = FrameRange(288, 299);
+  for (const size_t f : FrameRange(6, 24)) frames.push_back(f);
+  if (std::getenv("RETRACE_DEBUG")) spdlog::set_level(spdlog::level::debug);
+  TeachOptions options;
+  options.close_loop = false;
+  TeachOptions single_pair = options;
+  single_pair.verify_links = false;
+  const Taught unverified = Teach(drive, frames, single_pair);
+  ASSERT_EQ(unverified.statistics.gaps_recovered, 1) << "the premise: one pair of images links across the jump";
+  const std::vector<std::string> premise = FalseLinks(unverified.map, drive.truth);
+  ASSERT_EQ(premise.size(), 1u) << "the premise: that link is false";
+  std::cout << "without verification: " << premise[0] << "\n";
+
+  const Taught taught = Teach(drive, frames, options);
+  const TeachStatistics& stats = taught.statistics;
+  PrintRejected(stats);
+  EXPECT_EQ(Join(FalseLinks(taught.map, drive.truth)), "");
+  EXPECT_EQ(stats.gaps_recovered, 0);
+  EXPECT_EQ(stats.gaps_unrecovered, 1);
+  EXPECT_EQ(stats.key_images_by_reason[static_cast<int>(KeyImageReason::kDisconnected)], 1);
+  EXPECT_EQ(stats.key_images_by_reason[static_cast<int>(KeyImageReason::kGap)], 0);
+  EXPECT_EQ(taught.map.arcs().size() + 2, taught.map.nodes().size()) << "two linear pieces";
+  EXPECT_LT(ReachableNodes(taught.map), taught.map.nodes().size()) << "disconnected";
+  ASSERT_EQ(stats.rejected_links.size(), 1u);
+  const RejectedLink& rejected = stats.rejected_links[0];
+  EXPECT_EQ(rejected.kind, "gap");
+  EXPECT_EQ(rejected.from_frame, 299);
+  EXPECT_EQ(rejected.to_frame, 6);
+  EXPECT_GE(rejected.inliers, TeachOptions().min_matched_inliers);
+  EXPECT_FALSE(rejected.reason.empty());
 }
 
 // Arcs in turns against arcs on straights: their lengths (metres) and σ_p (px).
