@@ -3,13 +3,15 @@
 // Writes one CSV row per input frame (flushed as written, so a live run can be followed with `tail -f`):
 //   frame,image,timestamp,state,arc,node_from,node_to,tracked,tracked_previous,tracked_current,tracked_next,
 //   resumed,rejected,dropped,drifted,redefined,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,steering,ms,
-//   position_via_from,position_via_to,position_via_pose,sigma_p_pose,pose_inliers,key_images_matched
+//   position_via_from,position_via_to,position_via_pose,sigma_p_pose,pose_inliers,key_images_matched,confidence,
+//   evidence,belief_arc
 // frame = 0-based index in the input sequence (after --every/--offset), state = tracking | lost | relocalizing,
 // node ids and arc -1 when not tracking, σ_p columns -1 when not estimated, ms = processing time of the frame,
-// position_on_arc the camera's position along the arc used for transitions (0 at node_from, 1 at node_to), the
-// position_via_* columns the placements it was fused from (W_t:a, W_t:b, the absolute pose in the arc's
-// reconstruction; empty when that estimate gave none), key_images_matched the key-images verified by wide-baseline
-// matching in a bootstrap or relocalization frame (0 otherwise).
+// position_on_arc the belief's position along the arc (0 at node_from, 1 at node_to), the position_via_* columns
+// this frame's placements (W_t:a, W_t:b, the absolute pose in the arc's reconstruction; empty when that estimate
+// gave none), key_images_matched the key-images verified by wide-baseline matching in a bootstrap or relocalization
+// frame (0 otherwise), confidence the belief's probability that the camera is on the reported arc (in lost frames:
+// on the arc it finds most likely, belief_arc), evidence 1 when this frame gave the belief a placement it accepts.
 
 #include <algorithm>
 #include <chrono>
@@ -176,6 +178,40 @@ void WritePositionPlot(const std::vector<FrameResult>& results, const Topologica
   }
 }
 
+// The belief's confidence per frame against correctness: frames reported `tracking` on the true arc, on a wrong arc,
+// and frames reported lost (at the confidence of the arc the belief found most likely). A calibrated belief puts
+// wrong frames below the tracking threshold.
+void WriteConfidencePlot(const std::vector<FrameResult>& results, const TopologicalEvaluation& evaluation,
+                         double threshold, const std::filesystem::path& path) {
+  PlotSeries correct, wrong, lost;
+  correct.label = "tracking, correct arc";
+  correct.color = cv::Scalar(60, 160, 40);
+  wrong.label = "tracking, wrong arc";
+  wrong.color = cv::Scalar(0, 0, 220);
+  lost.label = "lost (confidence of the most likely arc)";
+  lost.color = cv::Scalar(160, 160, 160);
+  for (PlotSeries* s : {&correct, &wrong, &lost}) {
+    s->style = PlotSeries::Style::kPoints;
+    s->thickness = 3;
+  }
+  for (size_t i = 0; i < results.size() && i < evaluation.per_frame.size(); ++i) {
+    const FrameTruth& t = evaluation.per_frame[i];
+    PlotSeries& series = t.lost ? lost : (t.correct ? correct : wrong);
+    series.x.push_back(static_cast<double>(results[i].frame_index));
+    series.y.push_back(results[i].confidence);
+  }
+  PlotOptions options;
+  options.title = "repeat: the belief's confidence against ground truth";
+  options.x_label = "frame";
+  options.y_label = "confidence";
+  options.y_min = 0.0;
+  options.y_max = 1.05;
+  options.reference_lines.push_back({threshold, "tracking threshold"});
+  if (!cv::imwrite(path.string(), RenderPlot({correct, wrong, lost}, options))) {
+    throw InputError(path.string(), "cannot be written");
+  }
+}
+
 void WriteTrackedPlot(const std::vector<FrameResult>& results, const std::filesystem::path& path) {
   std::map<arc_t, PlotSeries> by_arc;
   PlotSeries lost;
@@ -263,7 +299,7 @@ void RunRepeat(const RepeatArguments& args) {
   csv << "frame,image,timestamp,state,arc,node_from,node_to,tracked,tracked_previous,tracked_current,tracked_next,"
          "resumed,rejected,dropped,drifted,redefined,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,"
          "steering,ms,position_via_from,position_via_to,position_via_pose,sigma_p_pose,pose_inliers,"
-         "key_images_matched\n";
+         "key_images_matched,confidence,evidence,belief_arc\n";
   csv.flush();
   if (!args.overlay.empty()) std::filesystem::create_directories(args.overlay);
 
@@ -285,9 +321,9 @@ void RunRepeat(const RepeatArguments& args) {
                          r.tracked_by_role[2], r.resumed, r.rejected, r.dropped, r.drifted, r.redefined, r.sigma_p,
                          r.sigma_p_from, r.sigma_p_to, r.position_valid ? r.position_on_arc : 0.0, r.transition,
                          r.steering_valid ? r.steering : 0.0, 1000.0 * r.seconds)
-          << fmt::format(",{},{},{},{:.3f},{},{}\n", OptionalNumber(r.position_via_from),
+          << fmt::format(",{},{},{},{:.3f},{},{},{:.5f},{},{}\n", OptionalNumber(r.position_via_from),
                          OptionalNumber(r.position_via_to), OptionalNumber(r.position_via_pose), r.sigma_p_pose,
-                         r.pose_inliers, r.key_images_matched);
+                         r.pose_inliers, r.key_images_matched, r.confidence, r.evidence ? 1 : 0, r.belief_arc);
       csv.flush();
       if (!csv) throw InputError(args.output.string(), "write failed");
       if (!args.overlay.empty()) {
@@ -362,6 +398,7 @@ void RunRepeat(const RepeatArguments& args) {
     if (!args.overlay.empty()) {
       WriteTruthPlot(results, evaluation, args.overlay / "arcs_vs_truth.png");
       WritePositionPlot(results, evaluation, args.overlay / "positions_vs_truth.png");
+      WriteConfidencePlot(results, evaluation, options.belief.min_confidence, args.overlay / "confidence.png");
     }
   }
 }
@@ -387,6 +424,9 @@ void RegisterRepeatCommand(CLI::App& app) {
   cmd->add_option("--max-sigma-p", args->options.max_sigma_p_px, "sigma_p gate of current geometries, px at 320 px")
       ->capture_default_str();
   cmd->add_option("--steering-gain", args->options.steering_gain, "k of eq. (10)")->capture_default_str();
+  cmd->add_option("--min-confidence", args->options.belief.min_confidence,
+                  "Belief confidence needed to report tracking (probability that the arc is right)")
+      ->capture_default_str();
   cmd->add_option("--retrieval-shortlist", args->options.retrieval_shortlist,
                   "Key-images verified first when localizing without a start arc, the most similar in appearance "
                   "(0: all)")

@@ -38,6 +38,7 @@ bool PlaceBeliefOptions::Check(std::string* error) const {
   if (!(unknown_speed_max > unknown_speed_min)) return fail("unknown_speed_max must exceed unknown_speed_min");
   if (speed_steps < 1 || speed_memory_frames < 1) return fail("speed_steps and speed_memory_frames must be >= 1");
   if (!(jump_probability > 0) || !(jump_probability < 1)) return fail("jump_probability must be in (0, 1)");
+  if (!(static_fraction >= 0) || !(static_fraction < 1)) return fail("static_fraction must be in [0, 1)");
   if (!(outlier_range > 0)) return fail("outlier_range must be positive");
   if (reach < 1) return fail("reach must be >= 1");
   if (!(node_tolerance >= 0) || !(node_tolerance < 0.5)) return fail("node_tolerance must be in [0, 0.5)");
@@ -98,8 +99,25 @@ PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : op
       for (const int p : arcs_[k].predecessors) visit(p, false);
     }
   }
+  // Virtual arcs beyond the route's ends (ArcNode::virtual_of).
+  const size_t real_arcs = arcs_.size();
+  for (size_t k = 0; k < real_arcs; ++k) {
+    for (const bool beyond_end : {true, false}) {
+      if (!(beyond_end ? arcs_[k].successors : arcs_[k].predecessors).empty()) continue;
+      ArcNode extension;
+      extension.id = arcs_[k].id;
+      extension.length = arcs_[k].length;
+      extension.virtual_of = static_cast<int>(k);
+      const int index = static_cast<int>(arcs_.size());
+      (beyond_end ? extension.predecessors : extension.successors).push_back(static_cast<int>(k));
+      (beyond_end ? arcs_[k].successors : arcs_[k].predecessors).push_back(index);
+      arcs_[k].virtual_children.push_back(index);
+      arcs_.push_back(extension);
+    }
+  }
   mass_.assign(arcs_.size() * options_.bins_per_arc, 0.0);
   scratch_.assign(mass_.size(), 0.0);
+  diff_.assign(arcs_.size() * (options_.bins_per_arc + 1), 0.0);
   Reset();
 }
 
@@ -109,6 +127,19 @@ void PlaceBelief::Reset() {
   steps_.clear();
   speed_.reset();
   estimate_ = PlaceEstimate();
+  ComputeEstimate();
+  estimate_.evidence = false;
+  estimate_.tracking = false;
+}
+
+void PlaceBelief::ResetTo(arc_t arc) {
+  const int k = Index(arc);
+  if (k < 0) return;
+  Reset();
+  const int bins = options_.bins_per_arc;
+  const double floor = options_.jump_probability / mass_.size();
+  std::fill(mass_.begin(), mass_.end(), floor);
+  for (int i = 0; i < bins; ++i) mass_[k * bins + i] += (1.0 - options_.jump_probability) / bins;
   ComputeEstimate();
   estimate_.evidence = false;
   estimate_.tracking = false;
@@ -142,7 +173,28 @@ double PlaceBelief::Mass(arc_t arc) const {
   const int bins = options_.bins_per_arc;
   double sum = 0.0;
   for (int i = 0; i < bins; ++i) sum += mass_[k * bins + i];
+  for (const int v : arcs_[k].virtual_children) {
+    for (int i = 0; i < bins; ++i) sum += mass_[v * bins + i];
+  }
   return sum;
+}
+
+double PlaceBelief::Confidence(arc_t arc) const {
+  const int k = Index(arc);
+  if (k < 0) return 0.0;
+  const int bins = options_.bins_per_arc;
+  double confidence = Mass(arc);
+  for (const int s : arcs_[k].successors) {
+    if (arcs_[s].virtual_of >= 0) continue;  // counted in Mass
+    for (int i = 0; i < bins && (i + 0.5) / bins < options_.node_tolerance; ++i) confidence += mass_[s * bins + i];
+  }
+  for (const int p : arcs_[k].predecessors) {
+    if (arcs_[p].virtual_of >= 0) continue;
+    for (int i = bins - 1; i >= 0 && (i + 0.5) / bins > 1.0 - options_.node_tolerance; --i) {
+      confidence += mass_[p * bins + i];
+    }
+  }
+  return std::min(1.0, confidence);
 }
 
 std::optional<double> PlaceBelief::SpeedOn(arc_t arc) const {
@@ -151,77 +203,130 @@ std::optional<double> PlaceBelief::SpeedOn(arc_t arc) const {
 }
 
 void PlaceBelief::DepositAt(std::vector<double>* target, int index, double along, double mass) const {
-  // Linear interpolation between the two nearest bin centres (clamped at the arc's ends).
   const int bins = options_.bins_per_arc;
-  const double f = std::clamp(along * bins - 0.5, 0.0, bins - 1.0);
-  const int i0 = std::min(static_cast<int>(f), bins - 1);
-  const double w = f - i0;
-  (*target)[index * bins + i0] += (1.0 - w) * mass;
-  if (w > 0.0 && i0 + 1 < bins) (*target)[index * bins + i0 + 1] += w * mass;
+  const int i = std::clamp(static_cast<int>(along * bins), 0, bins - 1);
+  (*target)[index * bins + i] += mass;
 }
 
-void PlaceBelief::Deposit(std::vector<double>* target, int index, double along, double distance, double mass,
-                          int depth) const {
-  const ArcNode& arc = arcs_[index];
-  const double moved = along + distance / arc.length;
-  if ((moved >= 0.0 && moved < 1.0) || depth > 8) {
-    DepositAt(target, index, std::clamp(moved, 0.0, 1.0), mass);
+void PlaceBelief::DepositUniform(std::vector<double>* target, int index, double low, double high, double mass) const {
+  // `mass` spread evenly over [low, high] ⊂ [0, 1] of the arc: partial end bins directly, the full bins between
+  // them through the difference array diff_ (one pass in Predict turns it into masses).
+  const int bins = options_.bins_per_arc;
+  const double span = (high - low) * bins;  // in bins
+  const int first = std::clamp(static_cast<int>(low * bins), 0, bins - 1);
+  const int last = std::clamp(static_cast<int>(high * bins), 0, bins - 1);
+  if (first == last || !(span > 1e-12)) {
+    (*target)[index * bins + first] += mass;
     return;
   }
-  if (moved >= 1.0) {
-    // Past the end: into each following arc (a junction splits the mass), or piled at the route's end.
-    if (arc.successors.empty()) {
-      DepositAt(target, index, 1.0, mass);
+  const double density = mass / span;  // per bin
+  (*target)[index * bins + first] += density * (first + 1 - low * bins);
+  (*target)[index * bins + last] += density * (high * bins - last);
+  if (last > first + 1) {
+    diff_[index * (bins + 1) + first + 1] += density;
+    diff_[index * (bins + 1) + last] -= density;
+  }
+}
+
+void PlaceBelief::Deposit(std::vector<double>* target, int index, double along, double low, double high, double mass,
+                          int depth) const {
+  // The camera at `along` moves by a distance uniform in [low, high] (common units): the part of that range that
+  // stays on this arc is spread over it, the rest continues into the following (preceding) arcs, split equally at
+  // a junction, or piles up at the route's end (start).
+  const ArcNode& arc = arcs_[index];
+  const double from = along + low / arc.length;
+  const double to = along + high / arc.length;
+  const double width = to - from;
+  if (!(width > 1e-12)) {
+    if (from >= 0.0 && from < 1.0) {
+      DepositAt(target, index, from, mass);
       return;
     }
-    const double rest = (moved - 1.0) * arc.length;
-    const double share = mass / arc.successors.size();
-    for (const int next : arc.successors) Deposit(target, next, 0.0, rest, share, depth + 1);
-    return;
+  } else {
+    const double inside_from = std::max(from, 0.0);
+    const double inside_to = std::min(to, 1.0);
+    if (inside_to > inside_from) {
+      DepositUniform(target, index, inside_from, inside_to, mass * (inside_to - inside_from) / width);
+    }
   }
-  if (arc.predecessors.empty()) {
-    DepositAt(target, index, 0.0, mass);
-    return;
+  const double beyond = width > 1e-12 ? std::max(0.0, to - std::max(from, 1.0)) / width : (from >= 1.0 ? 1.0 : 0.0);
+  const double before = width > 1e-12 ? std::max(0.0, std::min(to, 0.0) - from) / width : (from < 0.0 ? 1.0 : 0.0);
+  if (beyond > 0.0) {
+    if (arc.successors.empty() || depth > 8) {
+      DepositAt(target, index, 1.0, mass * beyond);
+    } else {
+      // The range past the end, measured from the end, in common units.
+      const double rest_low = (std::max(from, 1.0) - 1.0) * arc.length;
+      const double rest_high = (to - 1.0) * arc.length;
+      const double share = mass * beyond / arc.successors.size();
+      for (const int next : arc.successors) Deposit(target, next, 0.0, rest_low, rest_high, share, depth + 1);
+    }
   }
-  const double rest = moved * arc.length;  // negative
-  const double share = mass / arc.predecessors.size();
-  for (const int previous : arc.predecessors) Deposit(target, previous, 1.0, rest, share, depth + 1);
+  if (before > 0.0) {
+    if (arc.predecessors.empty() || depth > 8) {
+      DepositAt(target, index, 0.0, mass * before);
+    } else {
+      const double rest_low = from * arc.length;
+      const double rest_high = std::min(to, 0.0) * arc.length;
+      const double share = mass * before / arc.predecessors.size();
+      for (const int previous : arc.predecessors) {
+        Deposit(target, previous, 1.0, rest_low, rest_high, share, depth + 1);
+      }
+    }
+  }
 }
 
 void PlaceBelief::Predict(int frames) {
   if (mass_.empty() || frames < 1) return;
   const int bins = options_.bins_per_arc;
   std::fill(scratch_.begin(), scratch_.end(), 0.0);
+  std::fill(diff_.begin(), diff_.end(), 0.0);
   const double largest = *std::max_element(mass_.begin(), mass_.end());
-  // Displacement taps (quantiles of the motion distribution, equal weights): a Gaussian with the speed known, a
-  // uniform spread without it. Bins far below the largest one (the uniform floor) stay where they are: moving a
-  // flat floor changes nothing that matters.
-  constexpr int kTaps = 9;
-  // Standard normal quantiles at (j + 0.5) / kTaps.
-  static const double kNormalQuantiles[kTaps] = {-1.5932, -0.9674, -0.5895, -0.2822, 0.0,
-                                                 0.2822,  0.5895,  0.9674,  1.5932};
+  // The motion distribution as contiguous boxes of uniform displacement: one box without the speed (uniform over
+  // [min, max] arc lengths per frame), seven with it (a Gaussian cut at ±3.5σ into intervals of σ, each with its
+  // probability). Bins far below the largest one (the uniform floor) stay where they are: moving a flat floor
+  // changes nothing that matters.
+  static const double kBoxProbability[7] = {0.0060, 0.0606, 0.2417, 0.3829, 0.2417, 0.0606, 0.0060};
   const double frames_d = static_cast<double>(frames);
+  struct Box {
+    double low, high, probability;
+  };
+  std::vector<Box> boxes;
   for (size_t k = 0; k < arcs_.size(); ++k) {
     const double length = arcs_[k].length;
-    double taps[kTaps];
+    boxes.clear();
     if (speed_) {
       const double mean = *speed_ * frames_d;
       const double sigma = std::sqrt(frames_d * (std::pow(options_.relative_speed_noise * *speed_, 2) +
                                                  std::pow(options_.position_noise * length, 2)));
-      for (int j = 0; j < kTaps; ++j) taps[j] = mean + sigma * kNormalQuantiles[j];
+      for (int j = 0; j < 7; ++j) {
+        boxes.push_back({mean + (j - 3.5) * sigma, mean + (j - 2.5) * sigma, kBoxProbability[j] / 0.9995});
+      }
     } else {
-      const double low = options_.unknown_speed_min * frames_d * length;
-      const double high = options_.unknown_speed_max * frames_d * length;
-      for (int j = 0; j < kTaps; ++j) taps[j] = low + (high - low) * (j + 0.5) / kTaps;
+      boxes.push_back({options_.unknown_speed_min * frames_d * length, options_.unknown_speed_max * frames_d * length,
+                       1.0});
     }
     for (int i = 0; i < bins; ++i) {
       const double m = mass_[k * bins + i];
-      if (m <= 1e-7 * largest) {
+      if (m <= options_.static_fraction * largest) {
         scratch_[k * bins + i] += m;
         continue;
       }
+      // The bin's mass spread over the bin (its position is known to a bin): the box widens by one bin.
       const double along = (i + 0.5) / bins;
-      for (int j = 0; j < kTaps; ++j) Deposit(&scratch_, static_cast<int>(k), along, taps[j], m / kTaps, 0);
+      const double half_bin = 0.5 * length / bins;
+      for (const Box& box : boxes) {
+        Deposit(&scratch_, static_cast<int>(k), along, box.low - half_bin, box.high + half_bin, m * box.probability,
+                0);
+      }
+    }
+  }
+  // The difference arrays into masses.
+  for (size_t k = 0; k < arcs_.size(); ++k) {
+    double running = 0.0;
+    for (int i = 0; i < bins; ++i) {
+      running += diff_[k * (bins + 1) + i];
+      scratch_[k * bins + i] += running;
     }
   }
   // Jumps: a small fraction of the mass anywhere on the map.
@@ -272,7 +377,7 @@ std::vector<double> PlaceBelief::Update(const std::vector<PlaceMeasurement>& mea
       continue;
     }
     const double epsilon = std::clamp(m.outlier_probability, 1e-6, 1.0 - 1e-6);
-    const double outlier = epsilon / options_.outlier_range;
+    const double outlier = epsilon / (m.outlier_range > 0 ? m.outlier_range : options_.outlier_range);
     // Every place explains the measurement as an outlier; the places on k's line within reach also as an inlier.
     ReachableOffsets(k, options_.reach, &offsets);
     const double length_k = arcs_[k].length;
@@ -283,7 +388,11 @@ std::vector<double> PlaceBelief::Update(const std::vector<PlaceMeasurement>& mea
       const double variance = m.sigma * m.sigma + width * width / 12.0;
       const double norm = (1.0 - epsilon) * kInvSqrt2Pi / std::sqrt(variance);
       for (int i = 0; i < bins; ++i) {
-        const double x = (offset + (i + 0.5) / bins * arcs_[j].length) / length_k;
+        double x = (offset + (i + 0.5) / bins * arcs_[j].length) / length_k;
+        // The route's ends: the motion model piles the mass of a camera past the last key-image (before the first)
+        // in the arc's last (first) bin, so that bin stands for every place beyond.
+        if (i == bins - 1 && arcs_[j].successors.empty()) x = std::max(x, m.along);
+        if (i == 0 && arcs_[j].predecessors.empty()) x = std::min(x, m.along);
         const double d2 = (x - m.along) * (x - m.along) / variance;
         if (d2 > 60.0) continue;
         const size_t cell = static_cast<size_t>(j) * bins + i;
@@ -341,13 +450,15 @@ void PlaceBelief::ComputeEstimate() {
   const int bins = options_.bins_per_arc;
   const size_t n = arcs_.size();
   if (n == 0) return;
-  // Mass per arc, near its start (within node_tolerance) and near its end.
+  // Mass per arc (a real arc with its virtual extensions), near its start (within node_tolerance) and near its end.
   std::vector<double> whole(n, 0.0), head(n, 0.0), tail(n, 0.0);
   for (size_t k = 0; k < n; ++k) {
+    const size_t owner = arcs_[k].virtual_of >= 0 ? static_cast<size_t>(arcs_[k].virtual_of) : k;
     for (int i = 0; i < bins; ++i) {
       const double m = mass_[k * bins + i];
       const double centre = (i + 0.5) / bins;
-      whole[k] += m;
+      whole[owner] += m;
+      if (owner != k) continue;
       if (centre < options_.node_tolerance) head[k] += m;
       if (centre > 1.0 - options_.node_tolerance) tail[k] += m;
     }
@@ -355,19 +466,21 @@ void PlaceBelief::ComputeEstimate() {
   int best = -1;
   double best_confidence = -1.0;
   for (size_t k = 0; k < n; ++k) {
+    if (arcs_[k].virtual_of >= 0) continue;
     double confidence = whole[k];
-    for (const int s : arcs_[k].successors) confidence += head[s];
-    for (const int p : arcs_[k].predecessors) confidence += tail[p];
+    for (const int s : arcs_[k].successors) confidence += arcs_[s].virtual_of >= 0 ? 0.0 : head[s];
+    for (const int p : arcs_[k].predecessors) confidence += arcs_[p].virtual_of >= 0 ? 0.0 : tail[p];
     if (confidence > best_confidence + 1e-12 ||
         (std::abs(confidence - best_confidence) <= 1e-12 && best >= 0 && whole[k] > whole[best])) {
       best = static_cast<int>(k);
       best_confidence = confidence;
     }
   }
+  if (best < 0) return;
   estimate_.arc = arcs_[best].id;
   estimate_.confidence = std::min(1.0, best_confidence);
-  // Posterior mean and spread of the position on the arc: its own bins and the tolerated bins of its neighbours,
-  // in its arc lengths.
+  // Posterior mean and spread of the position on the arc: its own bins, its virtual extensions and the tolerated
+  // bins of its neighbours, in its arc lengths.
   double sum = 0.0, sum_x = 0.0, sum_xx = 0.0;
   const auto add = [&](int j, int i, double offset) {
     const double m = mass_[j * bins + i];
@@ -378,10 +491,14 @@ void PlaceBelief::ComputeEstimate() {
   };
   for (int i = 0; i < bins; ++i) add(best, i, 0.0);
   for (const int s : arcs_[best].successors) {
-    for (int i = 0; i < bins && (i + 0.5) / bins < options_.node_tolerance; ++i) add(s, i, arcs_[best].length);
+    const bool extension = arcs_[s].virtual_of >= 0;
+    for (int i = 0; i < bins && (extension || (i + 0.5) / bins < options_.node_tolerance); ++i) {
+      add(s, i, arcs_[best].length);
+    }
   }
   for (const int p : arcs_[best].predecessors) {
-    for (int i = bins - 1; i >= 0 && (i + 0.5) / bins > 1.0 - options_.node_tolerance; --i) {
+    const bool extension = arcs_[p].virtual_of >= 0;
+    for (int i = bins - 1; i >= 0 && (extension || (i + 0.5) / bins > 1.0 - options_.node_tolerance); --i) {
       add(p, i, -arcs_[p].length);
     }
   }

@@ -14,7 +14,8 @@
 // Each frame:
 //  1. Predict (motion model): every bin's mass moves by the camera's displacement d along the graph, continuing
 //     into the following arcs past an arc's end (into each of them, equally, at a junction) and into the previous
-//     ones before its start. With the speed v known (common units per frame, the median of the last steps of the
+//     ones before its start. Past a route's last key-image the camera is on a virtual arc continuing the last arc
+//     (and before the first on one preceding it), which counts as the route's last (first) arc. With the speed v known (common units per frame, the median of the last steps of the
 //     estimated position), d ~ N(v Δ, Δ ((α v)² + (σ₀ ℓ)²)) for Δ frames: α = `relative_speed_noise` (the speed
 //     changes and is estimated from noisy positions), σ₀ = `position_noise` arc lengths. With the speed unknown
 //     (after a start, a loss, or a jump) d is uniform over [`unknown_speed_min`, `unknown_speed_max`] arc lengths
@@ -26,7 +27,8 @@
 //     way along the arc after k) with a standard deviation σ and an outlier probability ε:
 //         p(z | place) = ε / R + (1 - ε) N(z; x(place), σ² + q²),
 //     x(place) the place's coordinate on k's line (reachable within `reach` arcs of k; farther places explain z only
-//     as an outlier), R = `outlier_range` arc lengths (the span over which a wrong placement lands), q the bin
+//     as an outlier), R = `outlier_range` arc lengths (the span over which a wrong placement lands; a key-image
+//     retrieval chose among C candidates gives R = C), q the bin
 //     width in k's units over √12 (quantisation). The posterior probability that a measurement is an inlier is
 //     kept: a frame has its own evidence when one of its measurements is an inlier with probability
 //     ≥ `min_inlier_probability`.
@@ -62,6 +64,9 @@ struct PlaceMeasurement {
   double along = 0.0;
   double sigma = 0.1;
   double outlier_probability = 0.1;
+  // Arc lengths over which this placement lands when it is wrong; 0: PlaceBeliefOptions::outlier_range. A key-image
+  // picked by retrieval among C candidates lands on any of them when wrong (C arc lengths).
+  double outlier_range = 0.0;
 };
 
 struct PlaceBeliefOptions {
@@ -85,6 +90,9 @@ struct PlaceBeliefOptions {
   int speed_memory_frames = 5;
   // Per frame, this fraction of the mass is spread uniformly over the map (kidnapping, a wrong belief).
   double jump_probability = 1e-3;
+  // Bins holding less than this fraction of the largest bin's mass are not moved by the motion model (the uniform
+  // floor the jumps leave; moving it changes nothing that matters, and it is most of the bins of a large map).
+  double static_fraction = 1e-4;
 
   // Measurement model: a wrong placement lands anywhere within this many arc lengths of its arc.
   double outlier_range = 4.0;
@@ -118,6 +126,8 @@ class PlaceBelief {
 
   // Uniform over the map, speed unknown (the start, before any evidence).
   void Reset();
+  // Uniform over `arc` (a start arc the user gives), speed unknown.
+  void ResetTo(arc_t arc);
   // Motion model over `frames` frames (1 per processed frame).
   void Predict(int frames = 1);
   // Bayes update with this frame's measurements (none: the prediction stands) and the estimate of this frame.
@@ -130,6 +140,9 @@ class PlaceBelief {
   std::optional<double> SpeedOn(arc_t arc) const;
   // Probability mass on `arc` (all of its bins).
   double Mass(arc_t arc) const;
+  // Probability that the camera is on `arc` or within node_tolerance of its ends on a neighbouring arc (what
+  // PlaceEstimate::confidence gives for the most likely arc).
+  double Confidence(arc_t arc) const;
   // Length of `arc` in the belief's common unit.
   double ArcLength(arc_t arc) const;
   // Arcs that continue `arc` past its end / before its start (several at a junction).
@@ -144,13 +157,20 @@ class PlaceBelief {
   struct ArcNode {
     arc_t id = kInvalidArcId;
     double length = 1.0;
+    // A route's end has a virtual arc beyond it (and its start one before it), of the same length, where a camera
+    // past the last key-image (before the first) is; its mass counts for the real arc. -1 for a real arc.
+    int virtual_of = -1;
+    std::vector<int> virtual_children;
     std::vector<int> successors, predecessors;  // indices
     std::vector<arc_t> successor_ids, predecessor_ids;
   };
   int Index(arc_t arc) const;
-  // Adds `mass` at position `along` of arc `index`, moved by `distance` (common units) along the graph.
-  void Deposit(std::vector<double>* target, int index, double along, double distance, double mass, int depth) const;
+  // Adds `mass` at position `along` of arc `index`, moved by a distance uniform in [low, high] (common units) along
+  // the graph.
+  void Deposit(std::vector<double>* target, int index, double along, double low, double high, double mass,
+               int depth) const;
   void DepositAt(std::vector<double>* target, int index, double along, double mass) const;
+  void DepositUniform(std::vector<double>* target, int index, double low, double high, double mass) const;
   // Offsets (common units) of the starts of the arcs within `reach` of arc `index`, relative to its start.
   void ReachableOffsets(int index, int reach, std::vector<std::pair<int, double>>* offsets) const;
   void ComputeEstimate();
@@ -160,6 +180,7 @@ class PlaceBelief {
   std::unordered_map<arc_t, int> index_;
   std::vector<double> mass_;  // arcs_.size() * bins
   std::vector<double> scratch_;
+  mutable std::vector<double> diff_;  // per arc bins + 1: difference array of uniform deposits (Predict)
 
   // Speed: the last estimated place with evidence and the steps since (common units per frame, newest first).
   std::optional<GraphPlace> last_place_;

@@ -185,6 +185,23 @@ TEST(PlaceBelief, NearANodeTheNeighbouringArcCountsForTheConfidence) {
   EXPECT_GT(estimate.confidence, 0.95);
 }
 
+TEST(PlaceBelief, PastTheRoutesEndTheCameraIsOnItsLastArc) {
+  // The repeat drive goes on past the last key-image: placements beyond the last arc's end are evidence for the
+  // last arc (the topological truth's convention), at positions beyond 1.
+  PlaceBelief belief(LinearMap(5));
+  for (int t = 0; t < 8; ++t) Frame(&belief, t + 1, {Pose(4, 0.5 + 0.15 * t)});
+  EXPECT_TRUE(belief.estimate().tracking);
+  EXPECT_EQ(belief.estimate().arc, 4);
+  EXPECT_NEAR(belief.estimate().along, 1.55, 0.05);
+  EXPECT_GT(belief.Mass(4), 0.99);
+  EXPECT_TRUE(belief.Successors(4).empty());
+  // And before the first key-image, on the first arc at a negative position.
+  PlaceBelief reversing(LinearMap(5));
+  for (int t = 0; t < 6; ++t) Frame(&reversing, t + 1, {Pose(0, 0.3 - 0.1 * t)});
+  EXPECT_EQ(reversing.estimate().arc, 0);
+  EXPECT_NEAR(reversing.estimate().along, -0.2, 0.05);
+}
+
 TEST(PlaceBelief, OptionsAreChecked) {
   PlaceBeliefOptions options;
   options.bins_per_arc = 1;

@@ -1,12 +1,18 @@
 #pragma once
 
-// Repeat: streaming localization in a taught map and steering (Segvic 2009 §3.3, §3.4, §5.2, §6.3; design §6).
+// Repeat: streaming localization in a taught map and steering (Segvic 2009 §3.3, §3.4, §5.2, §6.3; design §6, §6.1).
 //
-// The Localizer is fed one frame at a time (ProcessFrame), as from a live camera, and keeps:
-//  - a topological location: the current arc (I_i, I_i+1) of the map (called (a, b) below, a = arc.from,
-//    b = arc.to), with its previous arc (ending at a) and its next arc (starting at b);
-//  - the mapped features of these three arcs that are tracked now, each aligned by the reference-aligned tracker
-//    to a reference appearance cut from a key-image (key-images are stored in the map).
+// The Localizer is fed one frame at a time (ProcessFrame), as from a live camera. It keeps two things apart:
+//  - where the camera is: one belief over places on the map graph (belief.h, a discrete Bayes filter over (arc,
+//    position along the arc) with a motion model from the camera's speed), which decides what is reported;
+//  - what is tracked: the mapped features of the current arc (a, b) (a = arc.from, b = arc.to), its previous arc
+//    (ending at a) and its next arc (starting at b), each aligned by the reference-aligned tracker to a reference
+//    appearance cut from a key-image (key-images are stored in the map).
+//
+// The source files by concern: localizer.cc (this flow, the current geometries, placements and transitions),
+// placement.h (the camera placed on an arc; prudence, eq. (9); placements as measurements), belief.h (the place
+// belief), resumption.cc (predicted features, references), relocalization.cc (bootstrap, retrieval),
+// control/steering.h (eq. (10)).
 //
 // Per frame (state kTracking):
 //  1. all tracked features are aligned to their references (the same pyramid settings as teach,
@@ -15,62 +21,63 @@
 //     key-images a and b are known (robust 5-point, with σ_p, Segvic 2009 eq. (6); the previous frame's geometry,
 //     or one derived from the previous frame's absolute pose, is the first hypothesis); a geometry is "usable" when
 //     it succeeded with σ_p below `max_sigma_p_px`;
-//  3. the camera is placed on the arc (FuseArcPositions): by its absolute pose in the arc's reconstruction (P3P on
-//     the tracked features whose points Q the arc stores, σ_p gated like the current geometries), and by W_t:a and
-//     W_t:b brought into the arc's frame and scale (decomposed point transfer, §4.4). The absolute pose is far more
-//     accurate (README); a placement is believed only when it is continuous with the last accepted position and the
-//     camera's speed along the arc (median of its last three steps): within `progress_tolerance` of where they put
-//     the camera, `max_progress_step` while the speed is not known yet;
+//  3. placements (placement.h): the camera is placed on the arc by its absolute pose in the arc's reconstruction
+//     (P3P on the tracked features whose points Q the arc stores, σ_p gated like the current geometries; its
+//     standard deviation along the arc from the pose's covariance), and by W_t:a and W_t:b brought into the arc's
+//     frame and scale (decomposed point transfer, §4.4). They are measurements of the belief: the absolute pose
+//     (far more accurate, README), else the current geometry with the lower σ_p, plus the key-image a bootstrap
+//     verified in this frame. The belief is predicted by the motion model and updated with them; its mode, on the
+//     current arc, is the camera's position;
 //  4. decomposed point transfer (§4.4): the current arc's points are predicted through the more accurate usable one
-//     of W_t:a / W_t:b whose placement agrees with the believed position, the next arc's through W_t:b, the previous
-//     arc's through W_t:a — only through usable geometries (σ_p gating, §5.2.1);
+//     of W_t:a / W_t:b whose placement agrees with the belief (within `agreement_sigmas` standard deviations), the
+//     next arc's through W_t:b, the previous arc's through W_t:a — only through usable geometries (σ_p gating,
+//     §5.2.1);
 //  5. consistency: a tracked feature farther than `max_drift_px` (or 3 σ_p) from its prediction is discontinued —
 //     after a sanity check of the transfer itself: when more than `max_drift_fraction` of an arc's tracks disagree
 //     with it, the transfer is distrusted for that frame (no drops, no predictions for that arc);
 //  6. prudence (eqs. (7), (8)): features of the next arc are resumed only when the camera is closer to b than
 //     `next_arc_ratio` (0.5) of the arc length, those of the previous arc only when closer to a than
 //     `previous_arc_ratio` (0.3);
-//  7. resumption: every mapped but untracked feature predicted inside the image is refined against its
-//     reference (RefinePrediction, starting at scale = 1 / distance ratio) and accepted only near the
+//  7. resumption (resumption.cc): every mapped but untracked feature predicted inside the image is refined against
+//     its reference (RefinePrediction, starting at scale = 1 / distance ratio) and accepted only near the
 //     prediction; a rejected feature is retried after `retry_interval` frames. References are cut from the arc's
 //     key-image nearest to the camera. A neighbouring arc that shares too few features with the current geometry
 //     is reached through the relative scale stored at the common node; when the map stores none (kitti07 has such
 //     nodes in its turns) or right after a transition, the features seen in the nearby key-image are predicted by
 //     the rotation between that key-image and the current image (Kabsch on the tracked features seen in both),
 //     aligned, and accepted only when they agree with the median offset of all candidates;
-//  8. topological transition (eq. (9)): forward when the camera centre passes the plane through b's centre
-//     perpendicular to the arc's direction of travel, i.e. when the believed position along the arc exceeds 1;
-//     backward when it lies more than `backward_margin` behind a. It needs the absolute pose or both current
-//     geometries agreeing, so it is cancelled when no estimate with an acceptable σ_p places the camera. Position
-//     and speed carry over into the next arc through the relative scale stored at the node, and a camera past the
-//     new arc's end too makes a second transition (short arcs: kitti07 at 320 px passes about one arc per frame in
-//     its turns). After a transition the features of the arc two behind are dropped and the references are
-//     redefined (§5.2.2): the new current arc's features are re-aligned against the key-image now approached, the
-//     previous arc's against the key-image just passed; a feature whose new reference does not align at its
-//     current position keeps the old one (re-cutting blindly lost most tracks in kitti07's turns);
-//  9. steering (eq. (10)): w = k * mean(x_t - x*) over the current arc's features, x the horizontal normalised
-//     coordinate in the current image and x* in key-image b.
+//  8. steering (eq. (10), control/steering.h): w = k * mean(x_t - x*) over the current arc's features, x the
+//     horizontal normalised coordinate in the current image and x* in key-image b;
+//  9. topological transition (eq. (9)) on the belief: in a frame with evidence, the tracked location moves to the
+//     arc holding the belief's mode when the mode has passed the plane through b's centre perpendicular to the
+//     arc (along > 1), or lies more than `backward_margin` behind a — over several arcs in one frame when the
+//     camera passed several key-images. After a transition the features of no arc around the new location are
+//     dropped and the references are redefined (§5.2.2): the new current arc's features are re-aligned against the
+//     key-image now approached, the arc just left against the key-image just passed; a feature whose new
+//     reference does not align at its current position keeps the old one.
 //
-// Lost is an answer: when fewer than `min_features` of the current arc are tracked, neither current geometry is
-// usable or no placement is continuous for `max_bad_frames` frames in a row, the tracker is cleared and the same
-// frame is re-initialised by wide-baseline matching against the key-images, exactly as the bootstrap; when that
-// fails the frame is kLost (no arc is reported) and the following frames keep trying (kRelocalizing). A frame
-// without any believed placement that the camera's speed puts more than `stale_margin` past the arc's end is
-// reported kLost too (its tracks are kept): the arc is then most likely one the camera has left.
+// What is reported follows the belief: `tracking` on the current arc only when the belief's confidence that the
+// camera is on it (or within the node tolerance of its ends) reaches PlaceBeliefOptions::min_confidence and this
+// frame gave the belief evidence it accepts; otherwise `lost`, with no arc. The confidence is reported every frame.
+// Lost is an answer, never a confident wrong place.
 //
-// Bootstrap (§3.3): the frame is matched (SIFT, ratio 0.8) against the key-images of a given start arc, or —
-// without one — against every key-image (retrieval); after a loss only the key-images within
+// The tracks are given up when fewer than `min_features` of the current arc are tracked or no current geometry or
+// absolute pose is usable for `max_bad_frames` frames in a row; the same frame is then re-initialised by
+// wide-baseline matching against the key-images, exactly as the bootstrap, and when that fails the frame is kLost
+// and the following frames keep trying (kRelocalizing). The belief carries on through all of it.
+//
+// Bootstrap (§3.3, relocalization.cc): the frame is matched (SIFT, ratio 0.8) against the key-images of a given
+// start arc, or — without one — against every key-image (retrieval); after a loss only the key-images within
 // `relocalization_neighbourhood` arcs of where it was lost, widened by `relocalization_widening` arcs per frame
 // since, and the whole map only after `global_relocalization_frames` (look-alike streets elsewhere verify too).
 // Candidates are ranked by whole-image appearance (GlobalDescriptor) and the `retrieval_shortlist` most alike are
 // verified geometrically (relative pose on the matches); the rest too unless one of them has
 // `retrieval_confident_inliers`. The key-image with most inliers wins. Its arc is chosen by which side of the
-// key-image the camera is on (the sign test of eq. (9), which needs no scale), and corrected in the same frame by a
-// transition when the absolute pose places the camera beyond the arc. The mapped features of that arc and of its two
-// neighbours seen in the matched key-images are then located in the frame from the displacement of the nearest
-// matched key-points and refined against their references (without the coarsest pyramid level, like every refined
-// prediction); the regular transfer predicts the remaining ones from the next frame on. Key-images of these three
-// arcs that retrieval did not verify are verified for this.
+// key-image the camera is on (the sign test of eq. (9), which needs no scale); the key-image is a measurement of the
+// belief. The mapped features of that arc and of its two neighbours seen in the matched key-images are then located
+// in the frame from the displacement of the nearest matched key-points and refined against their references
+// (without the coarsest pyramid level, like every refined prediction); the regular transfer predicts the remaining
+// ones from the next frame on. Key-images of these three arcs that retrieval did not verify are verified for this.
 
 #include <array>
 #include <limits>
@@ -90,6 +97,8 @@
 #include "retrace/geometry/point_transfer.h"
 #include "retrace/geometry/two_view_geometry.h"
 #include "retrace/map/map.h"
+#include "retrace/repeat/belief.h"
+#include "retrace/repeat/placement.h"
 
 namespace retrace {
 
@@ -132,27 +141,9 @@ struct LocalizerOptions {
   // Sanity check of a transfer: when more than this fraction of an arc's tracked features (and more than 3) drift
   // from their predictions, the transfer is distrusted for that frame instead of the tracks.
   double max_drift_fraction = 0.25;
-  // A frame without any believed placement is reported lost (the tracks are kept) when the last position and the
-  // camera's speed put it more than this (arc lengths) past the arc's end: the arc is then most likely stale (in the
-  // simulated town, three such frames stayed on an arc the camera had left two arcs before).
-  double stale_margin = 0.5;
-  // Backward transitions need the camera this far (arc lengths) behind a: hysteresis against flicker right after
-  // a forward transition, where W_t:a has almost no baseline.
+  // Backward transitions need the believed camera this far (arc lengths) behind a: hysteresis against flicker at
+  // a node, where the belief's mode may fall on either side.
   double backward_margin = 0.1;
-  // Two current geometries whose placements of the camera on the arc differ by at most this (arc lengths) are
-  // averaged (FuseArcPositions).
-  double position_agreement = 0.1;
-  // When the absolute pose placed the camera, a current geometry's transfer predicts the current arc's features only
-  // when its own placement lies within this (arc lengths) of the absolute pose's.
-  double transfer_agreement = 0.25;
-  // Continuity of the position along the arc (PositionContinuous): a placement farther than this (arc lengths)
-  // from where the last accepted position puts the camera is not believed while the camera's speed along the arc
-  // is unknown (first frames on an arc) ...
-  double max_progress_step = 0.75;
-  // ... and farther than this from where the last position and the speed put it once the speed is known (at least
-  // one frame of motion either way). 0.75 let a pose from 10 distant features right after a transition place the
-  // camera past the next node (simulated town: three transitions in three frames, two arcs ahead of the truth).
-  double progress_tolerance = 0.3;
   // Segvic 2009 §5.2.2: after a transition, redefine the references of the new current arc's features from the
   // key-image approached and of the arc just left from the key-image passed (a feature whose new reference does not
   // align at its current position keeps the old one).
@@ -166,7 +157,9 @@ struct LocalizerOptions {
   // the features are trustworthy; at 320x240 an arc maps ~50 features, and 15 made the simulated drive lost in
   // mid-arc (80.0 % vs 77.3 % correct with 10, no frame two arcs off either way).
   int min_features = 10;
-  // Bad frames in a row (too few features or no usable current geometry) after which the state is lost.
+  // Bad frames in a row (too few features of the current arc, or no usable current geometry or absolute pose)
+  // after which the tracks are given up and the frame is re-initialised by wide-baseline matching. This decides
+  // when to spend a relocalization, not what is reported: the belief decides that.
   int max_bad_frames = 3;
   // k of Segvic 2009, eq. (10), radians of steering per unit of normalised image coordinate.
   double steering_gain = 1.0;
@@ -201,10 +194,16 @@ struct LocalizerOptions {
   // Bootstrap: accept a located feature within this distance of its local prediction (px at reference_width).
   double bootstrap_radius_px = 4.0;
 
-  // Place the camera on the arc by its absolute pose in the arc's reconstruction (FuseArcPositions) when that pose
-  // is available; false: by the current geometries alone, as the paper (measured on the simulated town in the
-  // README).
+  // Place the camera on the arc by its absolute pose in the arc's reconstruction when that pose is available;
+  // false: by the current geometries alone, as the paper (measured on the simulated town in the README).
   bool place_by_absolute_pose = true;
+  // A current geometry's decomposed transfer predicts the current arc's features only when its placement agrees
+  // with the belief within this many standard deviations (of the placement and the belief together).
+  double agreement_sigmas = 3.0;
+  // Where the camera is: the place belief over the map graph (belief.h) and how reliable each placement is as
+  // its measurement (placement.h).
+  PlaceBeliefOptions belief;
+  PlacementModel placement;
   // The absolute pose: P3P samples, MSAC with the inlier threshold `inlier_threshold_px` (set by the Localizer).
   AbsolutePoseOptions pose;
 
@@ -258,8 +257,17 @@ struct FrameResult {
   double sigma_p_from = -1.0;            // σ_p of W_t:a, px; -1 when not estimated / failed
   double sigma_p_to = -1.0;              // σ_p of W_t:b
   double sigma_p = -1.0;                 // σ_p of the geometry used for the current arc's transfer
-  double position_on_arc = 0.0;          // projection of the camera on the arc (0 at a, 1 at b), when known
+  double position_on_arc = 0.0;          // the belief's position on the arc (0 at a, 1 at b), when known
   bool position_valid = false;
+  // The belief (belief.h): the probability that the camera is on the reported arc (or within the node tolerance of
+  // its ends), the spread of its position there (arc lengths), and whether this frame gave evidence the belief
+  // accepts. Filled in every state; `tracking` needs a confidence of at least PlaceBeliefOptions::min_confidence
+  // and evidence.
+  double confidence = 0.0;
+  double position_sigma = 0.0;
+  bool evidence = false;
+  // The arc the belief finds most likely, reported or not (in `lost` frames too; invalid before any evidence).
+  arc_t belief_arc = kInvalidArcId;
   // The same position through each estimate (W_t:a, W_t:b, the absolute pose in the arc's reconstruction); NaN when
   // that estimate gives none.
   double position_via_from = std::numeric_limits<double>::quiet_NaN();
@@ -272,96 +280,13 @@ struct FrameResult {
   // positive = left, i.e. -w.
   double steering = 0.0;
   bool steering_valid = false;
-  int transition = 0;         // +1 forward, -1 backward, 0 none in this frame (+2: two arcs forward)
+  int transition = 0;         // arcs moved in this frame: +1 forward, -1 backward, +2 two arcs forward, ...
   bool bootstrapped = false;  // (re)initialised by wide-baseline matching in this frame
   int key_images_matched =
       0;  // key-images verified by wide-baseline matching in this frame (bootstrap, relocalization)
   double seconds = 0.0;       // processing time of this frame
   std::vector<FeatureMark> marks;  // tracked features and rejected predictions (for overlays)
 };
-
-// Where the current camera is relative to an arc, in the arc's frame and unit (|t| = 1).
-struct ArcPosition {
-  bool valid = false;
-  double along = 0.0;             // (C_t - C_a) . (C_b - C_a): 0 at a, 1 at b
-  double distance_to_from = 0.0;  // |C_t - C_a| (arc lengths)
-  double distance_to_to = 0.0;    // |C_t - C_b|
-};
-// `current_from_a`: the current camera in the arc's frame and scale (PointTransfer::current_from_a()).
-ArcPosition LocateOnArc(const Rigid3d& current_from_a, const Rigid3d& arc_b_from_a);
-
-// Prudence (Segvic 2009, eqs. (7), (8)): which neighbouring arcs may have features resumed at `position`.
-struct ResumptionPolicy {
-  bool next = false;
-  bool previous = false;
-};
-ResumptionPolicy DecideResumption(const ArcPosition& position, double next_arc_ratio = 0.5,
-                                  double previous_arc_ratio = 0.3);
-
-// A current geometry (σ_p gating, Segvic 2009 §5.2.1): usable when it succeeded with σ_p below `max_sigma_p_px`.
-bool GeometryUsable(const TwoViewGeometry& geometry, double max_sigma_p_px);
-
-// The last accepted position of the camera along the current arc and its speed.
-struct ArcProgress {
-  double along = 0.0;        // arc lengths (0 at a, 1 at b)
-  double speed = 0.0;        // arc lengths per frame: median of the last steps, when speed_known
-  size_t frame = 0;          // frame counter of the acceptance
-  bool speed_known = false;
-  std::array<double, 3> steps{};  // the last steps (arc lengths per frame), newest first
-  int num_steps = 0;
-};
-
-// How far (arc lengths) a new position along the arc may lie from where the last accepted position and the
-// camera's speed put it, and still be believed.
-struct ContinuityLimits {
-  double unknown_speed = 0.75;  // while the speed along the arc is not known
-  double known_speed = 0.3;     // once it is
-};
-
-// Continuity of the position along an arc (arc lengths): a new position in frame `frame` is believed when no
-// earlier one is known on this arc, or when it lies within max(limit, the distance covered in one frame at the
-// last speed) of where the last accepted position and speed put the camera now.
-bool PositionContinuous(const std::optional<ArcProgress>& last, size_t frame, double along,
-                        const ContinuityLimits& limits);
-
-// A placement of the current camera on the arc by one estimate, with that estimate's σ_p (px).
-struct PlacedCamera {
-  ArcPosition position;
-  double sigma_p = 0.0;
-};
-
-// The camera's position along the current arc. Three estimates place it (only those whose σ_p passed the gate are
-// given, Segvic 2009 §5.2.1):
-//  - `via_pose`: the absolute pose of the current camera in the arc's reconstruction (the points Q of W_k that are
-//    tracked now; geometry/absolute_pose.h);
-//  - `via_from`, `via_to`: the current geometries W_t:a, W_t:b brought into the arc's frame and scale (the
-//    decomposed point transfer, §4.4).
-// The absolute pose needs no separate scale estimate and is far more accurate: in the simulated town (5 drives,
-// other sun, 1 m offset) its placements were more than 0.15 arc lengths from the truth in 1-2 % of the frames,
-// those of W_t:a / W_t:b in 6-15 % (a current geometry from few or distant features, whose translation direction
-// or scale is poorly determined). A placement is believed only when it is continuous with the last accepted
-// position (PositionContinuous). The absolute pose is taken when believed; otherwise, of the
-// believed decomposed placements the nearest to where the camera's speed puts it is taken, averaged with the other
-// when both agree within `agreement` arc lengths (without a last position the lower σ_p decides).
-struct FusedArcPosition {
-  ArcPosition position;     // invalid when no placement is believed
-  bool continuous = true;   // false: placed, but no placement continuous with the last accepted position
-  bool via_pose = false;    // the absolute pose's placement was used
-  bool via_from = false;    // W_t:a's placement was used
-  bool via_to = false;      // W_t:b's placement was used
-};
-FusedArcPosition FuseArcPositions(const std::optional<ArcProgress>& last, size_t frame,
-                                  const std::optional<PlacedCamera>& via_pose,
-                                  const std::optional<PlacedCamera>& via_from,
-                                  const std::optional<PlacedCamera>& via_to, const ContinuityLimits& limits,
-                                  double agreement);
-
-// Topological transition (Segvic 2009 §5.2.2, eq. (9)): forward (+1) when the camera centre has passed the plane
-// through b's centre perpendicular to the arc's direction of travel, i.e. its projection on the arc lies beyond b
-// (along > 1); backward (-1) when it lies more than `backward_margin` arc lengths behind a; else 0. `position` is
-// the fused position (FuseArcPositions), so a transition is cancelled when no estimate with an acceptable σ_p
-// places the camera.
-int DecideTransition(const ArcPosition& position, double backward_margin);
 
 class Localizer {
  public:
@@ -380,6 +305,7 @@ class Localizer {
   LocalizerState state() const { return state_; }
   arc_t current_arc() const { return arc_; }
   const LocalizerOptions& options() const { return options_; }
+  const PlaceBelief& belief() const { return belief_; }
   // Thresholds in pixels of the frames given.
   double sigma_p_threshold_px() const { return max_sigma_p_px_; }
 
@@ -421,15 +347,28 @@ class Localizer {
   std::optional<Rigid3d> GuessCurrentFrom(node_t node) const;
   // The absolute pose of the current camera in `arc`'s reconstruction, from the tracked features it reconstructs.
   AbsolutePose EstimatePoseInArc(const ArcData& arc) const;
-  void ApplyTransition(int direction, FrameResult* result);
+  // Moves the tracked location to `target`, the arc after (direction +1) or before (-1) the current one: features
+  // of no arc around the new location are dropped and references redefined (Segvic 2009 §5.2.2).
+  void ApplyTransition(arc_t target, int direction, FrameResult* result);
+  // The arcs from the current arc to `target` (excluded, included), following successors (direction +1) or
+  // predecessors (-1) within the belief's reach; empty when `target` is not reached.
+  std::vector<arc_t> PathTo(arc_t target, int direction) const;
+  // The frame's placements as measurements of the belief, the belief updated, and the tracked location moved to
+  // where the belief's mode lies. Returns that position on the current arc.
+  struct Placements;
+  ArcPosition UpdateBelief(const Placements& placements, FrameResult* result);
+  // The belief's most likely position expressed on the current arc (arc lengths, beyond [0, 1] when the mode lies
+  // on a neighbouring arc); none when the mode is out of the belief's reach of the current arc.
+  std::optional<double> AlongCurrentArc() const;
+  // Resumes the untracked features of the three arcs predicted by their transfers (prudence, eqs. (7), (8)).
+  struct RolePredictor;
+  void ResumePredicted(const std::array<RolePredictor, 3>& roles, const ArcPosition& position, FrameResult* result);
   // Re-aligns the tracked features of `arc` against references cut from key-image `node`; a feature that does not
   // align there keeps its old reference.
   void RedefineReferences(const ArcData& arc, node_t node, FrameResult* result);
   // Length conversion across the node between consecutive arcs (direction +1: `new_arc` follows `old_arc`): a
   // length in units of `old_arc` times this is the same length in units of `new_arc`; none without a stored scale.
   std::optional<double> UnitRatio(arc_t old_arc, arc_t new_arc, int direction) const;
-  // Records the (fused, continuous) position along the current arc of this frame and updates the speed.
-  void AcceptProgress(double along);
   // Resumes untracked features of `arc` seen in key-image `node`, predicted from the displacement (key-image ->
   // current image) of the tracked features seen there that lie nearby.
   void ResumeFromNeighbours(const ArcData& arc, node_t node, ArcRole role, FrameResult* result);
@@ -461,10 +400,17 @@ class Localizer {
   arc_t arc_ = kInvalidArcId;
   arc_t start_arc_ = kInvalidArcId;
   int bad_frames_ = 0;
-  bool stale_ = false;  // this frame: no placement, and the speed puts the camera past the arc (reported lost)
   arc_t last_arc_ = kInvalidArcId;       // the arc where the localizer was last lost
   size_t lost_at_frame_ = 0;             // frame counter of that loss
-  std::optional<ArcProgress> progress_;  // last accepted position along the current arc and its speed
+  PlaceBelief belief_;
+  // This frame's bootstrap: the key-image verified and the arc chosen (a measurement of the belief).
+  struct BootstrapKeyImage {
+    arc_t arc = kInvalidArcId;
+    node_t node = kInvalidNodeId;
+    int candidates = 1;  // key-images the retrieval chose among
+  };
+  std::optional<BootstrapKeyImage> bootstrap_key_image_;
+  bool belief_updated_ = false;  // the belief has had this frame's measurements
   node_t last_passed_ = kInvalidNodeId;  // the key-image passed by the last transition
   // Key-image each tracked feature takes its reference from.
   std::unordered_map<feature_t, node_t> reference_node_;

@@ -56,8 +56,9 @@ void RepeatAndCheck(const Scenario& base, const std::string& label, bool check_s
     std::cout << "  frame " << i << ": " << LocalizerStateName(r.state) << ", arc index " << t.estimated_arc_index
               << ", true " << t.true_arc_index << "; tracked " << r.tracked << " (" << r.tracked_by_role[0] << "/"
               << r.tracked_by_role[1] << "/" << r.tracked_by_role[2] << "), sigma_p " << r.sigma_p_from << "/"
-              << r.sigma_p_to << ", position " << r.position_on_arc << ", transition " << r.transition
-              << (r.bootstrapped ? ", bootstrapped" : "") << "\n";
+              << r.sigma_p_to << ", pose " << r.position_via_pose << " (sigma_p " << r.sigma_p_pose << ", "
+              << r.pose_inliers << " inliers), confidence " << r.confidence << (r.evidence ? "" : " without evidence")
+              << ", transition " << r.transition << (r.bootstrapped ? ", bootstrapped" : "") << "\n";
   }
   EXPECT_GE(evaluation.FractionCorrect(), 0.99);
   EXPECT_LE(evaluation.lost, evaluation.frames / 100);

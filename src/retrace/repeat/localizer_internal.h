@@ -1,0 +1,74 @@
+#pragma once
+
+// The Localizer's internal data, shared by its source files (localizer.cc: the per-frame flow and the belief;
+// resumption.cc: predicted features and references; relocalization.cc: bootstrap and retrieval). Not part of the
+// library's interface.
+
+#include <memory>
+#include <optional>
+#include <unordered_map>
+#include <vector>
+
+#include "retrace/repeat/localizer.h"
+
+namespace retrace {
+
+struct Localizer::NodeData {
+  const MapNode* node = nullptr;
+  std::unordered_map<feature_t, Vector2d> positions;
+  std::unordered_map<feature_t, Vector3d> bearings;
+  std::unique_ptr<ImagePyramid> pyramid;
+  std::optional<WideBaselineFeatures> wide_baseline;
+  std::optional<GlobalDescriptor> appearance;
+  std::unordered_map<feature_t, std::unique_ptr<ReferencePatch>> references;  // null = cannot be cut
+};
+
+struct Localizer::ArcData {
+  const MapArc* arc = nullptr;
+  std::unordered_map<feature_t, Vector3d> points;
+  arc_t previous = kInvalidArcId;
+  arc_t next = kInvalidArcId;
+};
+
+struct Localizer::CurrentGeometry {
+  node_t node = kInvalidNodeId;
+  bool estimated = false;
+  TwoViewGeometry geometry;    // key_from... : a = key-image, b = current image
+  std::vector<feature_t> ids;  // feature of each correspondence
+  bool usable = false;
+};
+
+// The current camera in an arc's frame and scale, from which the arc's points are predicted (step 4 of the
+// decomposed point transfer, Segvic 2009 §4.4). Built from a PointTransfer, or chained to a neighbouring arc through
+// the relative scale stored at their common node when the current geometry shares too few features with that arc.
+struct ArcPredictor {
+  Rigid3d current_from_a;  // arc frame and scale
+  Rigid3d b_from_a;        // the arc's geometry (|t| = 1)
+
+  TransferredPoint Transfer(const Vector3d& point_in_a, const CameraModel& camera, ArcImage reference,
+                            double margin) const;
+};
+
+// An arc of the current location with the predictor of its features (none: not predicted in this frame).
+struct Localizer::RolePredictor {
+  const ArcData* arc = nullptr;
+  const std::optional<ArcPredictor>* transfer = nullptr;
+  ArcRole role = ArcRole::kCurrent;
+};
+
+// This frame's placements of the camera on the current arc, as measurements of the belief.
+struct Localizer::Placements {
+  std::optional<PlaceMeasurement> pose;  // absolute pose in the arc's reconstruction
+  std::optional<PlaceMeasurement> from;  // W_t:a through the decomposed transfer
+  std::optional<PlaceMeasurement> to;    // W_t:b
+  double sigma_p_from = 0.0, sigma_p_to = 0.0;
+  // When the current arc gives none: the camera placed in a neighbouring arc's frame (absolute pose in its
+  // reconstruction, else W_t:a / W_t:b through its decomposed transfer).
+  std::optional<PlaceMeasurement> neighbour;
+};
+
+namespace internal {
+double Median(std::vector<double> values);
+}  // namespace internal
+
+}  // namespace retrace

@@ -1,0 +1,265 @@
+// Bootstrap and relocalization (Segvic 2009 §3.3; design §6): the current frame is related to key-images by
+// wide-baseline matching (SIFT, ratio test, cross-check) and a verified relative pose, the arc chosen by which side
+// of the best key-image the camera is on (the sign test of eq. (9)), and the mapped features of that arc and its
+// neighbours located in the frame. Retrieval ranks candidate key-images by whole-image appearance first
+// (GlobalDescriptor) and verifies the most alike.
+
+#include <algorithm>
+
+#include <spdlog/spdlog.h>
+
+#include "retrace/geometry/relative_pose.h"
+#include "retrace/repeat/localizer_internal.h"
+
+namespace retrace {
+
+using internal::Median;
+
+namespace {
+
+Vector3d CameraCentre(const Rigid3d& cam_from_world) {
+  return -cam_from_world.rotation.transpose() * cam_from_world.translation;
+}
+
+}  // namespace
+
+std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBaselineFeatures& current,
+                                                                 const std::vector<node_t>& candidates) {
+  std::vector<MatchedKeyImage> verified;
+  for (const node_t node : candidates) {
+    const WideBaselineFeatures& key = NodeWideBaseline(node);
+    const std::vector<cv::DMatch> matches = MatchWideBaseline(key, current, options_.matching);
+    if (static_cast<int>(matches.size()) < options_.min_bootstrap_inliers) continue;
+    MatchedKeyImage candidate;
+    candidate.node = node;
+    std::vector<Vector3d> bearings_key, bearings_current;
+    std::vector<const cv::DMatch*> used;
+    for (const cv::DMatch& m : matches) {
+      const cv::KeyPoint& kk = key.keypoints[m.queryIdx];
+      const cv::KeyPoint& kc = current.keypoints[m.trainIdx];
+      Vector3d bk, bc;
+      if (!camera_->Unproject(Vector2d(kk.pt.x, kk.pt.y), &bk) || !camera_->Unproject(Vector2d(kc.pt.x, kc.pt.y), &bc)) {
+        continue;
+      }
+      bearings_key.push_back(bk);
+      bearings_current.push_back(bc);
+      used.push_back(&m);
+    }
+    candidate.geometry = EstimateRelativePose(bearings_key, bearings_current, camera_->FocalLength(), geometry_options_);
+    // A frame taken (almost) where the key-image was shows no parallax: the rotation-only fit still verifies it.
+    const bool verified_geometry = candidate.geometry.success ||
+                                   candidate.geometry.failure == TwoViewFailure::kInsufficientParallax;
+    if (!verified_geometry || candidate.geometry.num_inliers < options_.min_bootstrap_inliers) continue;
+    for (size_t i = 0; i < used.size(); ++i) {
+      if (!candidate.geometry.inlier_mask[i]) continue;
+      const cv::KeyPoint& kk = key.keypoints[used[i]->queryIdx];
+      const cv::KeyPoint& kc = current.keypoints[used[i]->trainIdx];
+      candidate.key_points.emplace_back(kk.pt.x, kk.pt.y);
+      candidate.current_points.emplace_back(kc.pt.x, kc.pt.y);
+      candidate.size_ratios.push_back(kk.size > 0 && kc.size > 0 ? kc.size / kk.size : 1.0);
+    }
+    verified.push_back(std::move(candidate));
+  }
+  return verified;
+}
+
+std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::Mat& image,
+                                                                    const WideBaselineFeatures& current,
+                                                                    const std::vector<node_t>& candidates,
+                                                                    std::vector<node_t>* tried) {
+  std::vector<node_t> ranked = candidates;
+  const size_t shortlist = static_cast<size_t>(options_.retrieval_shortlist);
+  if (shortlist > 0 && candidates.size() > shortlist) {
+    std::vector<GlobalDescriptor> database;
+    database.reserve(candidates.size());
+    for (const node_t id : candidates) {
+      NodeData& node = Node(id);
+      if (!node.appearance) node.appearance = ComputeGlobalDescriptor(node.node->image, options_.retrieval);
+      database.push_back(*node.appearance);
+    }
+    const std::vector<size_t> order =
+        RankByGlobalDescriptor(ComputeGlobalDescriptor(image, options_.retrieval), database, options_.retrieval);
+    for (size_t i = 0; i < order.size(); ++i) ranked[i] = candidates[order[i]];
+  }
+  const size_t first = shortlist > 0 ? std::min(shortlist, ranked.size()) : ranked.size();
+  std::vector<MatchedKeyImage> verified = MatchKeyImages(current, {ranked.begin(), ranked.begin() + first});
+  int best_inliers = 0;
+  for (const MatchedKeyImage& m : verified) best_inliers = std::max(best_inliers, m.geometry.num_inliers);
+  size_t matched = first;
+  if (best_inliers < options_.retrieval_confident_inliers && first < ranked.size()) {
+    // Not convincing (or nothing verified): the remaining candidates may hold the right key-image.
+    std::vector<MatchedKeyImage> rest = MatchKeyImages(current, {ranked.begin() + first, ranked.end()});
+    verified.insert(verified.end(), std::make_move_iterator(rest.begin()), std::make_move_iterator(rest.end()));
+    matched = ranked.size();
+  }
+  tried->insert(tried->end(), ranked.begin(), ranked.begin() + matched);
+  return verified;
+}
+
+std::vector<node_t> Localizer::NodesNear(arc_t arc_id, int arcs) const {
+  std::vector<node_t> nodes;
+  const auto add = [&nodes](node_t node) {
+    if (std::find(nodes.begin(), nodes.end(), node) == nodes.end()) nodes.push_back(node);
+  };
+  const ArcData* forward = Arc(arc_id);
+  const ArcData* backward = forward;
+  for (int k = 0; k <= arcs && (forward != nullptr || backward != nullptr); ++k) {
+    for (const ArcData* arc : {forward, backward}) {
+      if (arc == nullptr) continue;
+      add(arc->arc->from);
+      add(arc->arc->to);
+    }
+    forward = forward != nullptr ? Arc(forward->next) : nullptr;
+    backward = backward != nullptr ? Arc(backward->previous) : nullptr;
+  }
+  return nodes;
+}
+
+bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
+  const bool use_start_arc = start_arc_ != kInvalidArcId;
+  const arc_t last_arc = last_arc_;
+  ClearTracks();
+  arc_ = kInvalidArcId;
+
+  const WideBaselineFeatures current = ExtractWideBaselineFeatures(frame.image, options_.matching);
+  std::vector<MatchedKeyImage> verified;
+  std::vector<node_t> tried;
+  size_t candidate_count = 2;
+  if (use_start_arc) {
+    const MapArc* arc = Arc(start_arc_)->arc;
+    tried = {arc->from, arc->to};
+    verified = MatchKeyImages(current, tried);
+  } else {
+    // After a loss the robot is still near where it was lost: only the key-images within a window of arcs around
+    // the last arc are matched, widened with every frame since the loss; the whole map (retrieval) at the start
+    // and for a robot lost for long (carried elsewhere). Look-alike streets elsewhere in the map verify too: in the
+    // simulated town a frame 19 arcs from the truth matched a key-image with 42 inliers a frame after a loss.
+    const size_t frames_lost = frame_counter_ - lost_at_frame_;
+    std::vector<node_t> candidates;
+    if (last_arc != kInvalidArcId && frames_lost < static_cast<size_t>(options_.global_relocalization_frames)) {
+      candidates = NodesNear(last_arc, options_.relocalization_neighbourhood +
+                                           static_cast<int>(frames_lost) * options_.relocalization_widening);
+    } else {
+      for (const MapNode& node : map_.nodes()) candidates.push_back(node.id);
+    }
+    verified = RetrieveKeyImages(frame.image, current, candidates, &tried);
+    candidate_count = candidates.size();
+  }
+  result->key_images_matched = static_cast<int>(tried.size());
+  if (verified.empty()) return false;
+  const MatchedKeyImage* best = &*std::max_element(verified.begin(), verified.end(),
+                                                   [](const MatchedKeyImage& x, const MatchedKeyImage& y) {
+                                                     return x.geometry.num_inliers < y.geometry.num_inliers;
+                                                   });
+  const node_t best_node = best->node;
+  const int best_inliers = best->geometry.num_inliers;
+
+  // The arc: the given one, or the one on the side of the best key-image where the camera is (eq. (9)'s sign).
+  arc_t chosen = start_arc_;
+  if (!use_start_arc) {
+    const node_t k = best->node;
+    const MapArc* out = nullptr;
+    const MapArc* in = nullptr;
+    for (const auto& [id, data] : arcs_) {
+      if (data->arc->from == k && (out == nullptr || data->arc->id < out->id)) out = data->arc;
+      if (data->arc->to == k && (in == nullptr || data->arc->id < in->id)) in = data->arc;
+    }
+    if (out != nullptr && in != nullptr) {
+      // The camera is beyond k on the outgoing arc when it lies in front of the plane through k perpendicular
+      // to that arc's direction; W_t:k without parallax means "at k" (either arc is right).
+      bool beyond = true;
+      if (best->geometry.success) {
+        const Vector3d c_t = CameraCentre(best->geometry.b_from_a);  // in k's frame
+        const Vector3d c_next = CameraCentre(out->to_from_from);      // next key-image centre in k's frame
+        beyond = c_t.dot(c_next) >= 0.0;
+      }
+      chosen = beyond ? out->id : in->id;
+    } else {
+      chosen = out != nullptr ? out->id : (in != nullptr ? in->id : kInvalidArcId);
+    }
+  }
+  if (chosen == kInvalidArcId) return false;
+  const ArcData* arc = Arc(chosen);
+  best = nullptr;  // `verified` may grow below
+
+  // The features are located through the key-images of the arc and of its neighbours: verify those the retrieval
+  // did not try (with a start arc, its two key-images only).
+  std::vector<node_t> untried;
+  for (const ArcData* located : {arc, Arc(arc->previous), Arc(arc->next)}) {
+    if (located == nullptr || use_start_arc) continue;
+    for (const node_t node : {located->arc->from, located->arc->to}) {
+      if (std::find(tried.begin(), tried.end(), node) == tried.end() &&
+          std::find(untried.begin(), untried.end(), node) == untried.end()) {
+        untried.push_back(node);
+      }
+    }
+  }
+  result->key_images_matched = static_cast<int>(tried.size() + untried.size());
+  if (!untried.empty()) {
+    std::vector<MatchedKeyImage> more = MatchKeyImages(current, untried);
+    verified.insert(verified.end(), std::make_move_iterator(more.begin()), std::make_move_iterator(more.end()));
+  }
+
+  // Locate the mapped features of the arc and of its neighbours (all three are tracked from now on) in the frame:
+  // each feature seen in a matched key-image is predicted from the displacement of the nearest matched key-points
+  // there, then refined against the reference cut in that key-image.
+  const double neighbour_radius = options_.bootstrap_neighbour_radius_px * pixel_scale_;
+  RefinePredictionOptions refine = refine_options_;
+  refine.max_distance = options_.bootstrap_radius_px * pixel_scale_;
+  refine.max_scale_ratio = 1.5;
+  for (const MatchedKeyImage& candidate : verified) {
+    const NodeData& node = Node(candidate.node);
+    for (const ArcData* located : {arc, Arc(arc->previous), Arc(arc->next)}) {
+      if (located == nullptr || (candidate.node != located->arc->from && candidate.node != located->arc->to)) {
+        continue;
+      }
+      for (const auto& [id, point] : located->points) {
+        if (tracker_.Find(id) != nullptr) continue;
+        const auto position = node.positions.find(id);
+        if (position == node.positions.end()) continue;
+        // The matched key-points within the radius (at least 2), else (distant structure, where SIFT finds little)
+        // within twice the radius (at least 3) or three times (at least 4).
+        std::vector<double> dx, dy, ratios;
+        bool enough = false;
+        for (int widening = 1; widening <= 3 && !enough; ++widening) {
+          dx.clear();
+          dy.clear();
+          ratios.clear();
+          for (size_t i = 0; i < candidate.key_points.size(); ++i) {
+            if ((candidate.key_points[i] - position->second).norm() > widening * neighbour_radius) continue;
+            const Vector2d d = candidate.current_points[i] - candidate.key_points[i];
+            dx.push_back(d.x());
+            dy.push_back(d.y());
+            ratios.push_back(candidate.size_ratios[i]);
+          }
+          enough = static_cast<int>(dx.size()) >= widening + 1;
+        }
+        if (!enough) continue;
+        const Vector2d predicted = position->second + Vector2d(Median(dx), Median(dy));
+        if (!camera_->InImage(predicted, tracker_.Options().alignment.window_size / 2 + 2)) continue;
+        const ReferencePatch* reference = Reference(candidate.node, id);
+        if (reference == nullptr) continue;
+        const AlignmentResult refined = RefinePrediction(prediction_pyramid_, *reference, predicted, Median(ratios), refine);
+        if (refined.ok() && tracker_.AddFeature(*reference, refined, id) != kInvalidFeatureId) {
+          reference_node_[id] = candidate.node;
+          ++result->resumed;
+        }
+      }
+    }
+  }
+  if (tracker_.NumFeatures() < options_.min_bootstrap_features) {
+    spdlog::debug("repeat: bootstrap at frame {} failed: {} features located around arc {} (key-image {}, {} inliers)",
+                  frame.index, tracker_.NumFeatures(), chosen, best_node, best_inliers);
+    ClearTracks();
+    return false;
+  }
+  arc_ = chosen;
+  start_arc_ = kInvalidArcId;  // the start arc serves the first bootstrap only
+  // The key-image is a measurement of the belief (placement.h), picked among the candidates.
+  bootstrap_key_image_ = BootstrapKeyImage{chosen, best_node, static_cast<int>(candidate_count)};
+  spdlog::debug("repeat: frame {} localized on arc {} by matching key-image {} ({} inliers), {} features",
+                frame.index, arc_, best_node, best_inliers, tracker_.NumFeatures());
+  return true;
+}
+
+}  // namespace retrace
