@@ -14,39 +14,53 @@ namespace retrace {
 std::vector<arc_t> RouteArcs(const Map& map) {
   std::vector<arc_t> route;
   if (map.arcs().empty()) return route;
-  node_t start = map.arcs().front().from;
+  // The pieces start at the nodes with an outgoing (non-loop) arc and no incoming one, in teach order.
+  std::vector<const MapNode*> starts;
   for (const MapNode& node : map.nodes()) {
-    bool has_incoming = false;
+    bool has_incoming = false, has_outgoing = false;
     for (const MapArc* arc : map.ArcsTo(node.id)) has_incoming |= arc->kind != "loop";
-    if (!has_incoming && !map.ArcsFrom(node.id).empty()) {
-      start = node.id;
-      break;
-    }
+    for (const MapArc* arc : map.ArcsFrom(node.id)) has_outgoing |= arc->kind != "loop";
+    if (!has_incoming && has_outgoing) starts.push_back(&node);
   }
+  std::stable_sort(starts.begin(), starts.end(),
+                   [](const MapNode* a, const MapNode* b) { return a->source_frame < b->source_frame; });
+  if (starts.empty()) starts.push_back(map.FindNode(map.arcs().front().from));
   std::set<arc_t> used;
-  std::set<node_t> visited = {start};
-  node_t node = start;
-  while (true) {
-    const MapArc* next = nullptr;
-    for (const MapArc* arc : map.ArcsFrom(node)) {
-      if (arc->kind != "loop" && !used.count(arc->id)) {
-        next = arc;
-        break;
-      }
-    }
-    if (next == nullptr) break;
-    used.insert(next->id);
-    route.push_back(next->id);
-    node = next->to;
+  std::set<node_t> visited;
+  for (const MapNode* start : starts) {
+    // A piece: from its start, each node's first unused outgoing arc that is not a loop-closing one.
+    node_t node = start->id;
     visited.insert(node);
+    while (true) {
+      const MapArc* next = nullptr;
+      for (const MapArc* arc : map.ArcsFrom(node)) {
+        if (arc->kind != "loop" && !used.count(arc->id)) {
+          next = arc;
+          break;
+        }
+      }
+      if (next == nullptr) break;
+      used.insert(next->id);
+      route.push_back(next->id);
+      node = next->to;
+      visited.insert(node);
+    }
   }
-  // A circular route: the loop-closing arc from the last node back to a node already on the route, once.
-  for (const MapArc* arc : map.ArcsFrom(node)) {
-    if (arc->kind == "loop" && arc->to != node && visited.count(arc->to)) {
-      route.push_back(arc->id);
+  if (route.empty()) return route;
+  // A circular route: the loop-closing arc from the last node of the route (or else from a key-image the teach drive
+  // made after it, reached over a stretch without arcs) back to a node on the route, once.
+  const node_t last = map.FindArc(route.back())->to;
+  const int64_t last_frame = map.FindNode(last)->source_frame;
+  const MapArc* loop = nullptr;
+  for (const MapArc& arc : map.arcs()) {
+    if (arc.kind != "loop" || arc.to == arc.from || !visited.count(arc.to)) continue;
+    if (arc.from == last) {
+      loop = &arc;
       break;
     }
+    if (loop == nullptr && !visited.count(arc.from) && map.FindNode(arc.from)->source_frame > last_frame) loop = &arc;
   }
+  if (loop != nullptr) route.push_back(loop->id);
   return route;
 }
 
@@ -63,13 +77,34 @@ double RawProjection(const Vector3d& a, const Vector3d& b, const Vector3d& p) {
   return d.squaredNorm() > 0 ? (p - a).dot(d) / d.squaredNorm() : 0.0;
 }
 
-// One record against one route arc: where its true position projects and whether the camera looks the arc's way.
+// A straight part of the route from one key-image to the next in driving order: a route arc, or a part of a stretch
+// between two pieces of a disconnected route (no arc).
+struct Element {
+  Vector3d from, to;    // true key-image positions
+  double length = 0.0;  // |to - from|
+  double extent = 0.0;  // arc length along the route (the loop-closing arc: a signed gap)
+  int arc = -1;         // index into RouteArcs; -1 in a stretch between pieces
+  int step = 0;         // place along the route, counting arcs and stretches between pieces one each
+};
+
+// One record against one element: where its true position projects and whether the camera looks the element's way.
 struct Placement {
   double u = 0.0;         // clamped projection parameter
   double distance = 0.0;  // to the clamped projection
-  double along = 0.0;     // arc length along the route from the arc's start to the clamped projection
+  double along = 0.0;     // arc length along the route from the element's start to the clamped projection
   bool heading_ok = true;
 };
+
+// Whether `p` is abeam the node between `before` and `after` (consecutive arcs along the drive) within `fraction` of
+// the shorter one's length: its offset from the node along the route's direction there (the mean of the two arcs'
+// unit directions), and on the node's half of both arcs (in a hairpin that direction crosses both arcs).
+bool AbeamOfNode(const Element& before, const Element& after, const Vector3d& p, double fraction) {
+  if (before.length <= 0 || after.length <= 0) return false;
+  const Vector3d direction = (before.to - before.from) / before.length + (after.to - after.from) / after.length;
+  if (direction.norm() < 1e-6) return false;
+  return std::abs((p - after.from).dot(direction.normalized())) < fraction * std::min(before.length, after.length) &&
+         RawProjection(before.from, before.to, p) > 0.5 && RawProjection(after.from, after.to, p) < 0.5;
+}
 
 }  // namespace
 
@@ -88,46 +123,86 @@ TopologicalEvaluation EvaluateTopological(const Map& map, const std::vector<Time
   };
   const auto key_position = [&](node_t id) { return pose_in(key_truth, map.FindNode(id)->source_frame).translation; };
 
-  // Route arc k runs from key-image position from[k] to to[k], over `extent[k]` of arc length along the route.
+  // The route's elements in driving order: its arcs, and between two pieces the polyline through the key-images the
+  // teach drive made from the end of the one to the start of the other (in source_frame order).
   const int n = static_cast<int>(route.size());
-  std::vector<Vector3d> from(n), to(n);
-  std::vector<double> length(n), extent(n);
+  std::vector<Element> elements;
+  std::vector<int> element_of_arc(n);
+  int steps = 0;
+  const auto add = [&](const Vector3d& a, const Vector3d& b, int arc, int step) {
+    Element element;
+    element.from = a;
+    element.to = b;
+    element.length = element.extent = (b - a).norm();
+    element.arc = arc;
+    element.step = step;
+    elements.push_back(element);
+  };
   for (int k = 0; k < n; ++k) {
     const MapArc* arc = map.FindArc(route[k]);
-    from[k] = key_position(arc->from);
-    to[k] = key_position(arc->to);
-    length[k] = extent[k] = (to[k] - from[k]).norm();
+    const node_t end = k > 0 ? map.FindArc(route[k - 1])->to : arc->from;
+    if (end != arc->from) {
+      const int64_t left = map.FindNode(end)->source_frame, reached = map.FindNode(arc->from)->source_frame;
+      std::vector<const MapNode*> passed;
+      for (const MapNode& node : map.nodes()) {
+        if (node.source_frame > left && node.source_frame < reached) passed.push_back(&node);
+      }
+      std::stable_sort(passed.begin(), passed.end(),
+                       [](const MapNode* a, const MapNode* b) { return a->source_frame < b->source_frame; });
+      Vector3d a = key_position(end);
+      for (const MapNode* node : passed) {
+        const Vector3d b = pose_in(key_truth, node->source_frame).translation;
+        add(a, b, -1, steps);
+        a = b;
+      }
+      add(a, key_position(arc->from), -1, steps++);
+    }
+    element_of_arc[k] = static_cast<int>(elements.size());
+    add(key_position(arc->from), key_position(arc->to), k, steps++);
   }
-  // A circular route: the last arc closes the loop from the last key-image L onto the key-image c where arc
-  // `cycle_first` starts, and the drive goes on with that arc. L and c are about the same place, c a little ahead or
-  // behind: the loop arc's extent is the signed gap from L to c along the direction of travel into L. When c is behind
-  // L, the laps after the first enter arc c where L is (from `cycle_entry` of its length on): a frame that has not
-  // passed L is still on the arc into L.
+  const int m = static_cast<int>(elements.size());
+  // The arcs on either side of each stretch between pieces (of an arc: itself).
+  std::vector<int> arc_before(m), arc_after(m);
+  for (int e = 0; e < m; ++e) {
+    arc_before[e] = elements[e].arc >= 0 || e == 0 ? elements[e].arc : arc_before[e - 1];
+  }
+  for (int e = m - 1; e >= 0; --e) {
+    arc_after[e] = elements[e].arc >= 0 || e == m - 1 ? elements[e].arc : arc_after[e + 1];
+  }
+
+  // A circular route: the last arc closes the loop from the last key-image L onto the key-image c where the arc in
+  // element `cycle_first` starts, and the drive goes on with that arc. L and c are about the same place, c a little
+  // ahead or behind: the loop arc's extent is the signed gap from L to c along the direction of travel into L. When c
+  // is behind L, the laps after the first enter arc c where L is (from `cycle_entry` of its length on): a frame that
+  // has not passed L is still on the arc into L.
   int cycle_first = -1;
   double cycle_entry = 0.0;
   if (n >= 2 && map.FindArc(route.back())->kind == "loop") {
     const MapArc* loop = map.FindArc(route.back());
     for (int k = 0; k + 1 < n && cycle_first < 0; ++k) {
-      if (map.FindArc(route[k])->from == loop->to) cycle_first = k;
+      if (map.FindArc(route[k])->from == loop->to) cycle_first = element_of_arc[k];
     }
     if (cycle_first >= 0) {
-      const Vector3d into = length[n - 2] > 0
-                                ? Vector3d(to[n - 2] - from[n - 2])
-                                : pose_in(key_truth, map.FindNode(loop->from)->source_frame).rotation.col(2);
-      extent[n - 1] = (to[n - 1] - from[n - 1]).dot(into.normalized());
-      if (extent[n - 1] < 0 && length[cycle_first] > 0) {
-        cycle_entry = std::min(1.0, -extent[n - 1] / length[cycle_first]);
+      Element& closing = elements.back();
+      const Element& into = elements[m - 2];
+      const Vector3d direction = into.length > 0
+                                     ? Vector3d(into.to - into.from)
+                                     : pose_in(key_truth, map.FindNode(loop->from)->source_frame).rotation.col(2);
+      closing.extent = (closing.to - closing.from).dot(direction.normalized());
+      if (closing.extent < 0 && elements[cycle_first].length > 0) {
+        cycle_entry = std::min(1.0, -closing.extent / elements[cycle_first].length);
       }
     }
   }
-  const auto successor = [&](int k) { return k + 1 < n ? k + 1 : cycle_first; };
-  // Arcs between two route arcs along the drive, in either direction: around the cycle of a circular route.
-  const auto arcs_apart = [&](int a, int b) {
+  const auto successor = [&](int e) { return e + 1 < m ? e + 1 : cycle_first; };
+  // Steps between two places along the drive, in either direction: around the cycle of a circular route.
+  const auto steps_apart = [&](int a, int b) {
     if (a > b) std::swap(a, b);
-    if (cycle_first < 0 || b < cycle_first) return b - a;
-    const int cycle = n - cycle_first;
-    const int lead_in = std::max(0, cycle_first - a);
-    const int around = b - std::max(a, cycle_first);
+    const int first = cycle_first >= 0 ? elements[cycle_first].step : steps;
+    if (b < first) return b - a;
+    const int cycle = steps - first;
+    const int lead_in = std::max(0, first - a);
+    const int around = b - std::max(a, first);
     return lead_in + std::min(around, cycle - around);
   };
 
@@ -142,51 +217,52 @@ TopologicalEvaluation EvaluateTopological(const Map& map, const std::vector<Time
     if (t > 0) travelled += (position[t] - position[t - 1]).norm();
   }
 
-  // The route unrolled in driving order: segment j is route arc arc_of[j], starts at arc length start[j] and is
+  // The route unrolled in driving order: segment j is element element_of[j], starts at arc length start[j] and is
   // entered at entry[j] of its length (0 but where a lap enters the cycle behind the loop-closing key-image). A
-  // circular route gets as many more laps (c .. n-1, loop) as the drive can advance, and one more.
-  std::vector<int> arc_of;
+  // circular route gets as many more laps (c .. loop) as the drive can advance, and one more.
+  std::vector<int> element_of;
   std::vector<double> start, entry;
   double along_route = 0.0;
-  const auto append = [&](int k, double entered) {
-    arc_of.push_back(k);
+  const auto append = [&](int e, double entered) {
+    element_of.push_back(e);
     start.push_back(along_route);
     entry.push_back(entered);
-    along_route += extent[k];
+    along_route += elements[e].extent;
   };
-  for (int k = 0; k < n; ++k) append(k, 0.0);
+  for (int e = 0; e < m; ++e) append(e, 0.0);
   if (cycle_first >= 0) {
     double cycle = 0.0;
-    for (int k = cycle_first; k < n; ++k) cycle += extent[k];
+    for (int e = cycle_first; e < m; ++e) cycle += elements[e].extent;
     const double reach = (1.0 + options.speed_tolerance) * travelled + num_records * options.order_slack;
     const double laps = cycle > 0 ? std::min(std::ceil(reach / cycle) + 1.0, num_records + 1.0) : 1.0;
     for (int lap = 0; lap < static_cast<int>(laps); ++lap) {
-      for (int k = cycle_first; k < n; ++k) append(k, k == cycle_first ? cycle_entry : 0.0);
+      for (int e = cycle_first; e < m; ++e) append(e, e == cycle_first ? cycle_entry : 0.0);
     }
   }
-  const int num_segments = static_cast<int>(arc_of.size());
+  const int num_segments = static_cast<int>(element_of.size());
 
-  // Each record against each route arc as driven from `entered` of its length on (the laps share the geometry): the
-  // projection clamped to that part, its distance, its arc length along the route from the arc's start, and whether
-  // the camera looks the arc's way.
+  // Each record against each element as driven from `entered` of its length on (the laps share the geometry): the
+  // projection clamped to that part, its distance, its arc length along the route from the element's start, and
+  // whether the camera looks the element's way.
   const double min_cos = std::cos(options.max_heading_difference_deg * M_PI / 180.0);
-  const auto place = [&](size_t t, int k, double entered) {
+  const auto place = [&](size_t t, int e, double entered) {
+    const Element& el = elements[e];
     Placement pl;
-    pl.u = std::clamp(RawProjection(from[k], to[k], position[t]), entered, 1.0);
-    pl.distance = (from[k] + pl.u * (to[k] - from[k]) - position[t]).norm();
-    pl.along = pl.u * extent[k];
-    pl.heading_ok = length[k] <= 0 || axis[t].dot(to[k] - from[k]) > min_cos * length[k];
+    pl.u = std::clamp(RawProjection(el.from, el.to, position[t]), entered, 1.0);
+    pl.distance = (el.from + pl.u * (el.to - el.from) - position[t]).norm();
+    pl.along = pl.u * el.extent;
+    pl.heading_ok = el.length <= 0 || axis[t].dot(el.to - el.from) > min_cos * el.length;
     return pl;
   };
-  // placements[j] for the first n segments; the laps' segments share them, but for the cycle's entry.
+  // placements[e] for the m elements; the laps' segments share them, but for the cycle's entry.
   const auto place_all = [&](size_t t) {
-    std::vector<Placement> placements(n + 1);
-    for (int k = 0; k < n; ++k) placements[k] = place(t, k, 0.0);
-    if (cycle_first >= 0) placements[n] = place(t, cycle_first, cycle_entry);
+    std::vector<Placement> placements(m + 1);
+    for (int e = 0; e < m; ++e) placements[e] = place(t, e, 0.0);
+    if (cycle_first >= 0) placements[m] = place(t, cycle_first, cycle_entry);
     return placements;
   };
   const auto placement_of = [&](const std::vector<Placement>& placements, int j) -> const Placement& {
-    return j >= n && entry[j] > 0 ? placements[n] : placements[arc_of[j]];
+    return j >= m && entry[j] > 0 ? placements[m] : placements[element_of[j]];
   };
   const auto emission = [&](const Placement& pl) {
     return pl.distance + (pl.heading_ok ? 0.0 : options.violation_cost);
@@ -200,7 +276,7 @@ TopologicalEvaluation EvaluateTopological(const Map& map, const std::vector<Time
   std::vector<Placement> placements;
   if (num_records > 0) {
     placements = place_all(0);
-    for (int j = 0; j < n; ++j) cost[j] = emission(placement_of(placements, j));
+    for (int j = 0; j < m; ++j) cost[j] = emission(placement_of(placements, j));
   }
   for (size_t t = 1; t < num_records; ++t) {
     const std::vector<Placement> last = std::move(placements);
@@ -239,25 +315,40 @@ TopologicalEvaluation EvaluateTopological(const Map& map, const std::vector<Time
   }
 
   TopologicalEvaluation evaluation;
+  const double near = options.near_node_fraction;
   for (size_t t = 0; t < num_records; ++t) {
     const RepeatRecord& record = records[t];
     const Vector3d& p = position[t];
     const int j = labels[t];
-    const int k = arc_of[j];
+    const int e = element_of[j];
+    const Element& el = elements[e];
     FrameTruth frame;
-    frame.true_arc_index = k;
-    // Near a node the arc across it along the drive is tolerated: the one driven before, or the one after (on the
-    // part of the arc driven, when a lap enters it behind the loop-closing key-image).
-    const double u = entry[j] < 1 ? (RawProjection(from[k], to[k], p) - entry[j]) / (1.0 - entry[j]) : 0.0;
-    if (u < options.near_node_fraction && j > 0) frame.tolerated_arc_index = arc_of[j - 1];
-    if (u > 1.0 - options.near_node_fraction && successor(k) >= 0) frame.tolerated_arc_index = successor(k);
+    frame.true_arc_index = el.arc;
+    if (el.arc < 0) {
+      // Between two pieces: no true arc; the arcs the map offers on either side of the stretch are tolerated.
+      frame.tolerated_arc_index = arc_before[e];
+      frame.tolerated_after_arc_index = arc_after[e];
+    } else {
+      // Near a node the arc across it along the drive is tolerated, the one driven before or the one after (not
+      // across a stretch between pieces): near by the raw projection on this arc (on the part of it driven, when a
+      // lap enters it behind the loop-closing key-image), or abeam the node.
+      const int before = j > 0 ? element_of[j - 1] : -1;
+      const int after = successor(e);
+      const double u = entry[j] < 1 ? (RawProjection(el.from, el.to, p) - entry[j]) / (1.0 - entry[j]) : 0.0;
+      if (before >= 0 && elements[before].arc >= 0 &&
+          (u < near || (entry[j] == 0 && AbeamOfNode(elements[before], el, p, near)))) {
+        frame.tolerated_arc_index = elements[before].arc;
+      }
+      if (after >= 0 && elements[after].arc >= 0 && (u > 1.0 - near || AbeamOfNode(el, elements[after], p, near))) {
+        frame.tolerated_arc_index = elements[after].arc;
+      }
+    }
     if (record.localized) {
       const auto it = std::find(route.begin(), route.end(), record.arc);
       if (it != route.end()) {
         frame.estimated_arc_index = static_cast<int>(it - route.begin());
-        if (length[frame.estimated_arc_index] > 0) {
-          frame.true_position_on_arc = RawProjection(from[frame.estimated_arc_index], to[frame.estimated_arc_index], p);
-        }
+        const Element& estimated = elements[element_of_arc[frame.estimated_arc_index]];
+        if (estimated.length > 0) frame.true_position_on_arc = RawProjection(estimated.from, estimated.to, p);
       }
     }
     ++evaluation.frames;
@@ -265,9 +356,10 @@ TopologicalEvaluation EvaluateTopological(const Map& map, const std::vector<Time
       frame.lost = true;
       ++evaluation.lost;
     } else {
-      frame.correct = frame.estimated_arc_index == frame.true_arc_index ||
-                      (frame.tolerated_arc_index >= 0 && frame.estimated_arc_index == frame.tolerated_arc_index);
-      frame.error = frame.estimated_arc_index < 0 ? n : arcs_apart(frame.estimated_arc_index, k);
+      const int estimated = frame.estimated_arc_index;
+      frame.correct = estimated >= 0 && (estimated == frame.true_arc_index || estimated == frame.tolerated_arc_index ||
+                                         estimated == frame.tolerated_after_arc_index);
+      frame.error = estimated < 0 ? steps : steps_apart(elements[element_of_arc[estimated]].step, el.step);
       if (frame.correct) {
         ++evaluation.correct;
       } else {

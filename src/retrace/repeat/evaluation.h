@@ -5,9 +5,18 @@
 // The key-images have true camera positions (their teach frames' ground-truth poses); the route's arcs, in driving
 // order (RouteArcs), are the segments of the polyline through them. The true arc of a repeat frame is the one
 // between the last key-image it passed and the next one (before the first key-image: the first arc; after the last
-// one of a linear route: the last arc). The segment nearest to the frame's true position is not always that arc:
-// a route may cross or retrace itself, and a frame driving a little to the side of the taught path can then be
-// nearer to a part of the route driven at another time, many arcs away:
+// one of a linear route: the last arc).
+//
+// A map that teach left disconnected (a gap it could not verify: no arc between two key-images) has several pieces;
+// the route takes them all, in the order the teach drive made them. Between two pieces the polyline goes on through
+// the key-images the teach drive made there (in source_frame order; no arc of the route touches them): a stretch
+// with no arc. A frame in such a stretch has no true arc (true_arc_index -1); the nearest arcs the map offers are
+// tolerated, the one ending at the last key-image of the route it passed (the end of the piece before) and the one
+// starting at the next (the start of the piece after); a frame reported on any other arc is wrong.
+//
+// The segment nearest to the frame's true position is not always its true arc: a route may cross or retrace itself,
+// and a frame driving a little to the side of the taught path can then be nearer to a part of the route driven at
+// another time, many arcs away:
 //
 //      pass 2  \   /  pass 1         figure-8 crossing: near X a frame of pass 1 can be nearer to a segment of
 //               \ /                  pass 2 (and the other way round) although the two passes cross at an acute
@@ -40,17 +49,31 @@
 // Where the nearest segments obey both rules (a route that neither crosses nor retraces itself, a repeat close to it)
 // they are the labels, as with the former nearest-segment rule.
 //
-// A circular route (RouteArcs ends with the teacher's loop-closing arc from the last key-image L back to an early
-// one, c) is unrolled for as many laps as the repeat can drive: arcs 0 .. n-1, loop, c .. n-1, loop, c ... A frame
-// past L is on the loop arc and then on the arcs after c again, never on the first lap's arcs at the same place. L
-// and c are about the same place: the loop arc spans the signed gap from L to c along the direction of travel into
-// L, and when c is behind L the later laps enter arc c where L is (a frame that has not passed L is on the arc into
-// L, one that has is on arc c).
+// The labels are segments of the polyline: arcs, and the parts of the stretches between pieces. A circular route
+// (RouteArcs ends with the teacher's loop-closing arc from the last key-image L back to an early one, c) is unrolled
+// for as many laps as the repeat can drive: arcs 0 .. n-1, loop, c .. n-1, loop, c ... A frame past L is on the loop
+// arc and then on the arcs after c again, never on the first lap's arcs at the same place. L and c are about the same
+// place: the loop arc spans the signed gap from L to c along the direction of travel into L, and when c is behind L
+// the later laps enter arc c where L is (a frame that has not passed L is on the arc into L, one that has is on arc
+// c).
 //
-// A frame is correct when the estimated arc equals the true one; near a node (raw projection within
-// `near_node_fraction` of the arc's length from one of its ends) the arc on the other side of that node along the
-// drive is tolerated too (±1 near a node). The error counts arcs along the drive, either way (around the cycle on a
-// circular route). Frames without an arc (lost / relocalizing) are counted as lost, never as correct.
+// A frame is correct when the estimated arc equals the true one; near a node N the arc on the other side of N along
+// the drive is tolerated too (±1 near a node; never across a stretch between pieces). With f = `near_node_fraction`,
+// a frame on arc k is near N, one of k's key-images, when
+//  - its raw projection on arc k is within f of k's length from N, or
+//  - it is abeam N: its true position p is less than f times the length of the shorter of the two arcs meeting at N
+//    from N along the route's direction there, |(p - N) . t| with t the mean of the two arcs' unit directions, and
+//    it projects onto N's half of both arcs (in a hairpin t crosses both arcs, and a frame halfway along one of them
+//    is not near N). On a straight route this is the projection rule on the shorter arc. In a turn a repeat driven
+//    beside the taught path passes N away from its projections on the arcs: 1 m inside a turn of 22 degrees
+//    (validation speed15, frame 66) the labelling puts a frame abeam node 11 on arc 11 at 0.18 of it, and arc 10 was
+//    not tolerated. Not the plain distance |p - N|: it includes the lateral offset, and with key-images 2-4 m apart
+//    a camera 1 m beside the path is 0.3-0.65 arc lengths from every node (that frame: 0.95 m from node 11, 0.29 and
+//    0.47 of the two arcs' lengths; abeam 0.16 m, 0.08 of the shorter).
+// The error counts steps along the drive between the estimated arc and the true one, either way (around the cycle on
+// a circular route): one per arc and one per stretch between pieces (in a stretch, an arc beside it is 1 off; on the
+// first arc of a piece, the last arc of the piece before is 2 off). Frames without an arc (lost / relocalizing) are
+// counted as lost, never as correct.
 
 #include <limits>
 #include <string>
@@ -61,13 +84,17 @@
 
 namespace retrace {
 
-// The arcs of a route in driving order: from the node without an incoming (non-loop) arc, each node's first unused
-// outgoing arc that is not a loop-closing one. A circular route (the teacher's loop-closing arc, kind "loop", from
-// the last node back to a node of the route) ends with that arc, once. Empty when the map has no arcs.
+// The arcs of a route in driving order, piece after piece: from each node with an outgoing (non-loop) arc and no
+// incoming one, in teach order (MapNode::source_frame), each node's first unused outgoing arc that is not a
+// loop-closing one. Where an arc does not start at the node the one before it ended at, the route goes on after a
+// stretch without arcs (a disconnected map). A circular route (the teacher's loop-closing arc, kind "loop", from the
+// last node back to a node of the route, or else from a key-image teach made after the last node) ends with that
+// arc, once. Empty when the map has no arcs.
 std::vector<arc_t> RouteArcs(const Map& map);
 
 struct TopologicalTruthOptions {
-  // Near a node the neighbouring arc across that node is tolerated: within this fraction of the arc length.
+  // Near a node the neighbouring arc across that node is tolerated: within this fraction of the arc length (of the
+  // true arc by the projection on it; of the shorter of the two arcs abeam the node).
   double near_node_fraction = 0.15;
   // Heading: a segment is a candidate only when the camera's optical axis is less than this from its direction.
   double max_heading_difference_deg = 90.0;
@@ -93,12 +120,15 @@ struct RepeatRecord {
 };
 
 struct FrameTruth {
-  int true_arc_index = -1;       // index into RouteArcs
+  int true_arc_index = -1;       // index into RouteArcs; -1 in a stretch between two pieces of the route
   int estimated_arc_index = -1;  // -1 when lost or the arc is not on the route
-  int tolerated_arc_index = -1;  // the other arc tolerated near a node, -1 when none
+  int tolerated_arc_index = -1;  // the other arc tolerated near a node (in a stretch: the arc before it), -1 if none
+  int tolerated_after_arc_index = -1;  // in a stretch between two pieces: the arc after it, else -1
   bool correct = false;
   bool lost = false;
-  int error = 0;  // arcs along the drive between estimated and true (0 when lost; the route's size when off it)
+  // Steps along the drive between estimated and true (arcs, and stretches between pieces); 0 when lost, the route's
+  // number of steps when the arc is off the route.
+  int error = 0;
   // The true camera centre projected on the estimated arc (0 at its first key-image, 1 at its second; the repeat's
   // position_on_arc measured against the truth); NaN when lost.
   double true_position_on_arc = std::numeric_limits<double>::quiet_NaN();

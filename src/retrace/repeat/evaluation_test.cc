@@ -4,6 +4,7 @@
 #include <cmath>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -53,6 +54,53 @@ TEST(RouteArcs, FollowsTheChain) {
   EXPECT_EQ(RouteArcs(route.map), (std::vector<arc_t>{10, 11, 12}));
 }
 
+// A map teach left disconnected: key-images 0 .. 7 (frames 0, 10, ..., 70), arcs 0 -> 1 -> 2 and 4 -> 5 -> 6, none
+// at key-image 3 (teach could not verify the arcs around it) or 7. The later piece's arcs come first in the map (the
+// teacher adds an arc over a gap only once confirmed) and the first arc of a piece need not have the lowest id.
+struct TwoPieceRoute {
+  Map map;
+  std::vector<TimedPose> truth;  // frame i at x = i, the camera looking along x
+  TwoPieceRoute() {
+    for (int i = 0; i <= 80; ++i) {
+      TimedPose pose;
+      pose.timestamp = i;
+      pose.world_from_cam.rotation = LookingAlong(Vector3d::UnitX());
+      pose.world_from_cam.translation = Vector3d(i, 0.3 * (i % 2), 0);
+      truth.push_back(pose);
+    }
+    for (int k = 0; k < 8; ++k) {
+      MapNode node;
+      node.id = k;
+      node.source_frame = 10 * k;
+      map.AddNode(node);
+    }
+    for (const auto& [id, from] : std::vector<std::pair<arc_t, node_t>>{{21, 5}, {22, 4}, {10, 0}, {11, 1}}) {
+      MapArc arc;
+      arc.id = id;
+      arc.from = from;
+      arc.to = from + 1;
+      arc.kind = id == 22 ? "gap" : "tracking";
+      map.AddArc(arc);
+    }
+  }
+};
+
+TEST(RouteArcs, TakesThePiecesInTeachOrder) {
+  TwoPieceRoute route;
+  EXPECT_EQ(RouteArcs(route.map), (std::vector<arc_t>{10, 11, 22, 21}));
+  // Closed onto key-image 1 from the last node of the route, 6, or from key-image 7 after it.
+  for (const node_t last : {6, 7}) {
+    TwoPieceRoute circular;
+    MapArc loop;
+    loop.id = 30;
+    loop.from = last;
+    loop.to = 1;
+    loop.kind = "loop";
+    circular.map.AddArc(loop);
+    EXPECT_EQ(RouteArcs(circular.map), (std::vector<arc_t>{10, 11, 22, 21, 30})) << "loop from key-image " << last;
+  }
+}
+
 // The probes go back and forth along the route; the camera, looking along +x, drives them forward and reversing.
 TEST(EvaluateTopological, CountsCorrectToleratedWrongAndLost) {
   const StraightRoute route;
@@ -87,6 +135,48 @@ TEST(EvaluateTopological, CountsCorrectToleratedWrongAndLost) {
   EXPECT_NEAR(e.per_frame[1].true_position_on_arc, 1.5, 1e-12);
   EXPECT_NEAR(e.per_frame[2].true_position_on_arc, -1.5, 1e-12);
   EXPECT_TRUE(std::isnan(e.per_frame[6].true_position_on_arc));
+}
+
+// Between the two pieces (x = 20 .. 40, through key-image 3 at x = 30) the true arc is none; the arcs on either side
+// (route indices 1 and 2) are tolerated, any other is wrong; steps along the route count the stretch as one.
+TEST(EvaluateTopological, StretchBetweenPiecesHasNoArc) {
+  const TwoPieceRoute route;
+  const std::vector<RepeatRecord> records = {
+      {15, true, 11},              // on the first piece: correct
+      {25, true, 11},              // in the stretch, on the arc before it: tolerated
+      {35, true, 22},              // in the stretch, on the arc after it: tolerated
+      {33, true, 10},              // in the stretch, two steps away: wrong
+      {37, true, 21},              // in the stretch, two steps the other way: wrong
+      {30, false, kInvalidArcId},  // lost
+      {45, true, 22},              // on the second piece: correct (was: the first piece's last arc, wrong)
+      {55, true, 21},              // correct
+      {41, true, 11},              // near key-image 4 but across the stretch: wrong
+      {19, true, 22},              // near key-image 2, across the stretch: wrong
+      {55, true, 10},              // four steps away (arc 10, 11, the stretch, 22, 21)
+  };
+  const TopologicalEvaluation e = EvaluateTopological(route.map, route.truth, route.truth, records);
+  ASSERT_EQ(e.frames, 11);
+  EXPECT_EQ(e.correct, 5);
+  EXPECT_EQ(e.lost, 1);
+  EXPECT_EQ(e.wrong, 5);
+  EXPECT_EQ(e.wrong_by_two, 5);
+  const std::vector<int> true_arc = {1, -1, -1, -1, -1, -1, 2, 3, 2, 1, 3};
+  const std::vector<bool> correct = {true, true, true, false, false, false, true, true, false, false, false};
+  const std::vector<int> error = {0, 1, 1, 2, 2, 0, 0, 0, 2, 2, 4};
+  for (size_t i = 0; i < e.per_frame.size(); ++i) {
+    EXPECT_EQ(e.per_frame[i].true_arc_index, true_arc[i]) << "record " << i;
+    EXPECT_EQ(e.per_frame[i].correct, correct[i]) << "record " << i;
+    EXPECT_EQ(e.per_frame[i].error, error[i]) << "record " << i;
+  }
+  EXPECT_EQ(e.per_frame[1].tolerated_arc_index, 1);
+  EXPECT_EQ(e.per_frame[1].tolerated_after_arc_index, 2);
+  EXPECT_TRUE(e.per_frame[5].lost);
+  EXPECT_EQ(e.per_frame[8].tolerated_arc_index, -1);
+  EXPECT_EQ(e.per_frame[9].tolerated_arc_index, -1);
+  // A frame reported on an arc that is not on the route is off by the whole route: four arcs and the stretch.
+  const TopologicalEvaluation off = EvaluateTopological(route.map, route.truth, route.truth, {{25, true, 99}});
+  EXPECT_FALSE(off.per_frame[0].correct);
+  EXPECT_EQ(off.per_frame[0].error, 5);
 }
 
 TEST(EvaluateTopological, MissingPoseIsAnError) {
@@ -310,6 +400,143 @@ TEST(EvaluateTopological, CircularRouteGoesOnOverTheLoopArc) {
   EXPECT_EQ(p.per_frame[3].true_arc_index, 1);
   EXPECT_FALSE(p.per_frame[3].correct);
   EXPECT_EQ(p.per_frame[3].error, 2);
+}
+
+// Near a node in a turn (design §9: ±1 near a node). A right-angle turn at key-image 2, (20, 0): east, then south;
+// arcs of 10 m. Each probe is a single frame, the camera looking halfway round the turn (both arcs pass the heading
+// test; the labels are the nearest segments).
+const Waypoints kRightTurn{{{0, 0}, {20, 0}, {20, -20}}};
+
+struct TurnProbe {
+  Vector2d position;
+  Vector2d heading;
+  int reported;  // route index of the reported arc
+};
+
+FrameTruth JudgeInTurn(const TurnProbe& probe) {
+  const TaughtRoute taught(kRightTurn, 40);
+  TimedPose pose;
+  pose.world_from_cam.rotation = LookingAlong(Vector3d(probe.heading.x(), probe.heading.y(), 0));
+  pose.world_from_cam.translation = Vector3d(probe.position.x(), probe.position.y(), 0);
+  const TopologicalEvaluation e =
+      EvaluateTopological(taught.map, taught.truth, {pose}, {{0, true, kFirstArcId + probe.reported}});
+  return e.per_frame.at(0);
+}
+
+TEST(EvaluateTopological, NearANodeInATurn) {
+  const Vector2d halfway(1, -1);
+  // 0.3 m before the node, 1 and 2 m inside the turn: the nearest segment is the arc after the node (south), on
+  // which the frame projects at 0.1 and 0.2 of its length (2 m: beyond the projection rule); the arc before is
+  // tolerated as the frame is abeam the node (0.5 m and 1.2 m from it along the route's direction there, less than
+  // 0.15 x 10 m).
+  for (const double inside : {1.0, 2.0}) {
+    SCOPED_TRACE("inside " + std::to_string(inside));
+    const FrameTruth t = JudgeInTurn({{19.7, -inside}, halfway, 1});
+    EXPECT_EQ(t.true_arc_index, 2);
+    EXPECT_EQ(t.tolerated_arc_index, 1);
+    EXPECT_TRUE(t.correct);
+  }
+  // 0.3 m before the node, 1 and 2 m outside the turn: the arc after the node is tolerated, as the arc before is
+  // when the labelling puts the frame after the node.
+  for (const double outside : {1.0, 2.0}) {
+    SCOPED_TRACE("outside " + std::to_string(outside));
+    const FrameTruth t = JudgeInTurn({{19.7, outside}, halfway, 2});
+    EXPECT_TRUE(t.correct);
+    const FrameTruth after = JudgeInTurn({{20 + outside, -0.3}, halfway, 1});
+    EXPECT_TRUE(after.correct);
+  }
+  // Half an arc before the node, 1.5 m to either side, looking east: not near the node.
+  for (const double side : {-1.5, 1.5}) {
+    SCOPED_TRACE("side " + std::to_string(side));
+    const FrameTruth t = JudgeInTurn({{15, side}, {1, 0}, 2});
+    EXPECT_EQ(t.true_arc_index, 1);
+    EXPECT_EQ(t.tolerated_arc_index, -1);
+    EXPECT_FALSE(t.correct);
+  }
+  // A hairpin (the U-turn of the street driven out and back, 157 degrees at key-image 6): the route's direction at
+  // the node crosses both arcs, and a frame halfway along the arc before it, 1 m to the left, is 0.1 m abeam the node
+  // but not near it.
+  const TaughtRoute street(kOutAndBack, kOutAndBackLength);
+  const RepeatDrive hairpin(kOutAndBack, {55.5}, LeftOfTheStreet, [](double) { return 6; });
+  const TopologicalEvaluation h = EvaluateTopological(street.map, street.truth, hairpin.truth, hairpin.records);
+  EXPECT_EQ(h.per_frame[0].true_arc_index, 5);
+  EXPECT_FALSE(h.per_frame[0].correct);
+}
+
+// The route index of the arc driven at s when teach made no arcs between key-images `gap_from` and `gap_to` (they
+// are `gap_to - gap_from` apart): -1 in that stretch, one index per missing arc less after it.
+std::function<int(double)> WithoutArcs(const std::function<int(double)>& arc_at, int gap_from, int gap_to) {
+  return [=](double s) {
+    const int k = arc_at(s);
+    return k < gap_from ? k : k < gap_to ? -1 : k - (gap_to - gap_from);
+  };
+}
+
+// The figure-8 taught without arcs around its top-right corner (key-images 5, 6 and 7 at s = 50, 60, 70; key-image 6
+// without arcs): the route is two pieces, the stretch between them turns through key-image 6. The drive reports the
+// arc before the stretch and then the one after it; the crossings still follow the drive.
+TEST(EvaluateTopological, SelfCrossingRouteInTwoPieces) {
+  TaughtRoute taught(kFigureEight, kFigureEightLength);
+  Map map;
+  for (const MapNode& node : taught.map.nodes()) map.AddNode(node);
+  for (const MapArc& arc : taught.map.arcs()) {
+    if (arc.from != 5 && arc.from != 6) map.AddArc(arc);
+  }
+  EXPECT_EQ(RouteArcs(map).size(), 14u);
+  const auto true_arc = WithoutArcs(ArcAt, 5, 7);
+  const auto reported = [](double s) { return s < 60 ? std::min(ArcAt(s), 4) : std::max(ArcAt(s), 7); };
+  const RepeatDrive drive(kFigureEight, Every(1.0, 0.5, 159.5), OneMetreRight, reported);
+  const TopologicalEvaluation e = EvaluateTopological(map, taught.truth, drive.truth, drive.records);
+  EXPECT_EQ(e.correct, e.frames);
+  for (size_t i = 0; i < drive.s.size(); ++i) {
+    const double s = drive.s[i];
+    const double fraction = s / kKeySpacing - std::floor(s / kKeySpacing);
+    if (fraction > 0.2 && fraction < 0.8) {
+      EXPECT_EQ(e.per_frame[i].true_arc_index, true_arc(s)) << "s = " << s;
+    }
+  }
+}
+
+// The block driven twice, taught without the arc from key-image 5 to 6 (s = 50 .. 60) and closed from the last
+// key-image onto key-image 1: the stretch is on the cycle, and steps count around it.
+TEST(EvaluateTopological, CircularRouteInTwoPieces) {
+  TaughtRoute taught(kBlock, 130, /*loop_to=*/1);
+  Map map;
+  for (const MapNode& node : taught.map.nodes()) map.AddNode(node);
+  for (const MapArc& arc : taught.map.arcs()) {
+    if (arc.from != 5) map.AddArc(arc);
+  }
+  std::vector<arc_t> expected_route;
+  for (int k = 0; k <= taught.num_arcs; ++k) {
+    if (k != 5) expected_route.push_back(kFirstArcId + k);
+  }
+  EXPECT_EQ(RouteArcs(map), expected_route);
+  const auto driven = CircularArcs(130, taught.num_arcs);
+  const auto true_arc = WithoutArcs(driven, 5, 6);
+  const auto reported = [&](double s) { return driven(s) == 5 ? 4 : driven(s); };
+  RepeatDrive drive(kBlock, Every(1.0, 0.5, 239.5), OneMetreRight, reported);
+  const TopologicalEvaluation e = EvaluateTopological(map, taught.truth, drive.truth, drive.records);
+  EXPECT_EQ(e.correct, e.frames);
+  for (size_t i = 0; i < drive.s.size(); ++i) {
+    const double s = drive.s[i];
+    const double fraction = s / kKeySpacing - std::floor(s / kKeySpacing);
+    if (fraction > 0.2 && fraction < 0.8) {
+      EXPECT_EQ(e.per_frame[i].true_arc_index, true_arc(s)) << "s = " << s;
+    }
+  }
+  // Steps around the cycle (arcs 1 .. 4, the stretch, arcs 6 .. 12, the loop arc: 13 steps): in the stretch on the
+  // second lap (s = 175), arc 12 is 6 steps away (back over arcs 4 .. 1 and the loop arc; 7 forward), arc 1 four, and
+  // arc 6 is beside the stretch.
+  RepeatDrive probes(kBlock, {165.5, 175.5, 175.5, 175.5}, OneMetreRight, reported);
+  probes.records[1].arc = kFirstArcId + 12;
+  probes.records[2].arc = kFirstArcId + 1;
+  probes.records[3].arc = kFirstArcId + 6;
+  const TopologicalEvaluation p = EvaluateTopological(map, taught.truth, probes.truth, probes.records);
+  EXPECT_EQ(p.per_frame[1].true_arc_index, -1);
+  EXPECT_EQ(p.per_frame[1].error, 6);
+  EXPECT_EQ(p.per_frame[2].error, 4);
+  EXPECT_TRUE(p.per_frame[3].correct);
+  EXPECT_EQ(p.per_frame[3].error, 1);
 }
 
 }  // namespace
