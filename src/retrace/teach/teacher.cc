@@ -77,6 +77,7 @@ bool TeachOptions::Check(std::string* error) const {
   if (max_corners < min_features) return fail("max_corners must be at least min_features");
   if (min_matched_inliers < 8) return fail("min_matched_inliers must be at least 8");
   if (min_loop_inliers < min_matched_inliers) return fail("min_loop_inliers must be at least min_matched_inliers");
+  if (min_matched_samples < 1) return fail("min_matched_samples must be positive");
   if (!(max_link_rotation_disagreement_deg > 0) || !(max_link_direction_disagreement_deg > 0))
     return fail("the link disagreement limits must be positive");
   if (!(inlier_threshold_px > 0)) return fail("inlier_threshold_px must be positive");
@@ -431,6 +432,7 @@ MatchedGeometryOptions Teacher::MatchingOptions() const {
   MatchedGeometryOptions options;
   options.matching = options_.matching;
   options.geometry = geometry_options_;
+  options.geometry.ransac.min_iterations = options_.min_matched_samples;
   options.alignment = options_.tracker.alignment;
   options.alignment.max_residual = options_.max_residual;
   options.reference_levels = pyramid_options_.num_levels;
