@@ -121,14 +121,15 @@ struct Teacher::PendingGap {
   std::vector<FeatureObservation> from_observations, to_observations;  // its features in K and in G
   std::unordered_map<feature_t, double> depth_at_to;                  // for the scale at G
   MatchableImage from_image;  // K, prepared for matching
-  // The frames tracked from G on, with W(G, f): the witnesses of the gap arc.
-  struct TrackedFrame {
-    std::string name;
-    cv::Mat image;
-    ImagePyramid pyramid;
+  // The witnesses of the gap arc, in the order of the drive: the frames tracked from G on, with W(G, f), and, when
+  // the drive goes on from G by another gap arc G -> H, the key-image H with that arc's geometry.
+  struct Witness {
+    std::string name;  // for the report
+    MatchableImage image;  // wide-baseline features extracted when needed
+    bool has_features = false;
     Rigid3d from_gap;
   };
-  std::vector<TrackedFrame> frames_after;
+  std::vector<Witness> witnesses;
   RejectedLink report;  // filled in but for the reason
 };
 
@@ -190,8 +191,12 @@ void Teacher::AddFrame(const Frame& frame) {
   if (GeometryAcceptable(*current)) {
     // A gap arc waiting for confirmation keeps the frames tracked from its key-image (its witnesses).
     if (pending_gap_ && subrange_->node == pending_gap_->arc.to && current->geometry.success) {
-      pending_gap_->frames_after.push_back(
-          {current->frame.name, current->frame.image, current->pyramid, current->geometry.b_from_a});
+      PendingGap::Witness witness;
+      witness.name = fmt::format("frame {} (tracked from {})", current->frame.name, pending_gap_->arc.to);
+      witness.image.image = current->frame.image;
+      witness.image.pyramid = current->pyramid;
+      witness.from_gap = current->geometry.b_from_a;
+      pending_gap_->witnesses.push_back(std::move(witness));
     }
     previous_ = std::move(current);
     return;
@@ -306,9 +311,10 @@ void Teacher::StartSubrange(FrameState* frame) {
                static_cast<int>(std::lround(options_.min_features_fraction * subrange_->bearings.size())));
 }
 
-void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool with_arc) {
-  // A gap arc still waiting for confirmation is settled by this key-image: by the tracked arc reaching it from the
-  // gap's key-image, or, when there is none, rejected.
+void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool with_arc,
+                               const MatchableImage* matched) {
+  // A gap arc still waiting for confirmation is settled by this key-image: by the frames tracked from the gap's
+  // key-image to this one, or by this key-image when a gap arc reaches it from there; without either, rejected.
   std::unique_ptr<PendingGap> earlier_gap = std::move(pending_gap_);
   const node_t from_node = subrange_ ? subrange_->node : kInvalidNodeId;
   MapNode node = NodeFromFrame(static_cast<node_t>(map_.nodes().size()), frame->frame);
@@ -406,7 +412,25 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
   if (earlier_gap) {
     pending_gap_ = std::move(earlier_gap);
     const MapArc* next = nullptr;
-    if (with_arc && reason != KeyImageReason::kGap && from_node == pending_gap_->arc.to) next = map_.FindArc(last_arc_);
+    if (with_arc && from_node == pending_gap_->arc.to) {
+      if (gap) {
+        // The drive goes on from G by another gap arc G -> H (at a low frame rate, tracking fails between every pair
+        // of frames): H is the witness, K matched with H must show the two gap arcs composed.
+        PendingGap::Witness witness;
+        witness.name = fmt::format("key-image {} (matched from {})", gap->arc.to, gap->arc.from);
+        if (matched != nullptr) {
+          witness.image = *matched;
+          witness.has_features = true;
+        } else {
+          witness.image.image = frame->frame.image;
+          witness.image.pyramid = frame->pyramid;
+        }
+        witness.from_gap = gap->arc.to_from_from;
+        pending_gap_->witnesses.push_back(std::move(witness));
+      } else if (reason != KeyImageReason::kGap) {
+        next = map_.FindArc(last_arc_);
+      }
+    }
     ResolvePendingGap(next);
   }
   pending_gap_ = std::move(gap);
@@ -500,7 +524,7 @@ bool Teacher::RecoverGap(FrameState* frame) {
     subrange_->observations[id] = {id, position_key, cv::Mat()};
   }
   frame->geometry = std::move(matched.geometry);
-  RegisterKeyImage(frame, KeyImageReason::kGap, /*with_arc=*/true);
+  RegisterKeyImage(frame, KeyImageReason::kGap, /*with_arc=*/true, &current);
   return true;
 }
 
@@ -508,24 +532,25 @@ void Teacher::ResolvePendingGap(const MapArc* next) {
   std::unique_ptr<PendingGap> gap = std::move(pending_gap_);
   if (!gap) return;
   // The recovered geometry must hold for the drive after it: K matched with a frame f tracked from G measures the
-  // gap arc followed by W(G, f). The last frame that relates to K decides: the farther from G, the more the camera
-  // has moved away from whatever made K and G look alike.
+  // gap arc followed by W(G, f), and K matched with the key-image H after G, when the drive went on from G by another
+  // gap arc, measures the two gap arcs composed (three key-images whose pairwise geometries agree). The last witness
+  // that relates to K decides: the farther from G, the more the camera has moved away from whatever made K and G
+  // look alike.
   std::string reason =
-      gap->frames_after.empty()
+      gap->witnesses.empty()
           ? "no frame was tracked after the gap"
-          : fmt::format("none of the {} frames tracked after the gap (to {}) relates to key-image {}",
-                        gap->frames_after.size(), gap->frames_after.back().name, gap->arc.from);
+          : fmt::format("none of the {} images after the gap (the last: {}) relates to key-image {}",
+                        gap->witnesses.size(), gap->witnesses.back().name, gap->arc.from);
   {
     ScopedTimer timer(&statistics_.seconds_matching);
-    for (auto it = gap->frames_after.rbegin(); it != gap->frames_after.rend(); ++it) {
-      MatchableImage after;
-      after.image = it->image;
-      after.pyramid = it->pyramid;
-      after.features = ExtractWideBaselineFeatures(it->image, options_.matching);
+    for (auto it = gap->witnesses.rbegin(); it != gap->witnesses.rend(); ++it) {
+      if (!it->has_features) {
+        it->image.features = ExtractWideBaselineFeatures(it->image.image, options_.matching);
+        it->has_features = true;
+      }
       std::string description;
       const WitnessVerdict verdict =
-          WeighWitness(gap->from_image, after, gap->arc.to_from_from, it->from_gap,
-                       fmt::format("frame {} (tracked from {})", it->name, gap->arc.to), &description);
+          WeighWitness(gap->from_image, it->image, gap->arc.to_from_from, it->from_gap, it->name, &description);
       if (verdict == WitnessVerdict::kUnrelated) continue;
       reason = verdict == WitnessVerdict::kConfirms ? "" : description;
       break;

@@ -24,9 +24,12 @@
 // the drive after B confirms it and no other neighbour contradicts it. A loop candidate L -> F needs L, matched with
 // the key-image after F, to show the motion of the link followed by the tracked arc from F; F's and L's
 // predecessors, matched with L and F, may fail to relate but must not disagree. A gap arc K -> G is held back until
-// the next key-image: K matched with the frames tracked from G on (the last one that relates decides) must show the
-// gap arc followed by the tracked W(G, f), and K's predecessor matched with G must not disagree. Until then, and for
-// good when it is not confirmed, the map is disconnected at G. Every rejected candidate is reported
+// the next key-image H: K matched with the frames tracked from G on must show the gap arc followed by the tracked
+// W(G, f); when tracking fails at once after G too (a slow camera, a fast car: at a low frame rate every arc may be
+// a gap arc), G -> H is a gap arc itself and K matched with H must show the two gap arcs composed, three key-images
+// whose pairwise geometries agree. The last of these witnesses that relates to K decides; K's predecessor matched
+// with G must not disagree. Until then, and for good when it is not confirmed (no witness relates, one disagrees, or
+// the drive ends at G), the map is disconnected at G. Every rejected candidate is reported
 // (TeachStatistics::rejected_links).
 //
 // The relative scale between consecutive arcs is stored at their common node (median of depth ratios of the
@@ -110,8 +113,9 @@ struct TeachOptions {
   int min_matched_samples = 100;
   // Keep a link made by matching (loop, gap) only when the drive after it confirms it (see above and
   // link_verification.h): a witness relates when its matching has min_matched_inliers within r_p, and it agrees when
-  // its motion lies within the limits below of the link composed with the witness's tracked motion. A look-alike
-  // place fools one pair of images, rarely also the pair one arc further on. false: one pair suffices.
+  // its motion lies within the limits below of the link composed with the witness's own (tracked or, after a gap
+  // arc, matched) motion from the end of the link. A look-alike place fools one pair of images, rarely also the pair
+  // one arc further on. false: one pair suffices.
   bool verify_links = true;
   // How far a witness's rotation may lie from the composed one, degrees. A link counts as false when its rotation is
   // more than 5 degrees off the truth, a witness composes two geometries: half of that. The witnesses of the true
@@ -204,14 +208,17 @@ class Teacher {
   bool GeometryAcceptable(const FrameState& frame) const;
   // Registers `frame` as key-image: the arc from the current key-image (when `with_arc`), the node with its
   // observations (tracked features plus new corners), the scale at the previous key-image; then starts a subrange.
-  void RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool with_arc);
+  // `matched`: the frame prepared for matching, when a gap arc reaches it (it may witness the gap arc before).
+  void RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool with_arc,
+                        const MatchableImage* matched = nullptr);
   // Relates the current key-image and `frame` by wide-baseline matching; on success registers `frame` as a key-image
-  // reached by a "gap" arc, held back until the frames after it confirm it (ResolvePendingGap). Returns false when
+  // reached by a "gap" arc, held back until the images after it confirm it (ResolvePendingGap). Returns false when
   // the two images cannot be related (or the key-image before the gap contradicts the relation).
   bool RecoverGap(FrameState* frame);
-  // Weighs the held-back gap arc K -> G with the frames tracked after G (the last one that relates to K decides) and
-  // commits it when they confirm it; otherwise rejects it (the map stays disconnected at G). `next`: the tracked arc
-  // from G to the key-image just registered (null when there is none; the relative scale at G needs it).
+  // Weighs the held-back gap arc K -> G with the images after G (the frames tracked from G, the key-image after G
+  // when a gap arc reaches it; the last one that relates to K decides) and commits it when they confirm it; otherwise
+  // rejects it (the map stays disconnected at G). `next`: the tracked arc from G to the key-image just registered
+  // (null when there is none; the relative scale at G needs it).
   void ResolvePendingGap(const MapArc* next);
   // What a witness of a link says (link_verification.h).
   enum class WitnessVerdict { kConfirms, kContradicts, kUnrelated };
