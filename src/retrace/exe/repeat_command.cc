@@ -424,6 +424,9 @@ void RegisterRepeatCommand(CLI::App& app) {
   cmd->add_option("--max-sigma-p", args->options.max_sigma_p_px, "sigma_p gate of current geometries, px at 320 px")
       ->capture_default_str();
   cmd->add_option("--steering-gain", args->options.steering_gain, "k of eq. (10)")->capture_default_str();
+  cmd->add_option("--max-bad-frames", args->options.max_bad_frames,
+                  "Frames in a row without usable tracks before they are given up and the frame relocalized")
+      ->capture_default_str();
   cmd->add_option("--min-confidence", args->options.belief.min_confidence,
                   "Belief confidence needed to report tracking (probability that the arc is right)")
       ->capture_default_str();

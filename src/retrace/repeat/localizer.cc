@@ -650,7 +650,11 @@ void Localizer::Localize(FrameResult* result) {
                     (geometry_a.usable || geometry_b.usable || placements.pose.has_value());
   // (A placement in a neighbouring arc keeps the belief informed but does not make the current arc's tracks good.)
   bad_frames_ = good ? 0 : bad_frames_ + 1;
-  if (bad_frames_ >= options_.max_bad_frames) {
+  // Too few features of the current arc and no evidence from any placement: these tracks cannot recover by
+  // themselves (resumption needs a placement to predict from), so they are given up at once; a frame whose
+  // features are there but whose geometries are momentarily unusable gets `max_bad_frames` frames.
+  const bool hopeless = current_tracked < options_.min_features && !estimate.evidence;
+  if (hopeless || bad_frames_ >= options_.max_bad_frames) {
     spdlog::debug("repeat: tracks given up at frame {} ({} features of arc {}, W_t:a {}, W_t:b {}, pose {})",
                   result->frame_index, current_tracked, arc_, geometry_a.usable, geometry_b.usable,
                   placements.pose.has_value());

@@ -61,8 +61,8 @@
 // frame gave the belief evidence it accepts; otherwise `lost`, with no arc. The confidence is reported every frame.
 // Lost is an answer, never a confident wrong place.
 //
-// The tracks are given up when fewer than `min_features` of the current arc are tracked or no current geometry or
-// absolute pose is usable for `max_bad_frames` frames in a row; the same frame is then re-initialised by
+// The tracks are given up when fewer than `min_features` of the current arc are tracked in a frame without
+// evidence, or no current geometry or absolute pose is usable for `max_bad_frames` frames in a row; the same frame is then re-initialised by
 // wide-baseline matching against the key-images, exactly as the bootstrap, and when that fails the frame is kLost
 // and the following frames keep trying (kRelocalizing). The belief carries on through all of it.
 //
@@ -158,8 +158,9 @@ struct LocalizerOptions {
   // mid-arc (80.0 % vs 77.3 % correct with 10, no frame two arcs off either way).
   int min_features = 10;
   // Bad frames in a row (too few features of the current arc, or no usable current geometry or absolute pose)
-  // after which the tracks are given up and the frame is re-initialised by wide-baseline matching. This decides
-  // when to spend a relocalization, not what is reported: the belief decides that.
+  // after which the tracks are given up and the frame is re-initialised by wide-baseline matching — at once when
+  // fewer than `min_features` of the current arc are tracked and the frame gave the belief no evidence. This
+  // decides when to spend a relocalization, not what is reported: the belief decides that.
   int max_bad_frames = 3;
   // k of Segvic 2009, eq. (10), radians of steering per unit of normalised image coordinate.
   double steering_gain = 1.0;
