@@ -3,18 +3,28 @@
 #include "retrace/geometry/relative_pose.h"
 
 namespace retrace {
+namespace {
+
+// The bearings of a match's two key-points, appended; false (nothing appended) when one does not unproject.
+bool MatchBearings(const CameraModel& camera, const MatchableImage& a, const MatchableImage& b, const cv::DMatch& m,
+                   std::vector<Vector3d>* bearings_a, std::vector<Vector3d>* bearings_b) {
+  const cv::Point2f& pa = a.features.keypoints[m.queryIdx].pt;
+  const cv::Point2f& pb = b.features.keypoints[m.trainIdx].pt;
+  Vector3d ba, bb;
+  if (!camera.Unproject(Vector2d(pa.x, pa.y), &ba) || !camera.Unproject(Vector2d(pb.x, pb.y), &bb)) return false;
+  bearings_a->push_back(ba);
+  bearings_b->push_back(bb);
+  return true;
+}
+
+}  // namespace
 
 MatchedGeometry RelateByMatching(const CameraModel& camera, const MatchableImage& a, const MatchableImage& b,
                                  const MatchedGeometryOptions& options) {
   MatchedGeometry result;
   std::vector<Vector3d> bearings_a, bearings_b;
   for (const cv::DMatch& m : MatchWideBaseline(a.features, b.features, options.matching)) {
-    const cv::Point2f& pa = a.features.keypoints[m.queryIdx].pt;
-    const cv::Point2f& pb = b.features.keypoints[m.trainIdx].pt;
-    Vector3d ba, bb;
-    if (!camera.Unproject(Vector2d(pa.x, pa.y), &ba) || !camera.Unproject(Vector2d(pb.x, pb.y), &bb)) continue;
-    bearings_a.push_back(ba);
-    bearings_b.push_back(bb);
+    if (!MatchBearings(camera, a, b, m, &bearings_a, &bearings_b)) continue;
     result.matches.push_back(m);
   }
   result.geometry = EstimateRelativePose(bearings_a, bearings_b, camera.FocalLength(), options.geometry);
@@ -40,6 +50,14 @@ MatchedGeometry RelateByMatching(const CameraModel& camera, const MatchableImage
     ++result.num_trackable;
   }
   return result;
+}
+
+TwoViewGeometry EstimateMatchedGeometryNear(const CameraModel& camera, const MatchableImage& a,
+                                            const MatchableImage& b, const MatchedGeometry& matched,
+                                            const TwoViewOptions& options, const Rigid3d& guess) {
+  std::vector<Vector3d> bearings_a, bearings_b;
+  for (const cv::DMatch& m : matched.matches) MatchBearings(camera, a, b, m, &bearings_a, &bearings_b);
+  return EstimateRelativePose(bearings_a, bearings_b, camera.FocalLength(), options, &guess);
 }
 
 }  // namespace retrace

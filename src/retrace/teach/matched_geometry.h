@@ -52,4 +52,11 @@ struct MatchedGeometryOptions {
 MatchedGeometry RelateByMatching(const CameraModel& camera, const MatchableImage& a, const MatchableImage& b,
                                  const MatchedGeometryOptions& options);
 
+// The geometry of the matches of `matched` (between A and B) estimated again with `guess` as the first hypothesis:
+// the refined guess is kept unless a sampled motion fits the matches clearly better (TwoViewOptions::
+// guess_preference). A second look at a pair whose matches fit several motions almost equally well.
+TwoViewGeometry EstimateMatchedGeometryNear(const CameraModel& camera, const MatchableImage& a,
+                                            const MatchableImage& b, const MatchedGeometry& matched,
+                                            const TwoViewOptions& options, const Rigid3d& guess);
+
 }  // namespace retrace

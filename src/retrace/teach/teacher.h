@@ -125,6 +125,12 @@ struct TeachOptions {
   // scales of its two parts (each geometry has its own unit). A link counts as false when its direction is more
   // than 10 degrees off; the witnesses of the true links of the simulator tests disagree by 0.6-5.1 degrees.
   double max_link_direction_disagreement_deg = 10.0;
+  // A witness whose own geometry disagrees takes a second look: its matches estimated again from the composed
+  // motion. It agrees when they fit that motion (refined on them) within TwoViewOptions::guess_preference of the
+  // best sampled one and the refined motion lies within the limits above: the pair cannot tell the two apart. With
+  // few matches over a long baseline at low resolution, a pair fits a family of motions several degrees apart
+  // (rotation traded for translation) almost equally well. false: the sampled geometry alone decides.
+  bool second_look = true;
 
   FeatureTrackerOptions tracker;
   CornerDetectorOptions detector;
@@ -234,6 +240,8 @@ class Teacher {
   void RelateFramesByMatching(size_t a, size_t b);
   MatchableImage& MatchableFrame(size_t index);
   MatchedGeometryOptions MatchingOptions() const;
+  // The geometry options of a witness's second look (WeighWitness).
+  TwoViewOptions SecondLookOptions() const;
   bool AcceptableMatchedGeometry(const MatchedGeometry& matched, int min_inliers) const;
   MatchableImage PrepareForMatching(const cv::Mat& image) const;
   void Commit(const MapNode* node, const MapArc* arc, const std::vector<NodeScale>& scales,
