@@ -5,13 +5,17 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdlib>
+#include <unordered_map>
 #include <thread>
 
 #include <gtest/gtest.h>
+#include <spdlog/spdlog.h>
 
 #include "retrace/camera/camera_io.h"
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/dataset/sequence.h"
+#include "retrace/image/image_utils.h"
 #include "retrace/teach/map_report.h"
 #include "retrace/teach/teacher.h"
 #include "retrace/util/testing.h"
@@ -42,13 +46,22 @@ double Median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
+// Teaches every `every`-th frame of kitti07, on images resized to `width` columns (0: native).
 Map TeachKitti(const std::filesystem::path& kitti, size_t every, TeachStatistics* stats, double* sigma_threshold,
-               MapDatabase* database = nullptr, const TeachOptions& options = TeachOptions()) {
+               MapDatabase* database = nullptr, const TeachOptions& options = TeachOptions(), int width = 0) {
   std::unique_ptr<Sequence> sequence = OpenSequence(kitti);
-  const auto camera = ReadCameraFile(*sequence->calibration_file(), sequence->image_size());
+  std::unique_ptr<CameraModel> camera = ReadCameraFile(*sequence->calibration_file(), sequence->image_size());
   if (every > 1) sequence = std::make_unique<SubsampledSequence>(std::move(sequence), every, 0);
+  if (width > 0) camera = camera->Scaled(static_cast<double>(width) / camera->width());
   Teacher teacher(*camera, options, database);
-  while (auto frame = sequence->Next()) teacher.AddFrame(*frame);
+  while (auto frame = sequence->Next()) {
+    if (width > 0) {
+      cv::Mat resized;
+      ResizeToWidth(frame->image, camera->width(), &resized);
+      frame->image = resized;
+    }
+    teacher.AddFrame(*frame);
+  }
   teacher.Finish();
   *stats = teacher.statistics();
   *sigma_threshold = teacher.sigma_p_threshold_px();
@@ -144,6 +157,88 @@ TEST(TeachKitti, MappingByMatchingAgreesWithGroundTruth) {
   const Map map = TeachKitti(kitti, 1, &stats, &sigma_threshold, nullptr, options);
   for (const MapArc& arc : map.arcs()) EXPECT_EQ(arc.kind, "matching");
   CheckKittiMap(map, stats, sigma_threshold, ReadKittiPoses(kitti / "poses.txt"));
+}
+
+// Pieces of the map: sets of key-images joined by arcs in either direction.
+size_t CountPieces(const Map& map) {
+  std::unordered_map<node_t, node_t> parent;
+  for (const MapNode& node : map.nodes()) parent[node.id] = node.id;
+  const auto root = [&](node_t n) {
+    while (parent[n] != n) n = parent[n] = parent[parent[n]];
+    return n;
+  };
+  for (const MapArc& arc : map.arcs()) parent[root(arc.from)] = root(arc.to);
+  size_t pieces = 0;
+  for (const MapNode& node : map.nodes()) pieces += root(node.id) == node.id;
+  return pieces;
+}
+
+// A slow camera or a fast car: kitti07 at 320x97 px on every `every`-th frame, where tracking often fails between
+// consecutive frames and key-images are related by wide-baseline matching, runs of gap arcs among them, each
+// confirmed by the key-image after it (teacher.h). The map must be one piece from the first key-image to the last,
+// and every arc must agree with the KITTI poses (within 1 degree of rotation and 10 of translation direction, the
+// sim tests' limits) but `known_errors`, which are printed.
+void CheckSparseKittiMap(const std::filesystem::path& kitti, size_t every, int known_errors) {
+  if (std::getenv("RETRACE_DEBUG")) spdlog::set_level(spdlog::level::debug);
+  TeachStatistics stats;
+  double sigma_threshold = 0;
+  const Map map = TeachKitti(kitti, every, &stats, &sigma_threshold, nullptr, TeachOptions(), 320);
+  const std::vector<TimedPose> truth = ReadKittiPoses(kitti / "poses.txt");
+  for (const RejectedLink& r : stats.rejected_links) {
+    std::cout << "rejected " << r.kind << " link " << r.from << " (frame " << r.from_frame << ") -> " << r.to
+              << " (frame " << r.to_frame << "): " << r.reason << "\n";
+  }
+  const ArcErrors errors = CompareArcsWithGroundTruth(map, truth);
+  int gap_arcs = 0, chained_gap_arcs = 0, arcs_off = 0;
+  for (size_t i = 0; i < map.arcs().size(); ++i) {
+    const MapArc& arc = map.arcs()[i];
+    if (arc.kind == "gap") {
+      ++gap_arcs;
+      chained_gap_arcs += std::any_of(map.arcs().begin(), map.arcs().end(),
+                                      [&](const MapArc& a) { return a.from == arc.to && a.kind == "gap"; });
+    }
+    if (errors.rotation_deg[i] < 1.0 && errors.direction_deg[i] < 10.0) continue;
+    ++arcs_off;
+    std::cout << arc.kind << " arc " << arc.id << " (frames " << map.FindNode(arc.from)->source_frame << "-"
+              << map.FindNode(arc.to)->source_frame << ", " << arc.num_features() << " features, sigma_p "
+              << arc.sigma_p << " px): rotation " << errors.rotation_deg[i] << " deg, direction "
+              << errors.direction_deg[i] << " deg off the truth\n";
+  }
+  const size_t pieces = CountPieces(map);
+  std::cout << "kitti07 every " << every << (every == 3 ? "rd" : "th") << " frame at 320 px: " << map.nodes().size()
+            << " key-images in " << pieces << " piece(s), " << map.arcs().size() << " arcs (" << gap_arcs << " gap, "
+            << chained_gap_arcs << " followed by a gap), " << stats.rejected_links.size()
+            << " rejected links; arc rotation error median " << Median(errors.rotation_deg) << " deg, max "
+            << *std::max_element(errors.rotation_deg.begin(), errors.rotation_deg.end())
+            << " deg; translation direction median " << Median(errors.direction_deg) << " deg, max "
+            << *std::max_element(errors.direction_deg.begin(), errors.direction_deg.end()) << " deg\n";
+  EXPECT_EQ(pieces, 1u) << "the map is connected";
+  EXPECT_EQ(map.arcs().size() + 1, map.nodes().size()) << "a linear graph";
+  EXPECT_TRUE(stats.rejected_links.empty());
+  EXPECT_GE(chained_gap_arcs, 1) << "the drive has runs of gap arcs";
+  EXPECT_LE(arcs_off, known_errors);
+  EXPECT_LE(Median(errors.rotation_deg), 0.3);
+  EXPECT_LE(Median(errors.direction_deg), 3.0);
+}
+
+// 22 of the 36 arcs are gap arcs, 19 of them followed by another. With the verification of links but without the
+// key-image after a gap as its witness, the map fell into 20 pieces; without the verification, the gap arc of frames
+// 32-36 was 12.5 degrees off (20 samples of its geometry, TeachOptions::min_matched_samples).
+TEST(TeachKitti, EveryFourthFrameAt320PxIsOneConnectedRoute) {
+  RETRACE_REQUIRE_SHARED_DATA(kitti, "kitti07");
+  CheckSparseKittiMap(kitti, 4, 0);
+}
+
+// Tracking mostly holds here (5 gap arcs; without the key-image after a gap as witness, the run of frames 135-141
+// was cut twice). Two arcs are off the truth for reasons of their own pair of images, with or without verification:
+// the tracked arc of frames 72-75 (9 degrees): 6 of its 60 features, on the shutters of the facade on the left, are
+// tracked onto neighbouring slats, and a wrong motion fits all 60 (the true one puts those 6 behind the camera); the
+// gap arc of frames 81-84 (translation direction 20 degrees): its wrong motion fits 143 of the 159 matches, the true
+// one 129. Its witness agrees within 1.6 degrees of rotation: a witness checks the direction of a link only up to
+// the unknown ratio of the scales of the link and of the witness's own motion (link_verification.h).
+TEST(TeachKitti, EveryThirdFrameAt320PxIsOneConnectedRoute) {
+  RETRACE_REQUIRE_SHARED_DATA(kitti, "kitti07");
+  CheckSparseKittiMap(kitti, 3, 2);
 }
 
 TEST(TeachKitti, KilledTeachLeavesAMapThatOpens) {
