@@ -3,6 +3,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <functional>
+#include <map>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -288,6 +291,53 @@ TEST(TeachSim, GapOntoALookAlikePlaceStaysDisconnected) {
   EXPECT_EQ(rejected.to_frame, 6);
   EXPECT_GE(rejected.inliers, TeachOptions().min_matched_inliers);
   EXPECT_FALSE(rejected.reason.empty());
+}
+
+// The same jump at a low frame rate: every 6th frame, where tracking fails between any two frames and every arc is a
+// gap arc, confirmed by the key-image after it (K -> G by K matched with H, G -> H being a gap arc too). The link
+// across the jump must be rejected, and the runs of gap arcs on either side of it must stay connected. The true gap
+// arc into frame 299 loses its witness with the false one after it, and the last gap arc of the recording has none:
+// both are rejected and reported too.
+TEST(TeachSim, RunOfGapArcsOntoALookAlikePlaceStaysDisconnected) {
+  const RecordedDrive& drive = LookAlikeTown();
+  std::vector<size_t> frames;
+  for (size_t f = 263; f <= 299; f += 6) frames.push_back(f);
+  for (size_t f = 6; f <= 48; f += 6) frames.push_back(f);
+  if (std::getenv("RETRACE_DEBUG")) spdlog::set_level(spdlog::level::debug);
+  TeachOptions options;
+  options.close_loop = false;
+  TeachOptions single_pair = options;
+  single_pair.verify_links = false;
+  const Taught unverified = Teach(drive, frames, single_pair);
+  ASSERT_EQ(unverified.map.arcs().size() + 1, unverified.map.nodes().size()) << "the premise: all frames linked";
+  const std::vector<std::string> premise = FalseLinks(unverified.map, drive.truth);
+  ASSERT_EQ(premise.size(), 1u) << "the premise: the link across the jump is false";
+  std::cout << "without verification: " << premise[0] << "\n";
+
+  const Taught taught = Teach(drive, frames, options);
+  const Map& map = taught.map;
+  PrintRejected(taught.statistics);
+  int links = 0;
+  EXPECT_EQ(Join(FalseLinks(map, drive.truth, &links)), "");
+  EXPECT_GE(links, 10) << "the runs of gap arcs are confirmed";
+  const auto jump = std::find_if(taught.statistics.rejected_links.begin(), taught.statistics.rejected_links.end(),
+                                 [](const RejectedLink& r) { return r.from_frame == 299 && r.to_frame == 6; });
+  ASSERT_NE(jump, taught.statistics.rejected_links.end()) << "the link across the jump is reported";
+  EXPECT_EQ(jump->kind, "gap");
+  // Which key-images are joined: each run is one piece, the two runs are not joined.
+  std::map<int64_t, node_t> node_of_frame;
+  for (const MapNode& node : map.nodes()) node_of_frame[node.source_frame] = node.id;
+  std::map<node_t, node_t> piece;
+  for (const MapNode& node : map.nodes()) piece[node.id] = node.id;
+  const std::function<node_t(node_t)> root = [&](node_t n) {
+    return piece[n] == n ? n : piece[n] = root(piece[n]);
+  };
+  for (const MapArc& arc : map.arcs()) piece[root(arc.from)] = root(arc.to);
+  const auto joined = [&](int64_t a, int64_t b) { return root(node_of_frame.at(a)) == root(node_of_frame.at(b)); };
+  EXPECT_TRUE(joined(263, 293));
+  EXPECT_TRUE(joined(6, 42));
+  EXPECT_FALSE(joined(293, 6));
+  EXPECT_FALSE(joined(299, 6));
 }
 
 // Arcs in turns against arcs on straights: their lengths (metres) and σ_p (px).
