@@ -123,6 +123,7 @@ PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : op
 
 void PlaceBelief::Reset() {
   if (!mass_.empty()) std::fill(mass_.begin(), mass_.end(), 1.0 / mass_.size());
+  off_map_ = 0.0;
   last_place_.reset();
   steps_.clear();
   speed_.reset();
@@ -252,7 +253,9 @@ void PlaceBelief::Deposit(std::vector<double>* target, int index, double along, 
   const double beyond = width > 1e-12 ? std::max(0.0, to - std::max(from, 1.0)) / width : (from >= 1.0 ? 1.0 : 0.0);
   const double before = width > 1e-12 ? std::max(0.0, std::min(to, 0.0) - from) / width : (from < 0.0 ? 1.0 : 0.0);
   if (beyond > 0.0) {
-    if (arc.successors.empty() || depth > 8) {
+    if (arc.successors.empty()) {
+      off_map_pending_ += mass * beyond;  // past a virtual arc: off the map
+    } else if (depth > 8) {
       DepositAt(target, index, 1.0, mass * beyond);
     } else {
       // The range past the end, measured from the end, in common units.
@@ -263,7 +266,9 @@ void PlaceBelief::Deposit(std::vector<double>* target, int index, double along, 
     }
   }
   if (before > 0.0) {
-    if (arc.predecessors.empty() || depth > 8) {
+    if (arc.predecessors.empty()) {
+      off_map_pending_ += mass * before;
+    } else if (depth > 8) {
       DepositAt(target, index, 0.0, mass * before);
     } else {
       const double rest_low = from * arc.length;
@@ -281,6 +286,7 @@ void PlaceBelief::Predict(int frames) {
   const int bins = options_.bins_per_arc;
   std::fill(scratch_.begin(), scratch_.end(), 0.0);
   std::fill(diff_.begin(), diff_.end(), 0.0);
+  off_map_pending_ = 0.0;
   const double largest = *std::max_element(mass_.begin(), mass_.end());
   // The motion distribution as contiguous boxes of uniform displacement: one box without the speed (uniform over
   // [min, max] arc lengths per frame), seven with it (a Gaussian cut at ±3.5σ into intervals of σ, each with its
@@ -329,12 +335,14 @@ void PlaceBelief::Predict(int frames) {
       scratch_[k * bins + i] += running;
     }
   }
-  // Jumps: a small fraction of the mass anywhere on the map.
-  double total = 0.0;
+  // Jumps: a small fraction of the mass anywhere on the map (from the map and from off it).
+  off_map_ += off_map_pending_;
+  double total = off_map_;
   for (const double m : scratch_) total += m;
   const double floor = options_.jump_probability / scratch_.size();
   const double keep = (1.0 - options_.jump_probability) / (total > 0 ? total : 1.0);
   for (size_t c = 0; c < mass_.size(); ++c) mass_[c] = keep * scratch_[c] + floor;
+  off_map_ *= keep;
 }
 
 void PlaceBelief::ReachableOffsets(int index, int reach, std::vector<std::pair<int, double>>* offsets) const {
@@ -389,10 +397,6 @@ std::vector<double> PlaceBelief::Update(const std::vector<PlaceMeasurement>& mea
       const double norm = (1.0 - epsilon) * kInvSqrt2Pi / std::sqrt(variance);
       for (int i = 0; i < bins; ++i) {
         double x = (offset + (i + 0.5) / bins * arcs_[j].length) / length_k;
-        // The route's ends: the motion model piles the mass of a camera past the last key-image (before the first)
-        // in the arc's last (first) bin, so that bin stands for every place beyond.
-        if (i == bins - 1 && arcs_[j].successors.empty()) x = std::max(x, m.along);
-        if (i == 0 && arcs_[j].predecessors.empty()) x = std::min(x, m.along);
         const double d2 = (x - m.along) * (x - m.along) / variance;
         if (d2 > 60.0) continue;
         const size_t cell = static_cast<size_t>(j) * bins + i;
@@ -401,7 +405,8 @@ std::vector<double> PlaceBelief::Update(const std::vector<PlaceMeasurement>& mea
         total_inlier += inlier;
       }
     }
-    double total_outlier = 0.0;
+    off_map_ *= outlier;  // off the map, a placement can only be wrong
+    double total_outlier = off_map_;
     for (double& c : mass_) {
       c *= outlier;
       total_outlier += c;
@@ -411,6 +416,7 @@ std::vector<double> PlaceBelief::Update(const std::vector<PlaceMeasurement>& mea
     inlier_probabilities.push_back(total > 0 ? total_inlier / total : 0.0);
     if (total > 0) {
       for (double& c : mass_) c /= total;
+      off_map_ /= total;
     } else {
       Reset();
     }

@@ -15,7 +15,8 @@
 //  1. Predict (motion model): every bin's mass moves by the camera's displacement d along the graph, continuing
 //     into the following arcs past an arc's end (into each of them, equally, at a junction) and into the previous
 //     ones before its start. Past a route's last key-image the camera is on a virtual arc continuing the last arc
-//     (and before the first on one preceding it), which counts as the route's last (first) arc. With the speed v known (common units per frame, the median of the last steps of the
+//     (and before the first on one preceding it), which counts as the route's last (first) arc; past that virtual
+//     arc it is off the map (a mass of its own, which placements do not explain). With the speed v known (common units per frame, the median of the last steps of the
 //     estimated position), d ~ N(v Δ, Δ ((α v)² + (σ₀ ℓ)²)) for Δ frames: α = `relative_speed_noise` (the speed
 //     changes and is estimated from noisy positions), σ₀ = `position_noise` arc lengths. With the speed unknown
 //     (after a start, a loss, or a jump) d is uniform over [`unknown_speed_min`, `unknown_speed_max`] arc lengths
@@ -143,6 +144,8 @@ class PlaceBelief {
   // Probability that the camera is on `arc` or within node_tolerance of its ends on a neighbouring arc (what
   // PlaceEstimate::confidence gives for the most likely arc).
   double Confidence(arc_t arc) const;
+  // Probability that the camera has left the map (more than an arc past a route's end or before its start).
+  double OffMap() const { return off_map_; }
   // Length of `arc` in the belief's common unit.
   double ArcLength(arc_t arc) const;
   // Arcs that continue `arc` past its end / before its start (several at a junction).
@@ -181,6 +184,10 @@ class PlaceBelief {
   std::vector<double> mass_;  // arcs_.size() * bins
   std::vector<double> scratch_;
   mutable std::vector<double> diff_;  // per arc bins + 1: difference array of uniform deposits (Predict)
+  // Probability that the camera is off the map: past the virtual arc beyond a route's end (before the one before its
+  // start). Placements explain nothing there (outliers only); jumps bring it back.
+  double off_map_ = 0.0;
+  mutable double off_map_pending_ = 0.0;  // moved off the map in this prediction
 
   // Speed: the last estimated place with evidence and the steps since (common units per frame, newest first).
   std::optional<GraphPlace> last_place_;

@@ -195,6 +195,11 @@ TEST(PlaceBelief, PastTheRoutesEndTheCameraIsOnItsLastArc) {
   EXPECT_NEAR(belief.estimate().along, 1.55, 0.05);
   EXPECT_GT(belief.Mass(4), 0.99);
   EXPECT_TRUE(belief.Successors(4).empty());
+  // More than an arc past the end the camera is off the map: placements there are not evidence of the last arc.
+  for (int t = 8; t < 16; ++t) Frame(&belief, t + 1, {Pose(4, 0.5 + 0.15 * t)});
+  EXPECT_FALSE(belief.estimate().tracking);
+  EXPECT_FALSE(belief.estimate().evidence);
+  EXPECT_GT(belief.OffMap(), 0.5);
   // And before the first key-image, on the first arc at a negative position.
   PlaceBelief reversing(LinearMap(5));
   for (int t = 0; t < 6; ++t) Frame(&reversing, t + 1, {Pose(0, 0.3 - 0.1 * t)});
