@@ -45,4 +45,17 @@ MotionAgreement CompareComposedMotion(const Rigid3d& y_from_x, const Rigid3d& z_
   return agreement;
 }
 
+MotionAgreement CompareComposedMotion(const Rigid3d& y_from_x, const Rigid3d& z_from_y, const Rigid3d& z_from_x,
+                                      double scale) {
+  MotionAgreement agreement = CompareComposedMotion(y_from_x, z_from_y, z_from_x);
+  const Vector3d& first = y_from_x.translation;
+  const Vector3d& second = z_from_y.translation;
+  const Vector3d& measured = z_from_x.translation;
+  if (!(scale > 0) || first.norm() == 0.0 || second.norm() == 0.0 || measured.norm() == 0.0) return agreement;
+  const Vector3d composed = z_from_y.rotation * first.normalized() + scale * second.normalized();
+  if (composed.norm() < 1e-9) return agreement;  // the two parts cancel: no direction to compare
+  agreement.direction_deg = AngleBetweenDeg(measured, composed);
+  return agreement;
+}
+
 }  // namespace retrace

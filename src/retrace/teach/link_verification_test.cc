@@ -62,5 +62,19 @@ TEST(LinkVerification, DirectionBetweenThePartsAgrees) {
   EXPECT_NEAR(CompareComposedMotion(y_from_x, z_from_y, measured).direction_deg, 45.0, 1e-6);
 }
 
+TEST(LinkVerification, KnownScaleLeavesOneDirection) {
+  // x -> y sideways (5 m), y -> z forwards (5 m): with the true ratio of their lengths the true measured motion
+  // agrees; a direction elsewhere on the arc, which any ratio would allow, does not.
+  const Rigid3d x = Pose(0, Vector3d(0, 0, 0)), y = Pose(0, Vector3d(5, 0, 0)), z = Pose(0, Vector3d(5, 0, 5));
+  const Rigid3d y_from_x = Relative(x, y), z_from_y = Relative(y, z, 7.0);
+  Rigid3d measured = Relative(x, z);
+  EXPECT_NEAR(CompareComposedMotion(y_from_x, z_from_y, measured, 1.0).direction_deg, 0.0, 1e-6);
+  EXPECT_NEAR(CompareComposedMotion(y_from_x, z_from_y, measured, 1.0).rotation_deg, 0.0, 1e-6);
+  measured.translation = Vector3d(-1, 0, -0.2).normalized();
+  EXPECT_NEAR(CompareComposedMotion(y_from_x, z_from_y, measured).direction_deg, 0.0, 1e-6);
+  EXPECT_NEAR(CompareComposedMotion(y_from_x, z_from_y, measured, 1.0).direction_deg,
+              45.0 - std::atan(0.2) * 180 / M_PI, 1e-6);
+}
+
 }  // namespace
 }  // namespace retrace

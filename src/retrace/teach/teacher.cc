@@ -128,6 +128,9 @@ struct Teacher::PendingGap {
     MatchableImage image;  // wide-baseline features extracted when needed
     bool has_features = false;
     Rigid3d from_gap;
+    // The length of `from_gap` over that of the gap arc, when features reconstructed by both give it: the witness
+    // then checks the gap arc's translation direction itself, not only up to the ratio of the two (WeighWitness).
+    std::optional<double> scale;
   };
   std::vector<Witness> witnesses;
   RejectedLink report;  // filled in but for the reason
@@ -196,6 +199,18 @@ void Teacher::AddFrame(const Frame& frame) {
       witness.image.image = current->frame.image;
       witness.image.pyramid = current->pyramid;
       witness.from_gap = current->geometry.b_from_a;
+      // The features the gap arc and W(G, f) both reconstruct give the ratio of their lengths (design §3.3).
+      std::vector<double> depth_in_gap, depth_in_witness;
+      for (size_t i = 0; i < current->geometry_ids.size(); ++i) {
+        if (!current->geometry.inlier_mask[i]) continue;
+        const auto it = pending_gap_->depth_at_to.find(current->geometry_ids[i]);
+        if (it == pending_gap_->depth_at_to.end()) continue;
+        depth_in_gap.push_back(it->second);
+        depth_in_witness.push_back(current->geometry.depths_a[i]);
+      }
+      if (const ScaleEstimate scale = EstimateScaleFromDistances(depth_in_gap, depth_in_witness, 5); scale.success) {
+        witness.scale = scale.scale;
+      }
       pending_gap_->witnesses.push_back(std::move(witness));
     }
     previous_ = std::move(current);
@@ -557,7 +572,8 @@ void Teacher::ResolvePendingGap(const MapArc* next) {
       }
       std::string description;
       const WitnessVerdict verdict =
-          WeighWitness(gap->from_image, it->image, gap->arc.to_from_from, it->from_gap, it->name, &description);
+          WeighWitness(gap->from_image, it->image, gap->arc.to_from_from, it->from_gap, it->name, &description,
+                       it->scale);
       if (verdict == WitnessVerdict::kUnrelated) continue;
       reason = verdict == WitnessVerdict::kConfirms ? "" : description;
       break;
@@ -612,7 +628,8 @@ void Teacher::ResolvePendingGap(const MapArc* next) {
 
 Teacher::WitnessVerdict Teacher::WeighWitness(const MatchableImage& x, const MatchableImage& z,
                                               const Rigid3d& y_from_x, const Rigid3d& z_from_y,
-                                              const std::string& name, std::string* description) {
+                                              const std::string& name, std::string* description,
+                                              std::optional<double> scale) {
   const MatchedGeometry matched = RelateByMatching(*camera_, x, z, MatchingOptions());
   if (!AcceptableMatchedGeometry(matched, options_.min_matched_inliers)) {
     *description = fmt::format("{} does not relate ({} inliers, sigma_p {:.2f} px)", name,
@@ -621,7 +638,8 @@ Teacher::WitnessVerdict Teacher::WeighWitness(const MatchableImage& x, const Mat
     return WitnessVerdict::kUnrelated;
   }
   const auto agrees_with = [&](const TwoViewGeometry& geometry, MotionAgreement* agreement) {
-    *agreement = CompareComposedMotion(y_from_x, z_from_y, geometry.b_from_a);
+    *agreement = scale ? CompareComposedMotion(y_from_x, z_from_y, geometry.b_from_a, *scale)
+                       : CompareComposedMotion(y_from_x, z_from_y, geometry.b_from_a);
     return agreement->rotation_deg <= options_.max_link_rotation_disagreement_deg &&
            agreement->direction_deg <= options_.max_link_direction_disagreement_deg;
   };
@@ -635,8 +653,12 @@ Teacher::WitnessVerdict Teacher::WeighWitness(const MatchableImage& x, const Mat
     // composition: X and Z of kitti07 at 320 px, 8 frames apart, fit motions 0.6 to 8.9 degrees apart with 48 of
     // 56 matches each, and the sampled one depended on the random seed.
     const Matrix3d composed_rotation = z_from_y.rotation * y_from_x.rotation;
+    // With the ratio of the two parts' lengths known, the composition allows one direction only.
     const Vector3d first = z_from_y.rotation * y_from_x.translation, second = z_from_y.translation;
-    for (const Vector3d& direction : {first, Vector3d(first.normalized() + second.normalized()), second}) {
+    const std::vector<Vector3d> directions =
+        scale ? std::vector<Vector3d>{first.normalized() + *scale * second.normalized()}
+              : std::vector<Vector3d>{first, first.normalized() + second.normalized(), second};
+    for (const Vector3d& direction : directions) {
       if (!(direction.norm() > 1e-9)) continue;
       const Rigid3d guess(composed_rotation, direction.normalized());
       MatchedGeometry guided;
@@ -655,9 +677,9 @@ Teacher::WitnessVerdict Teacher::WeighWitness(const MatchableImage& x, const Mat
     }
   }
   *description = fmt::format(
-      "{} {} ({} inliers; rotation {:.1f} deg, direction {:.1f} deg off the composed motion{})", name,
+      "{} {} ({} inliers; rotation {:.1f} deg, direction {:.1f} deg off the composed motion{}{})", name,
       agrees ? "agrees" : "disagrees", matched.geometry.num_inliers, agreement.rotation_deg, agreement.direction_deg,
-      second_look);
+      scale ? fmt::format(" at relative scale {:.2f}", *scale) : "", second_look);
   spdlog::debug("teach: link witness {}", *description);
   return agrees ? WitnessVerdict::kConfirms : WitnessVerdict::kContradicts;
 }

@@ -27,10 +27,12 @@
 // the next key-image H: K matched with the frames tracked from G on must show the gap arc followed by the tracked
 // W(G, f); when tracking fails at once after G too (a slow camera, a fast car: at a low frame rate every arc may be
 // a gap arc), G -> H is a gap arc itself and K matched with H must show the two gap arcs composed, three key-images
-// whose pairwise geometries agree. The last of these witnesses that relates to K decides; K's predecessor matched
-// with G must not disagree. Until then, and for good when it is not confirmed (no witness relates, one disagrees, or
-// the drive ends at G), the map is disconnected at G. Every rejected candidate is reported
-// (TeachStatistics::rejected_links).
+// whose pairwise geometries agree. A tracked frame whose W(G, f) reconstructs features of the gap arc also gives
+// the ratio of the two lengths (design §3.3), and K matched with it must then show the one composed direction at that
+// ratio, not merely one of those any ratio allows (link_verification.h). The last of these witnesses that relates to
+// K decides; K's predecessor matched with G must not disagree. Until then, and for good when it is not confirmed (no
+// witness relates, one disagrees, or the drive ends at G), the map is disconnected at G. Every rejected candidate is
+// reported (TeachStatistics::rejected_links).
 //
 // The relative scale between consecutive arcs is stored at their common node (median of depth ratios of the
 // features reconstructed in both, design §3.3).
@@ -41,6 +43,7 @@
 #include <array>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -229,9 +232,11 @@ class Teacher {
   // What a witness of a link says (link_verification.h).
   enum class WitnessVerdict { kConfirms, kContradicts, kUnrelated };
   // Matches X with Z and compares the measured motion with `y_from_x` followed by `z_from_y`; `description` says
-  // what was found, for the report.
+  // what was found, for the report. `scale`: the length of `z_from_y` over that of `y_from_x`, when known (the
+  // composition then allows one translation direction, link_verification.h).
   WitnessVerdict WeighWitness(const MatchableImage& x, const MatchableImage& z, const Rigid3d& y_from_x,
-                              const Rigid3d& z_from_y, const std::string& name, std::string* description);
+                              const Rigid3d& z_from_y, const std::string& name, std::string* description,
+                              std::optional<double> scale = std::nullopt);
   // Starts a subrange at `frame`: references redefined there, new corners detected.
   void StartSubrange(FrameState* frame);
   void CloseLoop();

@@ -8,6 +8,8 @@
 #include <cstdlib>
 #include <unordered_map>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <spdlog/spdlog.h>
@@ -175,10 +177,12 @@ size_t CountPieces(const Map& map) {
 
 // A slow camera or a fast car: kitti07 at 320x97 px on every `every`-th frame, where tracking often fails between
 // consecutive frames and key-images are related by wide-baseline matching, runs of gap arcs among them, each
-// confirmed by the key-image after it (teacher.h). The map must be one piece from the first key-image to the last,
-// and every arc must agree with the KITTI poses (within 1 degree of rotation and 10 of translation direction, the
-// sim tests' limits) but `known_errors`, which are printed.
-void CheckSparseKittiMap(const std::filesystem::path& kitti, size_t every, int known_errors) {
+// confirmed by the key-image after it (teacher.h). The map must be one piece from the first key-image to the last
+// but for the gap arcs `rejected_gaps` (source frames of their key-images), which verification turns down, and every
+// arc must agree with the KITTI poses (within 1 degree of rotation and 10 of translation direction, the sim tests'
+// limits) but `known_errors`, which are printed.
+void CheckSparseKittiMap(const std::filesystem::path& kitti, size_t every, int known_errors,
+                         const std::vector<std::pair<int64_t, int64_t>>& rejected_gaps = {}) {
   if (std::getenv("RETRACE_DEBUG")) spdlog::set_level(spdlog::level::debug);
   TeachStatistics stats;
   double sigma_threshold = 0;
@@ -212,9 +216,13 @@ void CheckSparseKittiMap(const std::filesystem::path& kitti, size_t every, int k
             << *std::max_element(errors.rotation_deg.begin(), errors.rotation_deg.end())
             << " deg; translation direction median " << Median(errors.direction_deg) << " deg, max "
             << *std::max_element(errors.direction_deg.begin(), errors.direction_deg.end()) << " deg\n";
-  EXPECT_EQ(pieces, 1u) << "the map is connected";
-  EXPECT_EQ(map.arcs().size() + 1, map.nodes().size()) << "a linear graph";
-  EXPECT_TRUE(stats.rejected_links.empty());
+  EXPECT_EQ(pieces, 1 + rejected_gaps.size()) << "the map is connected but for the rejected gaps";
+  EXPECT_EQ(map.arcs().size() + 1 + rejected_gaps.size(), map.nodes().size()) << "a linear graph";
+  ASSERT_EQ(stats.rejected_links.size(), rejected_gaps.size());
+  for (size_t i = 0; i < rejected_gaps.size(); ++i) {
+    EXPECT_EQ(stats.rejected_links[i].kind, "gap");
+    EXPECT_EQ(std::make_pair(stats.rejected_links[i].from_frame, stats.rejected_links[i].to_frame), rejected_gaps[i]);
+  }
   EXPECT_GE(chained_gap_arcs, 1) << "the drive has runs of gap arcs";
   EXPECT_LE(arcs_off, known_errors);
   EXPECT_LE(Median(errors.rotation_deg), 0.3);
@@ -229,16 +237,17 @@ TEST(TeachKitti, EveryFourthFrameAt320PxIsOneConnectedRoute) {
   CheckSparseKittiMap(kitti, 4, 0);
 }
 
-// Tracking mostly holds here (5 gap arcs; without the key-image after a gap as witness, the run of frames 135-141
-// was cut twice). Two arcs are off the truth for reasons of their own pair of images, with or without verification:
-// the tracked arc of frames 72-75 (9 degrees): 6 of its 60 features, on the shutters of the facade on the left, are
-// tracked onto neighbouring slats, and a wrong motion fits all 60 (the true one puts those 6 behind the camera); the
-// gap arc of frames 81-84 (translation direction 20 degrees): its wrong motion fits 143 of the 159 matches, the true
-// one 129. Its witness agrees within 1.6 degrees of rotation: a witness checks the direction of a link only up to
-// the unknown ratio of the scales of the link and of the witness's own motion (link_verification.h).
-TEST(TeachKitti, EveryThirdFrameAt320PxIsOneConnectedRoute) {
+// Tracking mostly holds here (5 gap candidates; without the key-image after a gap as witness, the run of frames
+// 135-141 was cut twice). The tracked arc of frames 72-75 is off the truth (9 degrees) for reasons of its own pair of
+// images, with or without verification: 6 of its 60 features, on the shutters of the facade on the left, are
+// tracked onto neighbouring slats, and a wrong motion fits all 60 (the true one puts those 6 behind the camera). The
+// gap arc of frames 81-84 is rejected: its motion (translation direction 20 degrees off the truth) fits 143 of the
+// 159 matches, the true one 129, and its witness, frame 87 tracked from 84, lies 0.3 degrees from the arc of
+// directions any ratio of the two scales allows but 12.9 degrees from the direction at the ratio their 32 shared
+// features give (0.45; the truth is near 1); before that check the false arc was kept.
+TEST(TeachKitti, EveryThirdFrameAt320PxIsConnectedButForAFalseGap) {
   RETRACE_REQUIRE_SHARED_DATA(kitti, "kitti07");
-  CheckSparseKittiMap(kitti, 3, 2);
+  CheckSparseKittiMap(kitti, 3, 1, {{81, 84}});
 }
 
 TEST(TeachKitti, KilledTeachLeavesAMapThatOpens) {
