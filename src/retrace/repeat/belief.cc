@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <deque>
+#include <limits>
 #include <string>
 
 namespace retrace {
@@ -99,14 +100,28 @@ PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : op
       for (const int p : arcs_[k].predecessors) visit(p, false);
     }
   }
-  // Virtual arcs beyond the route's ends (ArcNode::virtual_of).
+  // Virtual arcs beyond the route's ends (ArcNode::virtual_of). Beyond the teach drive's first and last key-images
+  // they are as long as the median arc (a route's last arc is often short: teach registers its last frame); where a
+  // piece of a disconnected map ends inside the drive, as long as the arc itself (the drive went on to another
+  // piece, and a camera much farther is there, not here).
   const size_t real_arcs = arcs_.size();
+  std::vector<double> lengths;
+  for (const ArcNode& arc : arcs_) lengths.push_back(arc.length);
+  const double typical_length = lengths.empty() ? 1.0 : Median(lengths);
+  int64_t first_frame = std::numeric_limits<int64_t>::max(), last_frame = std::numeric_limits<int64_t>::min();
+  for (const MapNode& node : map.nodes()) {
+    first_frame = std::min(first_frame, node.source_frame);
+    last_frame = std::max(last_frame, node.source_frame);
+  }
   for (size_t k = 0; k < real_arcs; ++k) {
     for (const bool beyond_end : {true, false}) {
       if (!(beyond_end ? arcs_[k].successors : arcs_[k].predecessors).empty()) continue;
       ArcNode extension;
       extension.id = arcs_[k].id;
-      extension.length = arcs_[k].length;
+      const MapArc& arc = *map.FindArc(arcs_[k].id);
+      const MapNode* end = map.FindNode(beyond_end ? arc.to : arc.from);
+      const bool drive_end = end != nullptr && end->source_frame == (beyond_end ? last_frame : first_frame);
+      extension.length = drive_end ? std::max(arcs_[k].length, typical_length) : arcs_[k].length;
       extension.virtual_of = static_cast<int>(k);
       const int index = static_cast<int>(arcs_.size());
       (beyond_end ? extension.predecessors : extension.successors).push_back(static_cast<int>(k));

@@ -160,7 +160,7 @@ class PlaceBelief {
   struct ArcNode {
     arc_t id = kInvalidArcId;
     double length = 1.0;
-    // A route's end has a virtual arc beyond it (and its start one before it), of the same length, where a camera
+    // A route's end has a virtual arc beyond it (and its start one before it), where a camera
     // past the last key-image (before the first) is; its mass counts for the real arc. -1 for a real arc.
     int virtual_of = -1;
     std::vector<int> virtual_children;

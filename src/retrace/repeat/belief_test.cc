@@ -207,6 +207,26 @@ TEST(PlaceBelief, PastTheRoutesEndTheCameraIsOnItsLastArc) {
   EXPECT_NEAR(reversing.estimate().along, -0.2, 0.05);
 }
 
+TEST(PlaceBelief, PastTheEndOfADisconnectedPieceTheCameraIsOffTheMap) {
+  // Two pieces: arcs 0-2 (nodes 0-3, teach frames 0-30) and arcs 3-4 (nodes 4-6, frames 40-60). The drive went on
+  // past node 3 into the second piece: a tenth of an arc past node 3 is still arc 2, 1.3 arcs past it is not.
+  Map map = LinearMap(5);
+  Map pieces;
+  for (const MapNode& node : map.nodes()) pieces.AddNode(node);
+  for (const MapArc& arc : map.arcs()) {
+    if (arc.id != 3) pieces.AddArc(arc);
+  }
+  PlaceBelief belief(pieces);
+  for (int t = 0; t < 10; ++t) Frame(&belief, t + 1, {Pose(2, 0.5 + 0.2 * t)});  // 2.3 at t = 9
+  EXPECT_FALSE(belief.estimate().evidence);
+  EXPECT_FALSE(belief.estimate().tracking);
+  EXPECT_GT(belief.OffMap(), 0.5);
+  PlaceBelief early(pieces);
+  for (int t = 0; t < 4; ++t) Frame(&early, t + 1, {Pose(2, 0.5 + 0.2 * t)});  // 1.1 at t = 3
+  EXPECT_TRUE(early.estimate().tracking);
+  EXPECT_EQ(early.estimate().arc, 2);
+}
+
 TEST(PlaceBelief, OptionsAreChecked) {
   PlaceBeliefOptions options;
   options.bins_per_arc = 1;
