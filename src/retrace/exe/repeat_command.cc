@@ -205,7 +205,7 @@ void WriteConfidencePlot(const std::vector<FrameResult>& results, const Topologi
   options.x_label = "frame";
   options.y_label = "confidence";
   options.y_min = 0.0;
-  options.y_max = 1.05;
+  options.y_max = 1.4;  // room for the legend above the confident frames
   options.reference_lines.push_back({threshold, "tracking threshold"});
   if (!cv::imwrite(path.string(), RenderPlot({correct, wrong, lost}, options))) {
     throw InputError(path.string(), "cannot be written");

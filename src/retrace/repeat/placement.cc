@@ -6,13 +6,9 @@
 #include <string>
 
 namespace retrace {
-namespace {
-
 Vector3d CameraCentre(const Rigid3d& cam_from_world) {
   return -cam_from_world.rotation.transpose() * cam_from_world.translation;
 }
-
-}  // namespace
 
 ArcPosition LocateOnArc(const Rigid3d& current_from_a, const Rigid3d& arc_b_from_a) {
   ArcPosition position;

@@ -18,6 +18,9 @@
 
 namespace retrace {
 
+// The centre of a camera in the world frame, from its pose cam_from_world (C = -Rᵀt).
+Vector3d CameraCentre(const Rigid3d& cam_from_world);
+
 // Where the current camera is relative to an arc, in the arc's frame and unit (|t| = 1).
 struct ArcPosition {
   bool valid = false;

@@ -15,13 +15,6 @@ namespace retrace {
 
 using internal::Median;
 
-namespace {
-
-Vector3d CameraCentre(const Rigid3d& cam_from_world) {
-  return -cam_from_world.rotation.transpose() * cam_from_world.translation;
-}
-
-}  // namespace
 
 std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBaselineFeatures& current,
                                                                  const std::vector<node_t>& candidates) {

@@ -16,13 +16,6 @@ namespace retrace {
 
 using internal::Median;
 
-namespace {
-
-Vector3d CameraCentre(const Rigid3d& cam_from_world) {
-  return -cam_from_world.rotation.transpose() * cam_from_world.translation;
-}
-
-}  // namespace
 
 void Localizer::ResumePredicted(const std::array<RolePredictor, 3>& roles, const ArcPosition& position,
                                 FrameResult* result) {
