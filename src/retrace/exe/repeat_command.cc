@@ -386,12 +386,13 @@ void RunRepeat(const RepeatArguments& args) {
     std::filesystem::path truth_path = args.output;
     truth_path.replace_extension(".truth.csv");
     std::ofstream truth(truth_path);
-    truth << "frame,true_arc_index,tolerated_arc_index,estimated_arc_index,correct,lost,error,true_position_on_arc\n";
+    truth << "frame,true_arc_index,tolerated_arc_index,estimated_arc_index,correct,lost,error,true_position_on_arc,"
+             "tolerated_after_arc_index\n";
     for (size_t i = 0; i < results.size(); ++i) {
       const FrameTruth& t = evaluation.per_frame[i];
-      truth << fmt::format("{},{},{},{},{},{},{},{}\n", results[i].frame_index, t.true_arc_index,
+      truth << fmt::format("{},{},{},{},{},{},{},{},{}\n", results[i].frame_index, t.true_arc_index,
                            t.tolerated_arc_index, t.estimated_arc_index, t.correct ? 1 : 0, t.lost ? 1 : 0, t.error,
-                           OptionalNumber(t.true_position_on_arc));
+                           OptionalNumber(t.true_position_on_arc), t.tolerated_after_arc_index);
     }
     if (!truth) throw InputError(truth_path.string(), "cannot be written");
     std::cout << "per-frame ground truth: " << truth_path.string() << "\n";
