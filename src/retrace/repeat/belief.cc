@@ -183,9 +183,7 @@ const std::vector<arc_t>& PlaceBelief::Predecessors(arc_t arc) const {
   return k < 0 ? kNone : arcs_[k].predecessor_ids;
 }
 
-double PlaceBelief::Mass(arc_t arc) const {
-  const int k = Index(arc);
-  if (k < 0) return 0.0;
+double PlaceBelief::MassAt(int k) const {
   const int bins = options_.bins_per_arc;
   double sum = 0.0;
   for (int i = 0; i < bins; ++i) sum += mass_[k * bins + i];
@@ -195,13 +193,11 @@ double PlaceBelief::Mass(arc_t arc) const {
   return sum;
 }
 
-double PlaceBelief::Confidence(arc_t arc) const {
-  const int k = Index(arc);
-  if (k < 0) return 0.0;
+double PlaceBelief::ConfidenceAt(int k) const {
   const int bins = options_.bins_per_arc;
-  double confidence = Mass(arc);
+  double confidence = MassAt(k);
   for (const int s : arcs_[k].successors) {
-    if (arcs_[s].virtual_of >= 0) continue;  // counted in Mass
+    if (arcs_[s].virtual_of >= 0) continue;  // counted in MassAt
     for (int i = 0; i < bins && (i + 0.5) / bins < options_.node_tolerance; ++i) confidence += mass_[s * bins + i];
   }
   for (const int p : arcs_[k].predecessors) {
@@ -211,6 +207,16 @@ double PlaceBelief::Confidence(arc_t arc) const {
     }
   }
   return std::min(1.0, confidence);
+}
+
+double PlaceBelief::Mass(arc_t arc) const {
+  const int k = Index(arc);
+  return k < 0 ? 0.0 : MassAt(k);
+}
+
+double PlaceBelief::Confidence(arc_t arc) const {
+  const int k = Index(arc);
+  return k < 0 ? 0.0 : ConfidenceAt(k);
 }
 
 std::optional<double> PlaceBelief::SpeedOn(arc_t arc) const {
@@ -248,7 +254,7 @@ void PlaceBelief::Deposit(std::vector<double>* target, int index, double along, 
                           int depth) const {
   // The camera at `along` moves by a distance uniform in [low, high] (common units): the part of that range that
   // stays on this arc is spread over it, the rest continues into the following (preceding) arcs, split equally at
-  // a junction, or piles up at the route's end (start).
+  // a junction; past a virtual arc (beyond a route's end or before its start) it leaves the map.
   const ArcNode& arc = arcs_[index];
   const double from = along + low / arc.length;
   const double to = along + high / arc.length;
@@ -420,21 +426,13 @@ std::vector<double> PlaceBelief::Update(const std::vector<PlaceMeasurement>& mea
         total_inlier += inlier;
       }
     }
-    off_map_ *= outlier;  // off the map, a placement can only be wrong
-    double total_outlier = off_map_;
-    for (double& c : mass_) {
-      c *= outlier;
-      total_outlier += c;
-    }
-    for (const auto& [cell, inlier] : inliers) mass_[cell] += inlier;
-    const double total = total_outlier + total_inlier;
-    inlier_probabilities.push_back(total > 0 ? total_inlier / total : 0.0);
-    if (total > 0) {
-      for (double& c : mass_) c /= total;
-      off_map_ /= total;
-    } else {
-      Reset();
-    }
+    // The mass on and off the map sums to 1, so the outlier part of the evidence is `outlier` itself.
+    const double total = outlier + total_inlier;
+    inlier_probabilities.push_back(total_inlier / total);
+    const double scale = outlier / total;
+    for (double& c : mass_) c *= scale;
+    off_map_ *= scale;  // off the map, a placement can only be wrong
+    for (const auto& [cell, inlier] : inliers) mass_[cell] += inlier / total;
   }
   ComputeEstimate();
   estimate_.evidence = false;
@@ -471,35 +469,23 @@ void PlaceBelief::ComputeEstimate() {
   const int bins = options_.bins_per_arc;
   const size_t n = arcs_.size();
   if (n == 0) return;
-  // Mass per arc (a real arc with its virtual extensions), near its start (within node_tolerance) and near its end.
-  std::vector<double> whole(n, 0.0), head(n, 0.0), tail(n, 0.0);
-  for (size_t k = 0; k < n; ++k) {
-    const size_t owner = arcs_[k].virtual_of >= 0 ? static_cast<size_t>(arcs_[k].virtual_of) : k;
-    for (int i = 0; i < bins; ++i) {
-      const double m = mass_[k * bins + i];
-      const double centre = (i + 0.5) / bins;
-      whole[owner] += m;
-      if (owner != k) continue;
-      if (centre < options_.node_tolerance) head[k] += m;
-      if (centre > 1.0 - options_.node_tolerance) tail[k] += m;
-    }
-  }
+  // The reported arc: the largest confidence (ties: the larger mass on the arc itself).
   int best = -1;
-  double best_confidence = -1.0;
+  double best_confidence = -1.0, best_mass = -1.0;
   for (size_t k = 0; k < n; ++k) {
     if (arcs_[k].virtual_of >= 0) continue;
-    double confidence = whole[k];
-    for (const int s : arcs_[k].successors) confidence += arcs_[s].virtual_of >= 0 ? 0.0 : head[s];
-    for (const int p : arcs_[k].predecessors) confidence += arcs_[p].virtual_of >= 0 ? 0.0 : tail[p];
+    const double confidence = ConfidenceAt(static_cast<int>(k));
+    const double mass = MassAt(static_cast<int>(k));
     if (confidence > best_confidence + 1e-12 ||
-        (std::abs(confidence - best_confidence) <= 1e-12 && best >= 0 && whole[k] > whole[best])) {
+        (std::abs(confidence - best_confidence) <= 1e-12 && best >= 0 && mass > best_mass)) {
       best = static_cast<int>(k);
       best_confidence = confidence;
+      best_mass = mass;
     }
   }
   if (best < 0) return;
   estimate_.arc = arcs_[best].id;
-  estimate_.confidence = std::min(1.0, best_confidence);
+  estimate_.confidence = best_confidence;
   // Posterior mean and spread of the position on the arc: its own bins, its virtual extensions and the tolerated
   // bins of its neighbours, in its arc lengths.
   double sum = 0.0, sum_x = 0.0, sum_xx = 0.0;

@@ -12,16 +12,17 @@
 // neighbouring arcs).
 //
 // Each frame:
-//  1. Predict (motion model): every bin's mass moves by the camera's displacement d along the graph, continuing
-//     into the following arcs past an arc's end (into each of them, equally, at a junction) and into the previous
-//     ones before its start. Past a route's last key-image the camera is on a virtual arc continuing the last arc
-//     (and before the first on one preceding it), which counts as the route's last (first) arc; past that virtual
-//     arc it is off the map (a mass of its own, which placements do not explain). With the speed v known (common units per frame, the median of the last steps of the
-//     estimated position), d ~ N(v Δ, Δ ((α v)² + (σ₀ ℓ)²)) for Δ frames: α = `relative_speed_noise` (the speed
-//     changes and is estimated from noisy positions), σ₀ = `position_noise` arc lengths. With the speed unknown
-//     (after a start, a loss, or a jump) d is uniform over [`unknown_speed_min`, `unknown_speed_max`] arc lengths
-//     per frame. Then a fraction `jump_probability` of the mass is spread uniformly over the whole map: the belief
-//     may be wrong, or the robot carried elsewhere; this is what lets consistent evidence elsewhere win.
+//  1. Predict (motion model): every bin's mass moves by the camera's displacement d along the graph, continuing into
+//     the following arcs past an arc's end (into each of them, equally, at a junction) and into the previous ones
+//     before its start. Past a route's last key-image the camera is on a virtual arc continuing the last arc (and
+//     before the first on one preceding it), which counts as the route's last (first) arc; past that virtual arc it is
+//     off the map (a mass of its own, which placements do not explain). With the speed v known (common units per frame,
+//     the median of the last steps of the estimated position), d ~ N(v Δ, Δ ((α v)² + (σ₀ ℓ)²)) for Δ frames: α =
+//     `relative_speed_noise` (the speed changes and is estimated from noisy positions), σ₀ = `position_noise` arc
+//     lengths. With the speed unknown (after a start, a loss, or a jump) d is uniform over [`unknown_speed_min`,
+//     `unknown_speed_max`] arc lengths per frame. Then a fraction `jump_probability` of the mass is spread uniformly
+//     over the whole map: the belief may be wrong, or the robot carried elsewhere; this is what lets consistent
+//     evidence elsewhere win.
 //  2. Update (measurement model): every placement of the camera this frame yields — the absolute pose in an arc's
 //     reconstruction, the current geometries W_t:a / W_t:b brought into the arc's frame, a key-image verified by
 //     wide-baseline matching — is a measurement z (arc lengths of its arc k, anywhere on k's line: z = 1.5 is half
@@ -168,6 +169,9 @@ class PlaceBelief {
     std::vector<arc_t> successor_ids, predecessor_ids;
   };
   int Index(arc_t arc) const;
+  // Mass and confidence (see Mass, Confidence) of the real arc at index k.
+  double MassAt(int k) const;
+  double ConfidenceAt(int k) const;
   // Adds `mass` at position `along` of arc `index`, moved by a distance uniform in [low, high] (common units) along
   // the graph.
   void Deposit(std::vector<double>* target, int index, double along, double low, double high, double mass,

@@ -411,9 +411,10 @@ std::optional<ArcPredictor> FromTransfer(const std::optional<PointTransfer>& tra
 
 }  // namespace
 
-ArcPosition Localizer::UpdateBelief(const Placements& placements, FrameResult* result) {
+ArcPosition Localizer::UpdateBelief(const Placements& placements) {
   // One placement from the tracked features per frame (they are not independent evidence, belief.h): the absolute
-  // pose, else the current geometry with the lower σ_p; plus the key-image a bootstrap verified in this frame.
+  // pose, else the current geometry with the lower σ_p, else the placement in a neighbouring arc; plus the key-image
+  // a bootstrap verified in this frame.
   std::vector<PlaceMeasurement> measurements;
   if (placements.pose) {
     measurements.push_back(*placements.pose);
@@ -515,7 +516,8 @@ void Localizer::Localize(FrameResult* result) {
           PoseMeasurement(neighbour->arc->id, placed, pose, neighbour->arc->to_from_from, options_.placement);
     }
     if (!placements.neighbour) {
-      for (const auto& [neighbour, transfer] : {std::pair{next, &transfer_next}, std::pair{previous, &transfer_previous}}) {
+      for (const auto& [neighbour, transfer] :
+           {std::pair{next, &transfer_next}, std::pair{previous, &transfer_previous}}) {
         if (neighbour == nullptr || !transfer->has_value()) continue;
         const ArcPosition placed = LocateOnArc((*transfer)->current_from_a(), neighbour->arc->to_from_from);
         if (!placed.valid) continue;
@@ -525,7 +527,7 @@ void Localizer::Localize(FrameResult* result) {
     }
   }
   // Where the camera is: the belief, updated with this frame's placements, on the current arc.
-  const ArcPosition position = UpdateBelief(placements, result);
+  const ArcPosition position = UpdateBelief(placements);
   const PlaceEstimate& estimate = belief_.estimate();
 
   // The three-view geometry of the current arc: W_k adjusted to the more accurate current geometry whose placement

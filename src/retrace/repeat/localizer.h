@@ -22,12 +22,12 @@
 //     or one derived from the previous frame's absolute pose, is the first hypothesis); a geometry is "usable" when
 //     it succeeded with σ_p below `max_sigma_p_px`;
 //  3. placements (placement.h): the camera is placed on the arc by its absolute pose in the arc's reconstruction
-//     (P3P on the tracked features whose points Q the arc stores, σ_p gated like the current geometries; its
-//     standard deviation along the arc from the pose's covariance), and by W_t:a and W_t:b brought into the arc's
-//     frame and scale (decomposed point transfer, §4.4). They are measurements of the belief: the absolute pose
-//     (far more accurate, README), else the current geometry with the lower σ_p, plus the key-image a bootstrap
-//     verified in this frame. The belief is predicted by the motion model and updated with them; its mode, on the
-//     current arc, is the camera's position;
+//     (P3P on the tracked features whose points Q the arc stores, σ_p gated like the current geometries; its standard
+//     deviation along the arc from the pose's covariance), and by W_t:a and W_t:b brought into the arc's frame and
+//     scale (decomposed point transfer, §4.4). They are measurements of the belief: the absolute pose (far more
+//     accurate, README), else the current geometry with the lower σ_p, else the camera placed in a neighbouring arc's
+//     frame, plus the key-image a bootstrap verified in this frame. The belief is predicted by the motion model and
+//     updated with them; its mode, on the current arc, is the camera's position;
 //  4. decomposed point transfer (§4.4): the current arc's points are predicted through the more accurate usable one
 //     of W_t:a / W_t:b whose placement agrees with the belief (within `agreement_sigmas` standard deviations), the
 //     next arc's through W_t:b, the previous arc's through W_t:a — only through usable geometries (σ_p gating,
@@ -61,10 +61,10 @@
 // frame gave the belief evidence it accepts; otherwise `lost`, with no arc. The confidence is reported every frame.
 // Lost is an answer, never a confident wrong place.
 //
-// The tracks are given up when fewer than `min_features` of the current arc are tracked in a frame without
-// evidence, or no current geometry or absolute pose is usable for `max_bad_frames` frames in a row; the same frame is then re-initialised by
-// wide-baseline matching against the key-images, exactly as the bootstrap, and when that fails the frame is kLost
-// and the following frames keep trying (kRelocalizing). The belief carries on through all of it.
+// The tracks are given up when fewer than `min_features` of the current arc are tracked in a frame without evidence,
+// or no current geometry or absolute pose is usable for `max_bad_frames` frames in a row; the same frame is then
+// re-initialised by wide-baseline matching against the key-images, exactly as the bootstrap, and when that fails the
+// frame is kLost and the following frames keep trying (kRelocalizing). The belief carries on through all of it.
 //
 // Bootstrap (§3.3, relocalization.cc): the frame is matched (SIFT, ratio 0.8) against the key-images of a given
 // start arc, or — without one — against every key-image (retrieval); after a loss only the key-images within
@@ -357,7 +357,7 @@ class Localizer {
   // The frame's placements as measurements of the belief, the belief updated, and the tracked location moved to
   // where the belief's mode lies. Returns that position on the current arc.
   struct Placements;
-  ArcPosition UpdateBelief(const Placements& placements, FrameResult* result);
+  ArcPosition UpdateBelief(const Placements& placements);
   // The belief's most likely position expressed on the current arc (arc lengths, beyond [0, 1] when the mode lies
   // on a neighbouring arc); none when the mode is out of the belief's reach of the current arc.
   std::optional<double> AlongCurrentArc() const;

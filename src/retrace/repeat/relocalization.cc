@@ -31,14 +31,16 @@ std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBase
       const cv::KeyPoint& kk = key.keypoints[m.queryIdx];
       const cv::KeyPoint& kc = current.keypoints[m.trainIdx];
       Vector3d bk, bc;
-      if (!camera_->Unproject(Vector2d(kk.pt.x, kk.pt.y), &bk) || !camera_->Unproject(Vector2d(kc.pt.x, kc.pt.y), &bc)) {
+      if (!camera_->Unproject(Vector2d(kk.pt.x, kk.pt.y), &bk) ||
+          !camera_->Unproject(Vector2d(kc.pt.x, kc.pt.y), &bc)) {
         continue;
       }
       bearings_key.push_back(bk);
       bearings_current.push_back(bc);
       used.push_back(&m);
     }
-    candidate.geometry = EstimateRelativePose(bearings_key, bearings_current, camera_->FocalLength(), geometry_options_);
+    candidate.geometry =
+        EstimateRelativePose(bearings_key, bearings_current, camera_->FocalLength(), geometry_options_);
     // A frame taken (almost) where the key-image was shows no parallax: the rotation-only fit still verifies it.
     const bool verified_geometry = candidate.geometry.success ||
                                    candidate.geometry.failure == TwoViewFailure::kInsufficientParallax;
@@ -232,7 +234,8 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
         if (!camera_->InImage(predicted, tracker_.Options().alignment.window_size / 2 + 2)) continue;
         const ReferencePatch* reference = Reference(candidate.node, id);
         if (reference == nullptr) continue;
-        const AlignmentResult refined = RefinePrediction(prediction_pyramid_, *reference, predicted, Median(ratios), refine);
+        const AlignmentResult refined =
+            RefinePrediction(prediction_pyramid_, *reference, predicted, Median(ratios), refine);
         if (refined.ok() && tracker_.AddFeature(*reference, refined, id) != kInvalidFeatureId) {
           reference_node_[id] = candidate.node;
           ++result->resumed;

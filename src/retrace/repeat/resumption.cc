@@ -46,8 +46,8 @@ void Localizer::ResumePredicted(const std::array<RolePredictor, 3>& roles, const
       const ReferencePatch* reference = Reference(reference_node, id);
       if (reference == nullptr) continue;
       // Segvic 2009 §5.2.1: initial scale = |Q - C_ref| / |Q - C_t| (the feature looks larger when nearer).
-      const AlignmentResult refined =
-          RefinePrediction(prediction_pyramid_, *reference, predicted.pixel, 1.0 / predicted.distance_ratio, refine_options_);
+      const AlignmentResult refined = RefinePrediction(prediction_pyramid_, *reference, predicted.pixel,
+                                                       1.0 / predicted.distance_ratio, refine_options_);
       if (refined.ok() && tracker_.AddFeature(*reference, refined, id) != kInvalidFeatureId) {
         reference_node_[id] = reference_node;
         retry_after_.erase(id);
@@ -164,7 +164,8 @@ void Localizer::ResumeByRotation(const ArcData& arc, node_t node_id, const Matri
     WarpState initial;
     initial.position = predicted;
     initial.scale = scale;
-    Candidate candidate{id, reference, predicted, AlignToReference(pyramid_, *reference, initial, refine_options_.alignment)};
+    Candidate candidate{id, reference, predicted,
+                        AlignToReference(pyramid_, *reference, initial, refine_options_.alignment)};
     if (candidate.aligned.ok()) {
       offset_x.push_back(candidate.aligned.warp.position.x() - predicted.x());
       offset_y.push_back(candidate.aligned.warp.position.y() - predicted.y());
