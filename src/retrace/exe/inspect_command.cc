@@ -1,5 +1,7 @@
 // retrace inspect: what is in a map — a summary, the whole graph as JSON, or a report of plots.
 
+#include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 
@@ -10,6 +12,7 @@
 #include "retrace/exe/commands.h"
 #include "retrace/map/map_database.h"
 #include "retrace/teach/map_report.h"
+#include "retrace/util/error.h"
 
 namespace retrace {
 namespace {
@@ -50,6 +53,18 @@ nlohmann::json MapToJson(const Map& map, const std::map<std::string, std::string
   return {{"nodes", nodes}, {"arcs", arcs}, {"scales", scales}, {"metadata", metadata}};
 }
 
+// A number stored in the map's metadata; a value that is not one is an error naming the map and the key.
+double MetadataNumber(const std::map<std::string, std::string>& metadata, const std::string& key,
+                      const std::filesystem::path& map_path) {
+  const std::string& text = metadata.at(key);
+  char* end = nullptr;
+  const double value = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(value)) {
+    throw InputError(map_path.string(), "metadata " + key + " is not a number: '" + PrintableText(text, 40) + "'");
+  }
+  return value;
+}
+
 void RunInspect(const InspectArguments& args) {
   auto database = MapDatabase::Open(args.map_path);
   const bool need_images = !args.report_dir.empty();
@@ -60,7 +75,8 @@ void RunInspect(const InspectArguments& args) {
   } else {
     const MapStatistics stats = ComputeMapStatistics(map);
     const auto file_bytes = std::filesystem::file_size(args.map_path);
-    std::cout << fmt::format("map {}\n", args.map_path.string());
+    std::cout << fmt::format("map {}{}\n", args.map_path.string(),
+                             database->complete() ? "" : " (INCOMPLETE: its teach did not finish)");
     std::cout << fmt::format("  key-images      {}\n  arcs            {}\n  features        {}\n", stats.num_nodes,
                              stats.num_arcs, stats.num_features);
     std::cout << fmt::format("  features / arc  median {:.0f}, min {:.0f}\n", stats.median_arc_features,
@@ -71,8 +87,8 @@ void RunInspect(const InspectArguments& args) {
                              stats.median_frames_between_key_images);
     std::cout << fmt::format("  size            {:.1f} kB ({:.1f} kB of key-images)\n", file_bytes / 1000.0,
                              database->ImageBytes() / 1000.0);
-    if (const auto it = metadata.find("route_length_m"); it != metadata.end()) {
-      const double metres = std::stod(it->second);
+    if (metadata.count("route_length_m") != 0) {
+      const double metres = MetadataNumber(metadata, "route_length_m", args.map_path);
       if (metres > 0) {
         std::cout << fmt::format("  route           {:.1f} m, {:.1f} kB/m\n", metres, file_bytes / 1000.0 / metres);
       }
@@ -84,9 +100,9 @@ void RunInspect(const InspectArguments& args) {
   if (!args.report_dir.empty()) {
     MapReportOptions options;
     if (!args.ground_truth.empty()) options.ground_truth = ReadKittiPoses(args.ground_truth);
-    if (const auto it = metadata.find("r_p"); it != metadata.end()) options.sigma_p_threshold = std::stod(it->second);
-    if (const auto it = metadata.find("min_features"); it != metadata.end()) {
-      options.min_features = std::stod(it->second);
+    if (metadata.count("r_p") != 0) options.sigma_p_threshold = MetadataNumber(metadata, "r_p", args.map_path);
+    if (metadata.count("min_features") != 0) {
+      options.min_features = MetadataNumber(metadata, "min_features", args.map_path);
     }
     for (const auto& path : WriteMapReport(map, args.report_dir, options)) {
       std::cerr << "wrote " << path.string() << "\n";

@@ -1,6 +1,7 @@
 // retrace teach: build a map from one drive.
 
 #include <chrono>
+#include <exception>
 #include <filesystem>
 #include <iostream>
 
@@ -59,7 +60,19 @@ void RunTeach(const TeachArguments& args) {
     camera = camera->Scaled(factor);
   }
 
-  auto database = MapDatabase::Create(args.map, args.storage, args.overwrite);
+  // The map is built in <map>.incomplete and moved onto <map> only when teach succeeded (map_database.h).
+  std::unique_ptr<StagedMap> staged = StagedMap::Begin(args.map, args.storage, args.overwrite);
+  MapDatabase* database = staged->database();
+  // On an error the map taught so far stays in <map>.incomplete, marked incomplete; <map> is untouched.
+  struct KeptOnError {
+    StagedMap& staged;
+    ~KeptOnError() {
+      if (std::uncaught_exceptions() > 0 && staged.database() != nullptr) {
+        spdlog::warn("teach failed: {} is unchanged; the map taught until the error is in {}", staged.path().string(),
+                     staged.staging_path().string());
+      }
+    }
+  } kept_on_error{*staged};
   database->SetMetadata("source_sequence", std::filesystem::absolute(args.sequence).string());
   database->SetMetadata("method", args.method);
   database->SetMetadata("frames_every", std::to_string(args.every));
@@ -67,7 +80,7 @@ void RunTeach(const TeachArguments& args) {
   database->SetMetadata("width", std::to_string(camera->width()));
   database->WriteCamera(camera->model_name(), camera->width(), camera->height(), CameraToYaml(*camera));
 
-  Teacher teacher(*camera, args.options, database.get());
+  Teacher teacher(*camera, args.options, database);
   database->SetMetadata("r_p", fmt::format("{:.3f}", teacher.sigma_p_threshold_px()));
   database->SetMetadata("min_features", std::to_string(args.options.min_features));
   database->SetMetadata("min_features_fraction", fmt::format("{:g}", args.options.min_features_fraction));
@@ -107,7 +120,7 @@ void RunTeach(const TeachArguments& args) {
   }
   database->Checkpoint();
   const MapStatistics map_stats = ComputeMapStatistics(map);
-  database.reset();  // folds the write-ahead log into the map file
+  staged->Commit();  // folds the write-ahead log into the map file and moves it into place
   const double map_kb = std::filesystem::file_size(args.map) / 1000.0;
 
   std::cout << fmt::format("map {}: {} key-images, {} arcs{} from {} frames\n", args.map.string(),
@@ -164,7 +177,9 @@ void RegisterTeachCommand(CLI::App& app) {
       ->check(CLI::PositiveNumber);
   cmd->add_option("--every", args->every, "Use every k-th frame (e.g. 2 = even frames)")->check(CLI::PositiveNumber);
   cmd->add_option("--offset", args->offset, "First frame used with --every (1 = odd frames)");
-  cmd->add_flag("--overwrite", args->overwrite, "Replace an existing map file");
+  cmd->add_flag("--overwrite", args->overwrite,
+                "Replace an existing map (only a retrace map, and only when teach succeeds: the map is written to "
+                "MAP.incomplete and moved onto MAP at the end)");
   cmd->add_flag("--no-progress", args->no_progress, "Do not show the progress bar");
   cmd->add_option("--r-p", args->options.max_sigma_p_px, "r_p: sigma_p threshold for a new key-image, px at 320 px width")
       ->capture_default_str();

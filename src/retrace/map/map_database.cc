@@ -1,14 +1,83 @@
 #include "retrace/map/map_database.h"
 
+#include <fcntl.h>
+#include <stdio.h>
+#include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <array>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+
+#include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
+#include <spdlog/spdlog.h>
 
 #include "retrace/util/error.h"
 #include "retrace/util/version.h"
 
 namespace retrace {
 namespace {
+
+constexpr const char* kCorrupt = "corrupt map: ";
+
+// CRC-32 (IEEE 802.3, as zlib's crc32) of `size` bytes.
+uint32_t Crc32(const uint8_t* data, size_t size) {
+  static const std::array<uint32_t, 256> table = [] {
+    std::array<uint32_t, 256> t{};
+    for (uint32_t i = 0; i < 256; ++i) {
+      uint32_t c = i;
+      for (int bit = 0; bit < 8; ++bit) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+      t[i] = c;
+    }
+    return t;
+  }();
+  uint32_t crc = 0xFFFFFFFFu;
+  for (size_t i = 0; i < size; ++i) crc = table[(crc ^ data[i]) & 0xFF] ^ (crc >> 8);
+  return crc ^ 0xFFFFFFFFu;
+}
+
+// Whether `bytes` look like a whole encoded image of a codec a map may hold (maps of schema 1 have no checksum:
+// this at least finds a truncated or overwritten start or end).
+bool LooksLikeWholeImage(const std::vector<uint8_t>& bytes) {
+  const auto starts_with = [&](std::initializer_list<uint8_t> prefix) {
+    return bytes.size() >= prefix.size() && std::equal(prefix.begin(), prefix.end(), bytes.begin());
+  };
+  if (starts_with({0xFF, 0xD8, 0xFF})) return bytes.size() >= 4 && bytes[bytes.size() - 2] == 0xFF && bytes.back() == 0xD9;
+  if (starts_with({0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'})) {
+    static const uint8_t kEnd[] = {'I', 'E', 'N', 'D', 0xAE, 0x42, 0x60, 0x82};
+    return bytes.size() >= 8 + sizeof(kEnd) && std::equal(std::begin(kEnd), std::end(kEnd), bytes.end() - sizeof(kEnd));
+  }
+  if (starts_with({'R', 'I', 'F', 'F'}) && bytes.size() >= 12) {
+    const uint32_t riff_size = bytes[4] | (bytes[5] << 8) | (bytes[6] << 16) | (uint32_t{bytes[7]} << 24);
+    return std::equal(bytes.begin() + 8, bytes.begin() + 12, "WEBP") && riff_size + 8 == bytes.size();
+  }
+  return false;
+}
+
+// The side files SQLite may keep beside a database.
+std::vector<std::filesystem::path> SideFiles(const std::filesystem::path& path) {
+  return {path.string() + "-wal", path.string() + "-shm", path.string() + "-journal"};
+}
+
+void RemoveSideFiles(const std::filesystem::path& path) {
+  std::error_code ec;
+  for (const auto& side : SideFiles(path)) {
+    std::filesystem::remove(side, ec);
+    if (ec) throw InputError(path.string(), "cannot remove " + side.string() + ": " + ec.message());
+  }
+}
+
+// fsync of a file or directory; errors are ignored (durability is best effort, atomicity is the rename's).
+void SyncPath(const std::filesystem::path& path, bool directory) {
+  const int fd = open(path.c_str(), (directory ? O_RDONLY | O_DIRECTORY : O_RDONLY) | O_CLOEXEC);
+  if (fd < 0) return;
+  fsync(fd);
+  close(fd);
+}
 
 std::vector<uint8_t> EncodeImage(const cv::Mat& image, const MapDatabaseOptions& options, const std::string& source) {
   std::vector<int> params;
@@ -40,6 +109,27 @@ bool MapDatabaseOptions::Check(std::string* error) const {
   return true;
 }
 
+void MapDatabase::CheckReplaceable(const std::filesystem::path& path) {
+  const std::string source = path.string();
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (ec) throw InputError(source, "cannot be examined: " + ec.message());
+  if (!std::filesystem::is_regular_file(status)) {
+    throw InputError(source, "not a regular file; refusing to overwrite it with a map");
+  }
+  if (std::filesystem::file_size(path, ec) == 0 && !ec) return;
+  std::array<uint8_t, 100> header{};
+  std::ifstream in(path, std::ios::binary);
+  in.read(reinterpret_cast<char*>(header.data()), header.size());
+  const bool is_sqlite = in.gcount() == static_cast<std::streamsize>(header.size()) &&
+                         std::memcmp(header.data(), "SQLite format 3", 16) == 0;
+  // The header stores application_id big-endian at offset 68.
+  const uint32_t application_id = (uint32_t{header[68]} << 24) | (header[69] << 16) | (header[70] << 8) | header[71];
+  if (!is_sqlite || application_id != static_cast<uint32_t>(kApplicationId)) {
+    throw InputError(source, "not a retrace map; refusing to overwrite it (remove it first)");
+  }
+}
+
 MapDatabase::MapDatabase(const std::filesystem::path& path, SqliteDatabase::Mode mode,
                          const MapDatabaseOptions& options)
     : path_(path),
@@ -48,7 +138,7 @@ MapDatabase::MapDatabase(const std::filesystem::path& path, SqliteDatabase::Mode
       writable_(mode != SqliteDatabase::Mode::kReadOnly) {}
 
 MapDatabase::~MapDatabase() {
-  if (!writable_) return;
+  if (!writable_ || !database_) return;
   try {
     // Fold the write-ahead log back into the map file so the map is one self-contained file.
     database_->Execute("PRAGMA wal_checkpoint(TRUNCATE); PRAGMA journal_mode=DELETE;");
@@ -64,9 +154,12 @@ std::unique_ptr<MapDatabase> MapDatabase::Create(const std::filesystem::path& pa
   std::error_code ec;
   if (std::filesystem::exists(path, ec)) {
     if (!overwrite) throw InputError(path.string(), "map file exists already (choose another name or overwrite)");
+    CheckReplaceable(path);
     std::filesystem::remove(path, ec);
-    for (const char* suffix : {"-wal", "-shm", "-journal"}) std::filesystem::remove(path.string() + suffix, ec);
+    RemoveSideFiles(path);
     if (std::filesystem::exists(path)) throw InputError(path.string(), "cannot replace the existing file");
+  } else {
+    RemoveSideFiles(path);  // never let a stale log of another database be applied to the new one
   }
   std::unique_ptr<MapDatabase> map(new MapDatabase(path, SqliteDatabase::Mode::kCreate, options));
   map->database_->Execute("PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL; PRAGMA foreign_keys=ON;");
@@ -88,9 +181,16 @@ std::unique_ptr<MapDatabase> MapDatabase::Open(const std::filesystem::path& path
   map->writable_ = writable;
   map->CheckIsRetraceMap();
   map->database_->Execute("PRAGMA foreign_keys=ON;");
+  map->CheckIntegrity();
   if (const auto format = map->Metadata("image_format")) map->options_.image_format = *format;
+  if (!map->complete()) {
+    spdlog::warn("{}: incomplete map: its teach did not finish; it holds the key-images taught until then",
+                 PrintableText(path.string()));
+  }
   return map;
 }
+
+bool MapDatabase::complete() { return Metadata(kTeachStateKey).value_or(kComplete) != kIncomplete; }
 
 void MapDatabase::CheckIsRetraceMap() {
   const std::string source = path_.string();
@@ -107,7 +207,127 @@ void MapDatabase::CheckIsRetraceMap() {
                                  " is newer than this retrace supports (" + std::to_string(kSchemaVersion) +
                                  "); update retrace");
   }
-  if (version < 1) throw InputError(source, "not a retrace map (no schema version)");
+  if (version < kOldestSchemaVersion) throw InputError(source, "not a retrace map (no schema version)");
+  schema_version_ = static_cast<int>(version);
+}
+
+void MapDatabase::CheckIntegrity() {
+  const std::string source = path_.string();
+  {
+    SqliteStatement& check = database_->Prepare("PRAGMA quick_check(1);");  // pages, b-trees, records, NOT NULL
+    const std::string result = check.Step() ? check.ColumnText(0) : "no result";
+    check.Reset();
+    if (result != "ok") throw InputError(source, kCorrupt + PrintableText(result));
+  }
+  CheckSchema();
+  CheckReferences();
+  CheckKeyImages();
+}
+
+void MapDatabase::CheckSchema() {
+  const std::string source = path_.string();
+  std::vector<std::pair<std::string, std::vector<std::string>>> tables = {
+      {"metadata", {"key", "value"}},
+      {"cameras", {"camera_id", "model", "width", "height", "yaml"}},
+      {"nodes", {"node_id", "source_frame", "image_name", "timestamp", "width", "height", "image"}},
+      {"observations", {"node_id", "feature_id", "x", "y", "patch_size", "patch"}},
+      {"arcs", {"arc_id", "from_node", "to_node", "kind", "rotation", "translation", "sigma_p", "num_features"}},
+      {"arc_points", {"arc_id", "feature_id", "x", "y", "z"}},
+      {"node_scales", {"node_id", "arc_in", "arc_out", "scale"}}};
+  if (schema_version_ >= 2) tables[2].second.push_back("image_crc32");
+  SqliteStatement& columns = database_->Prepare("SELECT name FROM pragma_table_info(?);");
+  for (const auto& [table, expected] : tables) {
+    columns.Bind(1, table);
+    std::vector<std::string> present;
+    while (columns.Step()) present.push_back(columns.ColumnText(0));
+    columns.Reset();
+    if (present.empty()) throw InputError(source, kCorrupt + std::string("no table ") + table);
+    for (const std::string& column : expected) {
+      if (std::find(present.begin(), present.end(), column) == present.end()) {
+        throw InputError(source, kCorrupt + fmt::format("table {} has no column {}", table, column));
+      }
+    }
+  }
+}
+
+void MapDatabase::CheckReferences() {
+  const std::string source = path_.string();
+  // Each query returns the first offending row; the message names its ids.
+  struct Reference {
+    const char* sql;
+    const char* message;  // fmt pattern over the row's integer columns
+    int num_columns;
+  };
+  static const Reference kReferences[] = {
+      {"SELECT arc_id, from_node FROM arcs WHERE from_node NOT IN (SELECT node_id FROM nodes) LIMIT 1;",
+       "arc {} starts at missing node {}", 2},
+      {"SELECT arc_id, to_node FROM arcs WHERE to_node NOT IN (SELECT node_id FROM nodes) LIMIT 1;",
+       "arc {} ends at missing node {}", 2},
+      {"SELECT arc_id, from_node FROM arcs WHERE from_node = to_node LIMIT 1;", "arc {} leads from node {} to itself",
+       2},
+      {"SELECT node_id FROM observations WHERE node_id NOT IN (SELECT node_id FROM nodes) LIMIT 1;",
+       "features of missing node {}", 1},
+      {"SELECT arc_id FROM arc_points WHERE arc_id NOT IN (SELECT arc_id FROM arcs) LIMIT 1;",
+       "3D points of missing arc {}", 1},
+      {"SELECT node_id FROM node_scales WHERE node_id NOT IN (SELECT node_id FROM nodes) LIMIT 1;",
+       "scale at missing node {}", 1},
+      {"SELECT node_id, arc_in FROM node_scales WHERE arc_in NOT IN (SELECT arc_id FROM arcs) LIMIT 1;",
+       "scale at node {} refers to missing arc {}", 2},
+      {"SELECT node_id, arc_out FROM node_scales WHERE arc_out NOT IN (SELECT arc_id FROM arcs) LIMIT 1;",
+       "scale at node {} refers to missing arc {}", 2},
+      {"SELECT s.node_id, s.arc_in, s.arc_out FROM node_scales s JOIN arcs i ON i.arc_id = s.arc_in "
+       "JOIN arcs o ON o.arc_id = s.arc_out WHERE i.to_node != s.node_id OR o.from_node != s.node_id LIMIT 1;",
+       "scale at node {} does not join arc {} to arc {} there", 3},
+  };
+  for (const Reference& reference : kReferences) {
+    SqliteStatement& query = database_->Prepare(reference.sql);
+    if (query.Step()) {
+      std::vector<int64_t> ids;
+      for (int i = 0; i < reference.num_columns; ++i) ids.push_back(query.ColumnInt(i));
+      query.Reset();
+      const std::string what = reference.num_columns == 1   ? fmt::format(reference.message, ids[0])
+                               : reference.num_columns == 2 ? fmt::format(reference.message, ids[0], ids[1])
+                                                            : fmt::format(reference.message, ids[0], ids[1], ids[2]);
+      throw InputError(source, kCorrupt + what);
+    }
+    query.Reset();
+  }
+  // Whatever else the schema declares (a catch-all behind the named checks above).
+  SqliteStatement& foreign_keys = database_->Prepare("PRAGMA foreign_key_check;");
+  if (foreign_keys.Step()) {
+    const std::string table = PrintableText(foreign_keys.ColumnText(0));
+    const std::string parent = PrintableText(foreign_keys.ColumnText(2));
+    foreign_keys.Reset();
+    throw InputError(source, kCorrupt + fmt::format("a row of {} refers to a missing row of {}", table, parent));
+  }
+  foreign_keys.Reset();
+}
+
+void MapDatabase::CheckKeyImages() {
+  const std::string source = path_.string();
+  const bool has_checksums = schema_version_ >= 2;
+  SqliteStatement& images = database_->Prepare(has_checksums ? "SELECT node_id, image, image_crc32 FROM nodes;"
+                                                             : "SELECT node_id, image FROM nodes;");
+  while (images.Step()) {
+    if (images.ColumnIsNull(1)) continue;
+    const int64_t node = images.ColumnInt(0);
+    const std::vector<uint8_t> bytes = images.ColumnBlob(1);
+    std::string fault;
+    if (has_checksums) {
+      if (images.ColumnIsNull(2)) {
+        fault = "has no checksum";
+      } else if (static_cast<uint32_t>(images.ColumnInt(2)) != Crc32(bytes.data(), bytes.size())) {
+        fault = "is corrupt (checksum mismatch)";
+      }
+    } else if (!LooksLikeWholeImage(bytes)) {
+      fault = "is corrupt (not a whole JPEG, PNG or WebP image)";
+    }
+    if (!fault.empty()) {
+      images.Reset();
+      throw InputError(source, kCorrupt + fmt::format("key-image of node {} {}", node, fault));
+    }
+  }
+  images.Reset();
 }
 
 void MapDatabase::CreateTables() {
@@ -128,7 +348,8 @@ void MapDatabase::CreateTables() {
       timestamp REAL NOT NULL,
       width INTEGER NOT NULL,
       height INTEGER NOT NULL,
-      image BLOB);
+      image BLOB,
+      image_crc32 INTEGER);
     CREATE TABLE IF NOT EXISTS observations (
       node_id INTEGER NOT NULL REFERENCES nodes(node_id) ON DELETE CASCADE,
       feature_id INTEGER NOT NULL,
@@ -224,9 +445,12 @@ void MapDatabase::WriteNode(const MapNode& node) {
   const std::vector<uint8_t> image =
       node.image.empty() ? std::vector<uint8_t>() : EncodeImage(node.image, options_, path_.string());
   InTransaction([&] {
+    const bool has_checksums = schema_version_ >= 2;  // a map of schema 1 opened for writing stays schema 1
     SqliteStatement& insert_node = database_->Prepare(
-        "INSERT INTO nodes (node_id, source_frame, image_name, timestamp, width, height, image) "
-        "VALUES (?, ?, ?, ?, ?, ?, ?);");
+        has_checksums ? "INSERT INTO nodes (node_id, source_frame, image_name, timestamp, width, height, image, "
+                        "image_crc32) VALUES (?, ?, ?, ?, ?, ?, ?, ?);"
+                      : "INSERT INTO nodes (node_id, source_frame, image_name, timestamp, width, height, image) "
+                        "VALUES (?, ?, ?, ?, ?, ?, ?);");
     insert_node.Bind(1, int64_t{node.id})
         .Bind(2, int64_t{node.source_frame})
         .Bind(3, node.image_name)
@@ -235,8 +459,10 @@ void MapDatabase::WriteNode(const MapNode& node) {
         .Bind(6, int64_t{node.image.rows});
     if (image.empty()) {
       insert_node.BindNull(7);
+      if (has_checksums) insert_node.BindNull(8);
     } else {
       insert_node.BindBlob(7, image.data(), image.size());
+      if (has_checksums) insert_node.Bind(8, int64_t{Crc32(image.data(), image.size())});
     }
     insert_node.Run();
     WriteObservations(node.id, node.features);
@@ -307,7 +533,17 @@ void MapDatabase::WriteScale(const NodeScale& scale) {
 
 Map MapDatabase::ReadMap(bool load_images) {
   const std::string source = path_.string();
+  // Every fault found while reading: the statement is reset first so the map can still be closed cleanly.
+  const auto fail = [&](SqliteStatement& statement, const std::string& fault) {
+    statement.Reset();
+    throw InputError(source, kCorrupt + fault);
+  };
+  const auto finite = [](std::initializer_list<double> values) {
+    return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); });
+  };
+  constexpr int64_t kMaxImageSide = 1 << 15;
   Map map;
+  std::unordered_map<node_t, std::pair<int64_t, int64_t>> image_sizes;  // node id -> stored width, height
   SqliteStatement& nodes = database_->Prepare(
       "SELECT node_id, source_frame, image_name, timestamp, width, height, image FROM nodes ORDER BY node_id;");
   while (nodes.Step()) {
@@ -316,14 +552,25 @@ Map MapDatabase::ReadMap(bool load_images) {
     node.source_frame = nodes.ColumnInt(1);
     node.image_name = nodes.ColumnText(2);
     node.timestamp = nodes.ColumnDouble(3);
-    if (load_images && !nodes.ColumnIsNull(6)) {
+    const int64_t width = nodes.ColumnInt(4);
+    const int64_t height = nodes.ColumnInt(5);
+    const std::string name = fmt::format("key-image of node {}", node.id);
+    if (map.FindNode(node.id) != nullptr) fail(nodes, fmt::format("node {} appears twice", node.id));
+    if (!nodes.ColumnIsNull(6) && (width <= 0 || height <= 0 || width > kMaxImageSide || height > kMaxImageSide)) {
+      fail(nodes, fmt::format("{} has a size of {}x{}", name, width, height));
+    }
+    if (!finite({node.timestamp})) fail(nodes, fmt::format("node {} has no finite timestamp", node.id));
+    if (load_images) {
+      if (nodes.ColumnIsNull(6)) fail(nodes, name + " is missing");
       const std::vector<uint8_t> bytes = nodes.ColumnBlob(6);
       node.image = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
-      if (node.image.empty() || node.image.cols != nodes.ColumnInt(4) || node.image.rows != nodes.ColumnInt(5)) {
-        nodes.Reset();
-        throw InputError(source, "corrupt key-image of node " + std::to_string(node.id));
+      if (node.image.empty()) fail(nodes, name + " cannot be decoded");
+      if (node.image.cols != width || node.image.rows != height) {
+        fail(nodes, fmt::format("{} is {}x{} but is stored as {}x{}", name, node.image.cols, node.image.rows, width,
+                                height));
       }
     }
+    image_sizes[node.id] = {width, height};
     map.AddNode(std::move(node));
   }
   nodes.Reset();
@@ -335,20 +582,23 @@ Map MapDatabase::ReadMap(bool load_images) {
     const node_t node_id = observations.ColumnInt(0);
     f.feature_id = observations.ColumnInt(1);
     f.position = Vector2d(observations.ColumnDouble(2), observations.ColumnDouble(3));
-    const int size = static_cast<int>(observations.ColumnInt(4));
+    MapNode* node = map.MutableNode(node_id);
+    if (node == nullptr) fail(observations, fmt::format("features of missing node {}", node_id));
+    // Features lie in their key-image (tracked positions may reach half a pixel beyond the border).
+    const auto [width, height] = image_sizes[node_id];
+    if (!finite({f.position.x(), f.position.y()}) || f.position.x() < -1 || f.position.y() < -1 ||
+        f.position.x() > width || f.position.y() > height) {
+      fail(observations, fmt::format("feature {} of node {} lies outside its {}x{} key-image", f.feature_id, node_id,
+                                     width, height));
+    }
+    const int64_t size = observations.ColumnInt(4);
     if (!observations.ColumnIsNull(5)) {
       const std::vector<uint8_t> bytes = observations.ColumnBlob(5);
-      if (size <= 0 || bytes.size() != static_cast<size_t>(size) * size) {
-        observations.Reset();
-        throw InputError(source, "corrupt reference patch of feature " + std::to_string(f.feature_id));
+      if (size <= 0 || size > 1024 || bytes.size() != static_cast<size_t>(size * size)) {
+        fail(observations, fmt::format("reference patch of feature {} of node {}", f.feature_id, node_id));
       }
-      f.patch = cv::Mat(size, size, CV_8UC1);
+      f.patch = cv::Mat(static_cast<int>(size), static_cast<int>(size), CV_8UC1);
       std::copy(bytes.begin(), bytes.end(), f.patch.data);
-    }
-    MapNode* node = map.MutableNode(node_id);
-    if (node == nullptr) {
-      observations.Reset();
-      throw InputError(source, "observation refers to missing node " + std::to_string(node_id));
     }
     node->features.push_back(std::move(f));
   }
@@ -362,16 +612,30 @@ Map MapDatabase::ReadMap(bool load_images) {
     arc.from = arcs.ColumnInt(1);
     arc.to = arcs.ColumnInt(2);
     arc.kind = arcs.ColumnText(3);
+    const std::string name = fmt::format("arc {}", arc.id);
+    if (map.FindArc(arc.id) != nullptr) fail(arcs, name + " appears twice");
+    if (map.FindNode(arc.from) == nullptr || map.FindNode(arc.to) == nullptr || arc.from == arc.to) {
+      fail(arcs, fmt::format("{} joins nodes {} and {}", name, arc.from, arc.to));
+    }
     const std::vector<uint8_t> rotation = arcs.ColumnBlob(4);
     const std::vector<uint8_t> translation = arcs.ColumnBlob(5);
     if (rotation.size() != 9 * sizeof(double) || translation.size() != 3 * sizeof(double)) {
-      arcs.Reset();
-      throw InputError(source, "corrupt geometry of arc " + std::to_string(arc.id));
+      fail(arcs, "geometry of " + name + " has the wrong size");
     }
-    arc.to_from_from.rotation =
-        Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(reinterpret_cast<const double*>(rotation.data()));
-    arc.to_from_from.translation = Eigen::Map<const Vector3d>(reinterpret_cast<const double*>(translation.data()));
+    Eigen::Matrix<double, 3, 3, Eigen::RowMajor> r;
+    Vector3d t;
+    std::memcpy(r.data(), rotation.data(), rotation.size());
+    std::memcpy(t.data(), translation.data(), translation.size());
+    arc.to_from_from.rotation = r;
+    arc.to_from_from.translation = t;
     arc.sigma_p = arcs.ColumnDouble(6);
+    // R is a rotation, t has unit length (the arc's unit), σ_p is a length in pixels.
+    const bool is_rotation = r.allFinite() && (r * r.transpose() - Matrix3d::Identity()).norm() < 1e-6 &&
+                             r.determinant() > 0;
+    if (!is_rotation || !t.allFinite() || std::abs(t.norm() - 1.0) > 1e-6) {
+      fail(arcs, "geometry of " + name + " is not a rotation and a unit translation");
+    }
+    if (!std::isfinite(arc.sigma_p) || arc.sigma_p < 0) fail(arcs, fmt::format("sigma_p of {} is {}", name, arc.sigma_p));
     map.AddArc(std::move(arc));
   }
   arcs.Reset();
@@ -379,19 +643,31 @@ Map MapDatabase::ReadMap(bool load_images) {
   SqliteStatement& points = database_->Prepare("SELECT arc_id, feature_id, x, y, z FROM arc_points ORDER BY arc_id;");
   while (points.Step()) {
     const arc_t arc_id = points.ColumnInt(0);
+    const ArcPoint point{points.ColumnInt(1),
+                         Vector3d(points.ColumnDouble(2), points.ColumnDouble(3), points.ColumnDouble(4))};
     MapArc* arc = map.MutableArc(arc_id);
-    if (arc == nullptr) {
-      points.Reset();
-      throw InputError(source, "3D point refers to missing arc " + std::to_string(arc_id));
+    if (arc == nullptr) fail(points, fmt::format("3D points of missing arc {}", arc_id));
+    if (!point.point_in_from.allFinite()) {
+      fail(points, fmt::format("3D point of feature {} of arc {} is not finite", point.feature_id, arc_id));
     }
-    arc->points.push_back(
-        {points.ColumnInt(1), Vector3d(points.ColumnDouble(2), points.ColumnDouble(3), points.ColumnDouble(4))});
+    arc->points.push_back(point);
   }
   points.Reset();
 
   SqliteStatement& scales = database_->Prepare("SELECT node_id, arc_in, arc_out, scale FROM node_scales;");
   while (scales.Step()) {
-    map.AddScale({scales.ColumnInt(0), scales.ColumnInt(1), scales.ColumnInt(2), scales.ColumnDouble(3)});
+    const NodeScale scale{scales.ColumnInt(0), scales.ColumnInt(1), scales.ColumnInt(2), scales.ColumnDouble(3)};
+    const MapArc* in = map.FindArc(scale.arc_in);
+    const MapArc* out = map.FindArc(scale.arc_out);
+    if (in == nullptr || out == nullptr || in->to != scale.node || out->from != scale.node) {
+      fail(scales, fmt::format("scale at node {} does not join arc {} to arc {} there", scale.node, scale.arc_in,
+                               scale.arc_out));
+    }
+    if (!std::isfinite(scale.scale) || scale.scale <= 0) {
+      fail(scales, fmt::format("scale at node {} between arcs {} and {} is {}", scale.node, scale.arc_in,
+                               scale.arc_out, scale.scale));
+    }
+    map.AddScale(scale);
   }
   scales.Reset();
   return map;
@@ -422,5 +698,123 @@ int64_t MapDatabase::NumArcs() {
 }
 
 void MapDatabase::Checkpoint() { database_->Execute("PRAGMA wal_checkpoint(PASSIVE);"); }
+
+void MapDatabase::Close() {
+  if (!database_) return;
+  if (writable_) {
+    database_->Execute("PRAGMA wal_checkpoint(TRUNCATE);");
+    database_->Execute("PRAGMA journal_mode=DELETE;");
+  }
+  database_.reset();
+  std::error_code ec;
+  for (const auto& side : SideFiles(path_)) {
+    if (std::filesystem::exists(side, ec)) {
+      throw InputError(path_.string(), "the map's log was not folded into it (" + side.string() + " remains)");
+    }
+  }
+}
+
+std::filesystem::path StagedMap::StagingPathFor(const std::filesystem::path& path) {
+  return path.string() + ".incomplete";
+}
+
+std::filesystem::path StagedMap::LockPathFor(const std::filesystem::path& path) { return path.string() + ".lock"; }
+
+StagedMap::StagedMap(const std::filesystem::path& path, bool overwrite)
+    : path_(path), staging_path_(StagingPathFor(path)), lock_path_(LockPathFor(path)), overwrite_(overwrite) {}
+
+std::unique_ptr<StagedMap> StagedMap::Begin(const std::filesystem::path& path, const MapDatabaseOptions& options,
+                                            bool overwrite) {
+  const std::string source = path.string();
+  std::string error;
+  if (!options.Check(&error)) throw InputError(source, "bad map options: " + error);
+  const auto check_destination = [&] {
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) return;
+    if (!overwrite) throw InputError(source, "map file exists already (choose another name or overwrite)");
+    MapDatabase::CheckReplaceable(path);
+  };
+  check_destination();
+  std::unique_ptr<StagedMap> staged(new StagedMap(path, overwrite));
+
+  // The lock: a writer that finds the file locked fails at once; one that locked a file the holder removed
+  // meanwhile (a finished writer removes it before unlocking) tries again with the new file.
+  for (int attempt = 0; attempt < 100 && staged->lock_fd_ < 0; ++attempt) {
+    const int fd = open(staged->lock_path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd < 0) {
+      throw InputError(source, fmt::format("cannot create the lock file {}: {}", staged->lock_path_.string(),
+                                           std::strerror(errno)));
+    }
+    if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
+      const int flock_error = errno;
+      close(fd);
+      if (flock_error == EWOULDBLOCK) {
+        throw InputError(source, "another retrace teach is writing this map now (" + staged->lock_path_.string() +
+                                     " is locked); try again when it has finished");
+      }
+      throw InputError(source, fmt::format("cannot lock {}: {}", staged->lock_path_.string(), std::strerror(flock_error)));
+    }
+    struct stat by_descriptor {};
+    struct stat by_path {};
+    if (fstat(fd, &by_descriptor) == 0 && stat(staged->lock_path_.c_str(), &by_path) == 0 &&
+        by_descriptor.st_dev == by_path.st_dev && by_descriptor.st_ino == by_path.st_ino) {
+      staged->lock_fd_ = fd;
+    } else {
+      close(fd);
+    }
+  }
+  if (staged->lock_fd_ < 0) throw InputError(source, "cannot lock " + staged->lock_path_.string());
+  check_destination();  // again, now that no other writer can change it
+
+  // A stale staging map of an interrupted teach is replaced (Create removes it and its side files).
+  std::error_code ec;
+  if (std::filesystem::exists(staged->staging_path_, ec)) MapDatabase::CheckReplaceable(staged->staging_path_);
+  staged->database_ = MapDatabase::Create(staged->staging_path_, options, /*overwrite=*/true);
+  staged->database_->SetMetadata(MapDatabase::kTeachStateKey, MapDatabase::kIncomplete);
+  return staged;
+}
+
+StagedMap::~StagedMap() {
+  database_.reset();  // folds the log in when it can; the staging map stays, marked incomplete
+  if (lock_fd_ >= 0) {
+    unlink(lock_path_.c_str());
+    close(lock_fd_);
+  }
+}
+
+void StagedMap::Commit() {
+  const std::string source = path_.string();
+  database_->SetMetadata(MapDatabase::kTeachStateKey, MapDatabase::kComplete);
+  database_->Close();
+  database_.reset();
+  SyncPath(staging_path_, /*directory=*/false);
+  std::error_code ec;
+  if (std::filesystem::exists(path_, ec)) {
+    if (!overwrite_) throw InputError(source, "map file exists already (choose another name or overwrite)");
+    MapDatabase::CheckReplaceable(path_);
+  }
+  // Side files of the old map would be taken for the new map's: remove them first (the old map stays whole:
+  // it was closed by its writer, and a log of a killed writer was only ever in the staging map).
+  RemoveSideFiles(path_);
+  if (overwrite_) {
+    if (std::rename(staging_path_.c_str(), path_.c_str()) != 0) {
+      throw InputError(source, fmt::format("cannot move {} into place: {}", staging_path_.string(), std::strerror(errno)));
+    }
+  } else {
+    // Never replace a file that appeared meanwhile (file systems without RENAME_NOREPLACE: checked just before).
+    int moved = renameat2(AT_FDCWD, staging_path_.c_str(), AT_FDCWD, path_.c_str(), RENAME_NOREPLACE);
+    if (moved != 0 && (errno == EINVAL || errno == ENOSYS) && !std::filesystem::exists(path_, ec)) {
+      moved = std::rename(staging_path_.c_str(), path_.c_str());
+    }
+    if (moved != 0 && errno == EEXIST) {
+      throw InputError(source, "map file exists already (choose another name or overwrite)");
+    }
+    if (moved != 0) {
+      throw InputError(source, fmt::format("cannot move {} into place: {}", staging_path_.string(), std::strerror(errno)));
+    }
+  }
+  const std::filesystem::path directory = path_.has_parent_path() ? path_.parent_path() : std::filesystem::path(".");
+  SyncPath(directory, /*directory=*/true);
+}
 
 }  // namespace retrace

@@ -3,9 +3,10 @@
 // The map store: one SQLite database file per map (design §1; the layout follows COLMAP's database).
 //
 // Tables (plural snake_case, `*_id INTEGER PRIMARY KEY`, foreign keys with ON DELETE CASCADE):
-//   metadata     key/value text: creation options, source sequence, retrace version, ...
+//   metadata     key/value text: creation options, source sequence, retrace version, teach_state, ...
 //   cameras      the camera model of the key-images, as retrace camera YAML
-//   nodes        key-images with the image itself, compressed, so that a map is self-contained
+//   nodes        key-images with the image itself, compressed, so that a map is self-contained, and the CRC-32 of
+//                the compressed bytes (schema 2; maps of schema 1 have no checksum and are still read)
 //   observations features seen in a node: position and reference patch (8-bit gray, row-major)
 //   arcs         two-view geometry W_k between two nodes: R (9 doubles, row-major), t (3 doubles), σ_p, |M_k|
 //   arc_points   3D points Q_kj of an arc's features, in the `from` node's camera frame, arc units
@@ -13,9 +14,16 @@
 // The schema version is in `PRAGMA user_version` and the file is marked as a retrace map by
 // `PRAGMA application_id`, so opening a foreign file or a map of a newer schema gives a clear error.
 //
+// Opening a map checks it (CheckIntegrity(), the same for every command): SQLite's `PRAGMA quick_check`, the tables
+// and columns of the schema, every reference between tables (arcs to nodes, observations to nodes, points to arcs,
+// scales to the two arcs they join at their node, and `PRAGMA foreign_key_check`) and the checksum of every
+// key-image; ReadMap() then checks the values it reads (finite numbers, rotations, unit translations, image sizes).
+// A map that fails is refused with one line naming the file and the first fault, in printable text only.
+//
 // Writes are transactional and the database runs in WAL mode: a process killed during teach leaves a map that
 // opens and holds every key-image committed before. Close() (or the destructor) checkpoints the log into the single
-// map file.
+// map file. Teach writes through StagedMap (below): the map is built in `<map>.incomplete`, marked incomplete, and
+// moved onto `<map>` only when teach succeeded; one writer per map path at a time.
 
 #include <filesystem>
 #include <map>
@@ -39,17 +47,31 @@ struct MapDatabaseOptions {
 
 class MapDatabase {
  public:
-  static constexpr int kSchemaVersion = 1;
+  static constexpr int kSchemaVersion = 2;        // written by this retrace: key-image checksums
+  static constexpr int kOldestSchemaVersion = 1;  // oldest schema still read
   static constexpr int kApplicationId = 0x52545243;  // "RTRC"
+  // Metadata key of teach's progress: kIncomplete from the start of teach, kComplete when it finished. Maps
+  // written before it was recorded have no such key and count as complete.
+  static constexpr const char* kTeachStateKey = "teach_state";
+  static constexpr const char* kIncomplete = "incomplete";
+  static constexpr const char* kComplete = "complete";
 
-  // Creates a new, empty map file. An existing file is replaced only when `overwrite` is true.
+  // Creates a new, empty map file. An existing file is replaced only when `overwrite` is true, and only when it is
+  // a retrace map or empty (CheckReplaceable()).
   static std::unique_ptr<MapDatabase> Create(const std::filesystem::path& path,
                                              const MapDatabaseOptions& options = {}, bool overwrite = false);
-  // Opens an existing map. Throws InputError for a missing file, a file that is not a retrace map, or a map
-  // written by a newer retrace.
+  // Opens an existing map and checks its integrity (see the comment at the top). Throws InputError for a missing
+  // file, a file that is not a retrace map, a map written by a newer retrace, or a map that fails the check.
+  // Logs a warning when the map is incomplete (its teach was interrupted).
   static std::unique_ptr<MapDatabase> Open(const std::filesystem::path& path, bool writable = false);
+  // Throws InputError unless `path` may be replaced by a new map: a regular file that is empty or whose header
+  // marks it as a retrace map (the contents are not checked: a damaged map may be replaced).
+  static void CheckReplaceable(const std::filesystem::path& path);
 
   ~MapDatabase();
+
+  // Whether teach finished this map (metadata kTeachStateKey).
+  bool complete();
 
   void SetMetadata(const std::string& key, const std::string& value);
   std::optional<std::string> Metadata(const std::string& key);
@@ -77,6 +99,11 @@ class MapDatabase {
 
   // Checkpoints the write-ahead log into the map file; further writes are still possible.
   void Checkpoint();
+  // Folds the write-ahead log into the map file, leaves rollback-journal mode (no side files) and closes the file.
+  // Throws InputError when that fails. Nothing else may be called afterwards.
+  void Close();
+  // The integrity check Open() runs (see the comment at the top); throws InputError at the first fault.
+  void CheckIntegrity();
 
   const std::filesystem::path& path() const { return path_; }
 
@@ -84,6 +111,9 @@ class MapDatabase {
   MapDatabase(const std::filesystem::path& path, SqliteDatabase::Mode mode, const MapDatabaseOptions& options);
   void CreateTables();
   void CheckIsRetraceMap();
+  void CheckSchema();
+  void CheckReferences();
+  void CheckKeyImages();
   template <typename Writer>
   void InTransaction(Writer&& writer);
 
@@ -91,6 +121,49 @@ class MapDatabase {
   MapDatabaseOptions options_;
   std::unique_ptr<SqliteDatabase> database_;
   bool writable_;
+  int schema_version_ = kSchemaVersion;
+};
+
+// A map written beside its destination and moved into place only when complete; what retrace teach writes with.
+//  - `<path>.lock` is locked (flock) while the map is written, so a second writer of the same path fails at once
+//    with a one-line error; the lock file is removed when the writer is done (a killed writer leaves it, unlocked).
+//  - The map is written to `<path>.incomplete` (a stale one from an interrupted teach is replaced), with metadata
+//    teach_state = incomplete, in WAL mode: a writer killed at any point leaves there a map that opens, holds every
+//    key-image committed before and says it is incomplete; `<path>` is untouched.
+//  - Commit() marks it complete, folds the log into the one file and renames it onto `<path>` atomically (only
+//    then is an old map replaced, and only with `overwrite`). Stale -wal/-shm/-journal files of `<path>` are
+//    removed first, so they can never be applied to the new map.
+//  - Destroyed without Commit() (an error during teach): `<path>.incomplete` stays, marked incomplete, for
+//    inspection; `<path>` is untouched.
+class StagedMap {
+ public:
+  // Checks that `path` may be written (absent; or, with `overwrite`, a retrace map or an empty file), takes the
+  // lock and creates the staging map. Throws InputError naming `path` otherwise.
+  static std::unique_ptr<StagedMap> Begin(const std::filesystem::path& path, const MapDatabaseOptions& options = {},
+                                          bool overwrite = false);
+  ~StagedMap();
+  StagedMap(const StagedMap&) = delete;
+  StagedMap& operator=(const StagedMap&) = delete;
+
+  // The map being written; null after Commit().
+  MapDatabase* database() { return database_.get(); }
+  // Marks the map complete and moves it onto path(); throws InputError (leaving path() untouched) when it cannot.
+  void Commit();
+
+  const std::filesystem::path& path() const { return path_; }
+  const std::filesystem::path& staging_path() const { return staging_path_; }
+  static std::filesystem::path StagingPathFor(const std::filesystem::path& path);
+  static std::filesystem::path LockPathFor(const std::filesystem::path& path);
+
+ private:
+  StagedMap(const std::filesystem::path& path, bool overwrite);
+
+  std::filesystem::path path_;
+  std::filesystem::path staging_path_;
+  std::filesystem::path lock_path_;
+  bool overwrite_ = false;
+  int lock_fd_ = -1;
+  std::unique_ptr<MapDatabase> database_;
 };
 
 }  // namespace retrace

@@ -32,7 +32,7 @@ MapNode MakeNode(node_t id, int num_features) {
   for (int i = 0; i < num_features; ++i) {
     FeatureObservation f;
     f.feature_id = 1000 * id + i;
-    f.position = Vector2d(1.5 * i, 2.25 * i + 0.125);
+    f.position = Vector2d(1.25 * (i % 40) + 0.5, 0.75 * (i % 50) + 0.125);  // inside the 64x48 key-image
     f.patch = RandomImage(15, 15, static_cast<int>(100 * id + i));
     node.features.push_back(f);
   }
@@ -166,8 +166,143 @@ TEST(MapDatabase, ForeignAndBrokenFilesGiveClearErrors) {
   }
   std::filesystem::resize_file(dir / "truncated.db", std::filesystem::file_size(dir / "truncated.db") / 2);
   ExpectInputError([&] { MapDatabase::Open(dir / "truncated.db")->ReadMap(); }, dir / "truncated.db",
-                   "not a retrace map");
+                   "corrupt map");
+
+  // --overwrite replaces maps only, never another file.
+  ExpectInputError([&] { MapDatabase::Create(dir / "text.db", {}, /*overwrite=*/true); }, dir / "text.db",
+                   "not a retrace map; refusing to overwrite it");
+  ExpectInputError([&] { MapDatabase::Create(dir / "other.db", {}, /*overwrite=*/true); }, dir / "other.db",
+                   "not a retrace map; refusing to overwrite it");
+  ExpectInputError([&] { MapDatabase::Create(dir, {}, /*overwrite=*/true); }, dir, "not a regular file");
+  EXPECT_NO_THROW(MapDatabase::Create(dir / "empty.db", {}, /*overwrite=*/true));  // e.g. made by mktemp
 }
+
+// A map of three nodes and two arcs, as teach writes it; `edit` then changes it behind the store's back (raw SQL,
+// foreign keys off), and opening it must fail with one printable line naming the file and `problem`.
+void ExpectDamagedMapRefused(const std::string& name, const std::string& edit, const std::string& problem) {
+  SCOPED_TRACE(name);
+  const auto dir = testing::MakeTempDir("map_damaged");
+  const auto path = dir / (name + ".db");
+  {
+    auto db = MapDatabase::Create(path);
+    for (int i = 0; i < 3; ++i) db->WriteNode(MakeNode(i, 10));
+    db->WriteArc(MakeArc(0, 0, 1, 4));
+    db->WriteArc(MakeArc(1, 1, 2, 4));
+    db->WriteScale({1, 0, 1, 0.75});
+  }
+  {
+    SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
+    raw.Execute("PRAGMA foreign_keys=OFF; " + edit);
+  }
+  try {
+    MapDatabase::Open(path)->ReadMap();
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_EQ(message.rfind(path.string() + ": ", 0), 0u) << message;
+    EXPECT_NE(message.find(problem), std::string::npos) << message;
+    for (const char c : message) EXPECT_TRUE(c >= 0x20 && c < 0x7f) << message;
+  }
+}
+
+TEST(MapDatabase, DamagedMapsAreRefusedWithTheFault) {
+  ExpectDamagedMapRefused("dangling_arc", "UPDATE arcs SET to_node = 17 WHERE arc_id = 1;",
+                          "corrupt map: arc 1 ends at missing node 17");
+  ExpectDamagedMapRefused("dangling_from", "UPDATE arcs SET from_node = 9 WHERE arc_id = 0;",
+                          "corrupt map: arc 0 starts at missing node 9");
+  ExpectDamagedMapRefused("node_deleted", "DELETE FROM nodes WHERE node_id = 2;", "ends at missing node 2");
+  ExpectDamagedMapRefused("self_arc", "UPDATE arcs SET to_node = 1 WHERE arc_id = 1;", "leads from node 1 to itself");
+  ExpectDamagedMapRefused("orphan_features", "UPDATE observations SET node_id = 5 WHERE node_id = 2;",
+                          "features of missing node 5");
+  ExpectDamagedMapRefused("orphan_points", "UPDATE arc_points SET arc_id = 4 WHERE arc_id = 1;",
+                          "3D points of missing arc 4");
+  ExpectDamagedMapRefused("scale_elsewhere", "UPDATE node_scales SET node_id = 2;",
+                          "scale at node 2 does not join arc 0 to arc 1 there");
+  ExpectDamagedMapRefused("no_table", "DROP TABLE arc_points;", "corrupt map: no table arc_points");
+  ExpectDamagedMapRefused("corrupt_image", "UPDATE nodes SET image = CAST(zeroblob(200) AS BLOB) WHERE node_id = 1;",
+                          "corrupt map: key-image of node 1 is corrupt (checksum mismatch)");
+  ExpectDamagedMapRefused("nan_rotation", "UPDATE arcs SET rotation = zeroblob(72) WHERE arc_id = 0;",
+                          "geometry of arc 0 is not a rotation and a unit translation");
+  ExpectDamagedMapRefused("feature_outside", "UPDATE observations SET x = 1e300 WHERE node_id = 1;",
+                          "lies outside its 64x48 key-image");
+  ExpectDamagedMapRefused("negative_scale", "UPDATE node_scales SET scale = -1;", "is -1");
+  // A schema whose text was damaged: SQLite quotes it, the message must not.
+  ExpectDamagedMapRefused("binary_schema",
+                          "PRAGMA writable_schema=ON; UPDATE sqlite_master SET sql = 'CREATE TABLE nodes (' || "
+                          "char(1, 10, 200, 27) || ')' WHERE name = 'nodes';",
+                          "corrupt map: ");
+}
+
+TEST(MapDatabase, MapsOfSchemaOneAreRead) {
+  const auto dir = testing::MakeTempDir("map_schema1");
+  const auto path = dir / "old.db";
+  {
+    auto db = MapDatabase::Create(path);
+    for (int i = 0; i < 2; ++i) db->WriteNode(MakeNode(i, 10));
+    db->WriteArc(MakeArc(0, 0, 1, 4));
+  }
+  {
+    SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
+    raw.Execute("ALTER TABLE nodes DROP COLUMN image_crc32; PRAGMA user_version=1;");
+  }
+  EXPECT_EQ(MapDatabase::Open(path)->ReadMap().nodes().size(), 2u);
+  // Without checksums a truncated JPEG is still found by its missing end.
+  {
+    SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
+    raw.Execute("UPDATE nodes SET image = substr(image, 1, length(image) - 10) WHERE node_id = 1;");
+  }
+  ExpectInputError([&] { MapDatabase::Open(path); }, path, "key-image of node 1 is corrupt (not a whole JPEG");
+}
+
+TEST(StagedMap, TheOldMapIsReplacedOnlyByACommittedOne) {
+  const auto dir = testing::MakeTempDir("map_staged");
+  const auto path = dir / "route.db";
+  {
+    auto staged = StagedMap::Begin(path);
+    staged->database()->WriteNode(MakeNode(0, 5));
+    EXPECT_TRUE(std::filesystem::exists(dir / "route.db.incomplete"));
+    EXPECT_TRUE(std::filesystem::exists(dir / "route.db.lock"));
+    EXPECT_FALSE(std::filesystem::exists(path));
+    staged->Commit();
+  }
+  const auto old_size = std::filesystem::file_size(path);
+  for (const char* left : {".incomplete", ".lock", "-wal", "-shm", "-journal", ".incomplete-wal"}) {
+    EXPECT_FALSE(std::filesystem::exists(path.string() + left)) << left;
+  }
+  EXPECT_TRUE(MapDatabase::Open(path)->complete());
+
+  // Without --overwrite an existing map is refused at once; with it, a failed teach leaves the old map alone.
+  ExpectInputError([&] { StagedMap::Begin(path); }, path, "exists already");
+  {
+    auto staged = StagedMap::Begin(path, {}, /*overwrite=*/true);
+    for (int i = 0; i < 3; ++i) staged->database()->WriteNode(MakeNode(i, 5));
+    // A second writer of the same path is refused while the first writes.
+    ExpectInputError([&] { StagedMap::Begin(path, {}, true); }, path, "another retrace teach is writing this map");
+  }  // destroyed without Commit: an error in teach
+  EXPECT_EQ(std::filesystem::file_size(path), old_size);
+  EXPECT_EQ(MapDatabase::Open(path)->NumNodes(), 1);
+  auto left = MapDatabase::Open(dir / "route.db.incomplete");
+  EXPECT_FALSE(left->complete());
+  EXPECT_EQ(left->NumNodes(), 3);
+  left.reset();
+  EXPECT_FALSE(std::filesystem::exists(dir / "route.db.lock"));
+
+  // The next teach replaces the stale staging map and then the old map.
+  {
+    auto staged = StagedMap::Begin(path, {}, /*overwrite=*/true);
+    for (int i = 0; i < 2; ++i) staged->database()->WriteNode(MakeNode(i, 5));
+    staged->Commit();
+  }
+  EXPECT_EQ(MapDatabase::Open(path)->NumNodes(), 2);
+  EXPECT_FALSE(std::filesystem::exists(dir / "route.db.incomplete"));
+
+  // A file that is not a map is never replaced.
+  std::ofstream(dir / "notes.txt") << "not a map\n";
+  ExpectInputError([&] { StagedMap::Begin(dir / "notes.txt", {}, true); }, dir / "notes.txt",
+                   "not a retrace map; refusing to overwrite it");
+  EXPECT_FALSE(std::filesystem::exists(dir / "notes.txt.incomplete"));
+}
+
 
 TEST(MapDatabase, ReadOnlyMapRefusesWrites) {
   const auto dir = testing::MakeTempDir("map_readonly");
@@ -204,6 +339,46 @@ TEST(MapDatabase, KilledWriterLeavesEveryCommittedKeyImage) {
   EXPECT_EQ(map.nodes().size(), static_cast<size_t>(kCommitted));
   EXPECT_EQ(map.arcs().size(), static_cast<size_t>(kCommitted - 1));
   EXPECT_EQ(map.nodes().back().features.size(), 40u);
+}
+
+TEST(StagedMap, KilledWriterLeavesAnIncompleteMapAndTheOldOneUntouched) {
+  const auto dir = testing::MakeTempDir("map_staged_kill");
+  const auto path = dir / "route.db";
+  {
+    auto staged = StagedMap::Begin(path);
+    staged->database()->WriteNode(MakeNode(0, 5));
+    staged->Commit();
+  }
+  const auto old_size = std::filesystem::file_size(path);
+  constexpr int kCommitted = 5;
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    auto staged = StagedMap::Begin(path, {}, /*overwrite=*/true);
+    MapDatabase* db = staged->database();
+    for (int i = 0; i < kCommitted; ++i) {
+      auto transaction = db->BeginTransaction();
+      db->WriteNode(MakeNode(i, 40));
+      if (i > 0) db->WriteArc(MakeArc(i - 1, i - 1, i, 20));
+      transaction->Commit();
+    }
+    auto transaction = db->BeginTransaction();
+    db->WriteNode(MakeNode(kCommitted, 40));
+    kill(getpid(), SIGKILL);
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFSIGNALED(status));
+  EXPECT_EQ(std::filesystem::file_size(path), old_size);
+  EXPECT_EQ(MapDatabase::Open(path)->NumNodes(), 1);
+  auto left = MapDatabase::Open(dir / "route.db.incomplete");
+  EXPECT_FALSE(left->complete());
+  const Map map = left->ReadMap();
+  EXPECT_EQ(map.nodes().size(), static_cast<size_t>(kCommitted));
+  EXPECT_EQ(map.arcs().size(), static_cast<size_t>(kCommitted - 1));
+  left.reset();
+  // The killed writer's lock is released with it: the next writer goes ahead.
+  EXPECT_NO_THROW(StagedMap::Begin(path, {}, /*overwrite=*/true)->Commit());
 }
 
 }  // namespace

@@ -6,14 +6,35 @@ namespace retrace {
 namespace {
 
 [[noreturn]] void ThrowSqlite(sqlite3* db, int code, const std::string& source) {
-  std::string message = db != nullptr ? sqlite3_errmsg(db) : sqlite3_errstr(code);
-  if (code == SQLITE_NOTADB || code == SQLITE_CORRUPT) {
-    message = "not a retrace map (" + message + ")";
-  }
-  throw InputError(source, message);
+  throw InputError(source, DescribeSqliteError(code, db != nullptr ? sqlite3_errmsg(db) : sqlite3_errstr(code)));
 }
 
 }  // namespace
+
+std::string DescribeSqliteError(int code, const std::string& message) {
+  const std::string text = PrintableText(message);
+  switch (code & 0xFF) {  // the primary result code
+    case SQLITE_NOTADB:
+      return "not a retrace map (" + text + ")";
+    case SQLITE_CORRUPT:
+      return "corrupt map: " + text;
+    default:
+      return text;
+  }
+}
+
+std::string PrintableText(const std::string& text, size_t max_length) {
+  std::string result;
+  for (const char c : text) {
+    if (result.size() >= max_length) {
+      result += "...";
+      break;
+    }
+    const auto byte = static_cast<unsigned char>(c);
+    result += (byte >= 0x20 && byte < 0x7f) ? c : '?';
+  }
+  return result;
+}
 
 SqliteStatement::SqliteStatement(sqlite3* db, const std::string& sql, const std::string& source)
     : db_(db), source_(source) {
@@ -106,7 +127,7 @@ SqliteDatabase::SqliteDatabase(const std::filesystem::path& path, Mode mode) : s
   }
   const int code = sqlite3_open_v2(source_.c_str(), &db_, flags, nullptr);
   if (code != SQLITE_OK) {
-    const std::string message = db_ != nullptr ? sqlite3_errmsg(db_) : sqlite3_errstr(code);
+    const std::string message = PrintableText(db_ != nullptr ? sqlite3_errmsg(db_) : sqlite3_errstr(code));
     sqlite3_close(db_);
     db_ = nullptr;
     throw InputError(source_, "cannot open map: " + message);
@@ -123,9 +144,8 @@ void SqliteDatabase::Execute(const std::string& sql) {
   char* error = nullptr;
   const int code = sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &error);
   if (code != SQLITE_OK) {
-    std::string message = error != nullptr ? error : sqlite3_errstr(code);
+    const std::string message = DescribeSqliteError(code, error != nullptr ? error : sqlite3_errstr(code));
     sqlite3_free(error);
-    if (code == SQLITE_NOTADB || code == SQLITE_CORRUPT) message = "not a retrace map (" + message + ")";
     throw InputError(source_, message);
   }
 }

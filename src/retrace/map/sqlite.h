@@ -2,7 +2,8 @@
 
 // A thin RAII layer over the SQLite C API: a connection, cached prepared statements and transactions.
 // Every SQLite error becomes retrace::InputError naming the database file, so a corrupt or foreign file gives a
-// one-line message instead of a crash.
+// one-line message instead of a crash. SQLite's messages can quote the file's own bytes (a corrupt schema): they are
+// reduced to printable ASCII first.
 
 #include <sqlite3.h>
 
@@ -14,6 +15,14 @@
 #include <vector>
 
 namespace retrace {
+
+// `text` with every byte outside printable ASCII (control characters, line breaks, non-ASCII) replaced by '?',
+// cut after `max_length` characters: fit to quote untrusted bytes in a one-line error message.
+std::string PrintableText(const std::string& text, size_t max_length = 200);
+
+// The one-line message of an SQLite error: printable, and saying "not a retrace map" for a foreign file and
+// "corrupt map" for a damaged one.
+std::string DescribeSqliteError(int code, const std::string& message);
 
 class SqliteStatement {
  public:
