@@ -14,6 +14,7 @@
 #include <opencv2/core/types.hpp>
 #include <yaml-cpp/yaml.h>
 
+#include "retrace/camera/camera_checks.h"
 #include "retrace/camera/equirectangular_camera.h"
 #include "retrace/camera/perspective_camera.h"
 #include "retrace/camera/unified_camera.h"
@@ -448,8 +449,10 @@ std::unique_ptr<CameraModel> ReadCameraFile(const std::filesystem::path& path, s
   return ParseCameraText(ReadText(reader, path), path.string(), image_size);
 }
 
-std::unique_ptr<CameraModel> ParseCameraText(const std::string& text, const std::string& source,
-                                             std::optional<cv::Size> image_size) {
+namespace {
+
+std::unique_ptr<CameraModel> ParseCameraFormats(const std::string& text, const std::string& source,
+                                                std::optional<cv::Size> image_size) {
   const Reader reader(source);
   if (Reader::Trim(text).empty()) reader.Fail("empty camera text");
   if (text.find('\0') != std::string::npos) reader.Fail("binary data, not a calibration file");
@@ -474,6 +477,17 @@ std::unique_ptr<CameraModel> ParseCameraText(const std::string& text, const std:
     reader.Fail(fmt::format("unexpected YAML structure ({})", e.msg));
   }
   reader.Fail("not a camera calibration file: missing key 'camera_matrix' (or cameraMatrix, K, intrinsics, P0)");
+}
+
+}  // namespace
+
+// Every reader ends here, so a calibration from a file, a ROS message or a map passes the same plausibility checks.
+std::unique_ptr<CameraModel> ParseCameraText(const std::string& text, const std::string& source,
+                                             std::optional<cv::Size> image_size) {
+  std::unique_ptr<CameraModel> camera = ParseCameraFormats(text, source, image_size);
+  std::string problem;
+  if (!CheckCameraPlausible(*camera, &problem)) throw InputError(source, "implausible calibration: " + problem);
+  return camera;
 }
 
 namespace {
