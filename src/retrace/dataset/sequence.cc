@@ -104,6 +104,7 @@ class ImageListSequence : public Sequence {
       ReportUnreadable(name, entry.file.string(), "cannot be decoded as an image");
       return false;
     }
+    CheckFrameSize(image.size(), entry.file.string());
     frame->index = index;
     frame->source_index = index;
     frame->name = name;
@@ -286,6 +287,15 @@ std::unique_ptr<Sequence> OpenFolder(const fs::path& dir, const SequenceOptions&
 }
 
 }  // namespace
+
+void Sequence::CheckFrameSize(const cv::Size& size, const std::string& file) {
+  // image_size() reads the first readable frame through Read(), which calls this with the size still unknown.
+  const cv::Size first = image_size();
+  if (first.empty() || size == first) return;
+  throw InputError(file, fmt::format("image is {}x{} but the sequence's first frame is {}x{} (all frames of a "
+                                     "sequence must come from one camera at one size)",
+                                     size.width, size.height, first.width, first.height));
+}
 
 cv::Size Sequence::image_size() {
   if (!image_size_) {

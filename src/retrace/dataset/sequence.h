@@ -5,9 +5,10 @@
 //
 // Reading is streaming (Next) or random access (Read). A frame file that is listed but missing or unreadable is not
 // an error of the whole sequence (real recordings have holes): it is reported once with spdlog::warn naming the file,
-// recorded in skipped(), and Next() moves on to the following readable frame. Structural problems — a path that does
-// not exist, a folder without images, a times.txt whose line count does not match the images, a garbage CSV — throw
-// InputError from OpenSequence naming the file and the problem.
+// recorded in skipped(), and Next() moves on to the following readable frame. A readable frame of another size than
+// the first is an error (InputError naming its file): it is not the same camera's recording. Structural problems —
+// a path that does not exist, a folder without images, a times.txt whose line count does not match the images, a
+// garbage CSV — throw InputError from OpenSequence naming the file and the problem.
 
 #include <cstddef>
 #include <filesystem>
@@ -75,6 +76,10 @@ class Sequence {
   cv::Size image_size();
 
  protected:
+  // Throws InputError naming `file` when a frame's size differs from the first readable frame's: a sequence whose
+  // frames change size mid-way is not one camera's recording, and resizing it silently would bend its calibration.
+  void CheckFrameSize(const cv::Size& size, const std::string& file);
+
   // Warns (once per name) and records a frame that could not be read.
   void ReportUnreadable(const std::string& name, const std::string& file, const std::string& why);
 

@@ -2,6 +2,7 @@
 
 #include <fstream>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -114,6 +115,26 @@ TEST(Sequence, EurocRealClip) {
   EXPECT_EQ(cam1->size(), 99u);
   EXPECT_EQ(ReadAll(*cam1).size(), 95u);
   EXPECT_EQ(cam1->skipped().size(), 4u);
+}
+
+TEST(Sequence, FrameOfAnotherSizeIsAnError) {
+  const fs::path dir = testing::MakeTempDir("seq_mixed_size");
+  for (int i = 0; i < 4; ++i) {
+    const cv::Size size = i == 2 ? cv::Size(80, 48) : cv::Size(64, 48);
+    ASSERT_TRUE(cv::imwrite((dir / fmt::format("{:02d}.png", i)).string(), TestImage(i, size)));
+  }
+  std::unique_ptr<Sequence> sequence = OpenSequence(dir);
+  EXPECT_EQ(sequence->image_size(), cv::Size(64, 48));
+  ASSERT_TRUE(sequence->Next());
+  ASSERT_TRUE(sequence->Next());
+  // Neither resized nor skipped: the frame names its file and both sizes.
+  const std::string message = ErrorOf([&] { sequence->Next(); });
+  EXPECT_NE(message.find("02.png: image is 80x48 but the sequence's first frame is 64x48"), std::string::npos)
+      << message;
+  Frame frame;
+  EXPECT_TRUE(sequence->Read(3, &frame));
+  EXPECT_NE(ErrorOf([&] { sequence->Read(2, &frame); }).find("80x48"), std::string::npos);
+  fs::remove_all(dir);
 }
 
 TEST(Sequence, FolderWithAndWithoutTimes) {

@@ -27,6 +27,7 @@
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
+#include "retrace/camera/camera_checks.h"
 #include "retrace/camera/camera_io.h"
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/dataset/sequence.h"
@@ -271,6 +272,58 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
 
 namespace {
 
+// Two calibrations that image the same rays within this distance at the key-images' resolution are one camera: a
+// pixel is the order of the tracker's noise, a larger difference moves every predicted feature.
+constexpr double kSameCameraPx = 1.0;
+
+// The camera the frames are localized with, at the key-images' width: the map's, or --camera when it sees the same
+// rays. The key-images were measured with the map's camera, so a calibration that differs from it, or frames that
+// do not have its shape, are refused rather than bent to fit (frames of the same shape at another resolution are
+// resized, as teach --width did).
+std::unique_ptr<CameraModel> RepeatCamera(const RepeatArguments& args, int key_width, const CameraModel* map_camera,
+                                          Sequence& sequence) {
+  const cv::Size frames = sequence.image_size();
+  if (frames.empty()) throw InputError(args.sequence.string(), "no readable frame");
+  std::unique_ptr<CameraModel> camera;
+  if (!args.camera.empty()) {
+    camera = ReadCameraFile(args.camera, frames);
+  } else {
+    if (!map_camera) throw InputError(args.map.string(), "the map stores no camera; give --camera FILE");
+    camera = map_camera->Clone();
+  }
+  // The frames' shape at the key-images' width, as ResizeToWidth makes it.
+  const double factor = static_cast<double>(key_width) / frames.width;
+  const cv::Size resized(key_width, std::max(1, static_cast<int>(std::lround(frames.height * factor))));
+  if (map_camera && (map_camera->width() != resized.width || map_camera->height() != resized.height)) {
+    throw InputError(args.sequence.string(),
+                     fmt::format("frames are {}x{} ({}x{} at the map's width) but the map's camera images {}x{}: the "
+                                 "sequence was not recorded with the map's camera",
+                                 frames.width, frames.height, resized.width, resized.height, map_camera->width(),
+                                 map_camera->height()));
+  }
+  if (camera->width() != key_width) camera = camera->Scaled(static_cast<double>(key_width) / camera->width());
+  if (!args.camera.empty() && map_camera) {
+    const double difference = CameraProjectionDifferencePx(*map_camera, *camera);
+    if (!(difference <= kSameCameraPx) || camera->model_name() != map_camera->model_name()) {
+      // Both calibrations at the frames' resolution, as the user wrote them.
+      const double native = static_cast<double>(frames.width) / key_width;
+      throw InputError(args.camera.string(),
+                       fmt::format("differs from the map's camera ({} px apart at the map's {} px width): {} {} vs "
+                                   "the map's {} {}; omit --camera to repeat with the map's camera",
+                                   std::isfinite(difference) ? fmt::format("{:.1f}", difference) : "rays not imaged",
+                                   key_width, camera->model_name(), DescribeCameraIntrinsics(*camera->Scaled(native)),
+                                   map_camera->model_name(), DescribeCameraIntrinsics(*map_camera->Scaled(native))));
+    }
+  }
+  if (camera->height() != resized.height) {
+    throw InputError(args.sequence.string(), fmt::format("frames are {}x{} ({}x{} at the map's width) but the camera "
+                                                         "images {}x{} at that width",
+                                                         frames.width, frames.height, resized.width, resized.height,
+                                                         camera->width(), camera->height()));
+  }
+  return camera;
+}
+
 void RunRepeat(const RepeatArguments& args) {
   MapForLocalizer loaded = LoadMapForLocalizer(args.map, args.options);
   const Map& map = loaded.map;
@@ -278,15 +331,8 @@ void RunRepeat(const RepeatArguments& args) {
   const std::optional<std::string>& source = loaded.source_sequence;
   std::unique_ptr<Sequence> sequence = OpenSequence(args.sequence);
 
-  std::unique_ptr<CameraModel> camera;
-  if (!args.camera.empty()) {
-    camera = ReadCameraFile(args.camera, sequence->image_size());
-  } else {
-    if (!loaded.camera) throw InputError(args.map.string(), "the map stores no camera; give --camera FILE");
-    camera = std::move(loaded.camera);
-  }
   const int key_width = map.nodes().front().image.cols;
-  if (camera->width() != key_width) camera = camera->Scaled(static_cast<double>(key_width) / camera->width());
+  std::unique_ptr<CameraModel> camera = RepeatCamera(args, key_width, loaded.camera.get(), *sequence);
 
   if (args.every > 1 || args.offset > 0) {
     sequence = std::make_unique<SubsampledSequence>(std::move(sequence), std::max<size_t>(1, args.every), args.offset);
