@@ -162,9 +162,11 @@ std::unique_ptr<MapDatabase> MapDatabase::Create(const std::filesystem::path& pa
     RemoveSideFiles(path);  // never let a stale log of another database be applied to the new one
   }
   std::unique_ptr<MapDatabase> map(new MapDatabase(path, SqliteDatabase::Mode::kCreate, options));
-  map->database_->Execute("PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL; PRAGMA foreign_keys=ON;");
+  // The marks first, still in rollback-journal mode, so that they are in the file itself from the start (in WAL
+  // mode page 1 would live in the log until a checkpoint, and a killed writer's file would not look like a map).
   map->database_->Execute("PRAGMA application_id=" + std::to_string(kApplicationId) + ";");
   map->database_->Execute("PRAGMA user_version=" + std::to_string(kSchemaVersion) + ";");
+  map->database_->Execute("PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL; PRAGMA foreign_keys=ON;");
   map->CreateTables();
   map->SetMetadata("retrace_version", Version());
   map->SetMetadata("image_format", options.image_format);

@@ -369,6 +369,8 @@ TEST(StagedMap, KilledWriterLeavesAnIncompleteMapAndTheOldOneUntouched) {
   int status = 0;
   ASSERT_EQ(waitpid(child, &status, 0), child);
   ASSERT_TRUE(WIFSIGNALED(status));
+  // The killed writer's file is marked as a map in the file itself, not only in its log.
+  EXPECT_NO_THROW(MapDatabase::CheckReplaceable(dir / "route.db.incomplete"));
   EXPECT_EQ(std::filesystem::file_size(path), old_size);
   EXPECT_EQ(MapDatabase::Open(path)->NumNodes(), 1);
   auto left = MapDatabase::Open(dir / "route.db.incomplete");
@@ -377,7 +379,7 @@ TEST(StagedMap, KilledWriterLeavesAnIncompleteMapAndTheOldOneUntouched) {
   EXPECT_EQ(map.nodes().size(), static_cast<size_t>(kCommitted));
   EXPECT_EQ(map.arcs().size(), static_cast<size_t>(kCommitted - 1));
   left.reset();
-  // The killed writer's lock is released with it: the next writer goes ahead.
+  // The killed writer's lock is released with it: the next writer goes ahead and replaces the staging map.
   EXPECT_NO_THROW(StagedMap::Begin(path, {}, /*overwrite=*/true)->Commit());
 }
 
