@@ -3,26 +3,17 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
-#include <opengv/absolute_pose/CentralAbsoluteAdapter.hpp>
-#include <opengv/absolute_pose/methods.hpp>
 #include <random>
 
 #include <Eigen/LU>
 
 #include "retrace/geometry/essential.h"
+#include "retrace/geometry/p3p.h"
 #include "retrace/geometry/sigma_p.h"
 #include "retrace/geometry/triangulation.h"
 
 namespace retrace {
 namespace {
-
-// OpenGV's convention: a transformation [R | t] gives the camera's orientation (camera -> world) and position
-// in the world frame.
-Rigid3d CamFromWorld(const opengv::transformation_t& world_from_cam) {
-  const Matrix3d rotation = world_from_cam.block<3, 3>(0, 0);
-  const Vector3d centre = world_from_cam.col(3);
-  return Rigid3d(rotation.transpose(), -rotation.transpose() * centre);
-}
 
 // Squared residual of one correspondence: the squared norm of TangentResidualPx (radians), i.e. the squared
 // sine of the angle between the bearing and the direction to the point, 1 - (f·p)² / |p|²; a point behind the
@@ -156,16 +147,14 @@ AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world,
     return Failure("too few correspondences: " + std::to_string(n) + " < " + std::to_string(min_needed), n);
   }
 
-  const opengv::bearingVectors_t opengv_bearings(bearings.begin(), bearings.end());
-  const opengv::points_t opengv_points(points_in_world.begin(), points_in_world.end());
-  opengv::absolute_pose::CentralAbsoluteAdapter adapter(opengv_bearings, opengv_points);
-
   const double tau = options.ransac.max_error_px / focal_length_px;
   const double tau2 = tau * tau;
   std::mt19937_64 rng(options.ransac.seed);
   std::vector<int> pool(n);
   std::iota(pool.begin(), pool.end(), 0);
   std::vector<int> sample(kSampleSize);
+  std::vector<Rigid3d> solutions;
+  solutions.reserve(4);
 
   Rigid3d best_pose;
   double best_cost = std::numeric_limits<double>::infinity();
@@ -179,9 +168,12 @@ AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world,
       std::swap(pool[k], pool[pick(rng)]);
       sample[k] = pool[k];
     }
-    for (const opengv::transformation_t& solution : opengv::absolute_pose::p3p_kneip(adapter, sample)) {
-      if (!solution.allFinite()) continue;
-      const Rigid3d pose = CamFromWorld(solution);
+    const Vector3d sample_points[kSampleSize] = {points_in_world[sample[0]], points_in_world[sample[1]],
+                                                 points_in_world[sample[2]]};
+    const Vector3d sample_bearings[kSampleSize] = {bearings[sample[0]], bearings[sample[1]], bearings[sample[2]]};
+    solutions.clear();
+    SolveP3P(sample_points, sample_bearings, &solutions);
+    for (const Rigid3d& pose : solutions) {
       double cost = 0.0;
       int inliers = 0;
       for (size_t i = 0; i < n && cost < best_cost; ++i) {

@@ -6,9 +6,8 @@
 // unit directly, without the separate scale estimate of the decomposed point transfer (point_transfer.h).
 //
 // Robust estimation, as for the two-view geometries (two_view_geometry.h):
-//  - hypotheses from random minimal samples of three correspondences, solved by Kneip's P3P (Kneip,
-//    Scaramuzza, Siegwart, "A novel parametrization of the perspective-three-point problem for a direct
-//    computation of absolute camera position and orientation", CVPR 2011; via OpenGV), up to four poses each;
+//  - hypotheses from random minimal samples of three correspondences, solved by Grunert's P3P (Haralick et al.,
+//    IJCV 1994; p3p.h), up to four poses each;
 //  - MSAC scoring, Σ_i min(e_i², τ²), with e_i the angle between the observed bearing and the direction to
 //    the point in the camera, times the focal length (pixels); a point behind the camera (on the wrong side
 //    along its ray) costs τ²;

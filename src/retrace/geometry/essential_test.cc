@@ -61,7 +61,7 @@ TEST(Essential, DecompositionContainsTruth) {
 }
 
 TEST(Essential, FivePointSolverFollowsRetraceConvention) {
-  // Checks the OpenGV convention mapping: noise-free data, the true b_from_a must be among the candidates.
+  // Checks the convention of the solver (f_Bᵀ E f_A = 0): noise-free data, the true b_from_a must be a candidate.
   const PerspectiveCamera camera(640, 480, 500.0, 500.0, 319.5, 239.5);
   SyntheticTwoViewOptions options;
   options.noise_px = 0.0;

@@ -1,17 +1,11 @@
 #include "retrace/geometry/relative_pose.h"
 
-#include <opengv/relative_pose/CentralRelativeAdapter.hpp>
-#include <opengv/relative_pose/methods.hpp>
-
 #include "retrace/geometry/essential.h"
+#include "retrace/geometry/five_point.h"
 #include "retrace/geometry/triangulation.h"
 
 namespace retrace {
 namespace {
-
-opengv::bearingVectors_t ToOpengv(const std::vector<Vector3d>& bearings) {
-  return opengv::bearingVectors_t(bearings.begin(), bearings.end());
-}
 
 // Appends the decompositions of `e` that put every sampled correspondence in front of both cameras.
 void AppendPosesInFront(const Matrix3d& e, const std::vector<Vector3d>& a, const std::vector<Vector3d>& b,
@@ -30,29 +24,6 @@ void AppendPosesInFront(const Matrix3d& e, const std::vector<Vector3d>& a, const
   }
 }
 
-// OpenGV's 5-point solver with the adapter built once per estimation.
-//
-// OpenGV's convention: viewpoint 1 and 2, E = [t]ₓ R with R the rotation from viewpoint 2 to 1 and t the position of
-// viewpoint 2 seen from 1, so that f1ᵀ E f2 = 0. Passing B as viewpoint 1 and A as viewpoint 2 gives exactly
-// retrace's E = [t]ₓ R of b_from_a with f_Bᵀ E f_A = 0.
-class FivePointSolver {
- public:
-  FivePointSolver(const std::vector<Vector3d>& a, const std::vector<Vector3d>& b)
-      : a_(a), b_(b), opengv_b_(ToOpengv(b)), opengv_a_(ToOpengv(a)), adapter_(opengv_b_, opengv_a_) {}
-
-  void operator()(const std::vector<int>& sample, std::vector<Rigid3d>* poses) const {
-    const opengv::essentials_t essentials = opengv::relative_pose::fivept_nister(adapter_, sample);
-    for (const opengv::essential_t& e : essentials) AppendPosesInFront(e, a_, b_, sample, poses);
-  }
-
- private:
-  const std::vector<Vector3d>& a_;
-  const std::vector<Vector3d>& b_;
-  opengv::bearingVectors_t opengv_b_;
-  opengv::bearingVectors_t opengv_a_;
-  opengv::relative_pose::CentralRelativeAdapter adapter_;
-};
-
 // R ← exp(δ₀₁₂) R, t ← normalize(t + δ₃ b₁ + δ₄ b₂) with (b₁, b₂) a basis of the tangent plane of the unit t.
 Rigid3d UpdateGeneralPose(const Rigid3d& pose, const double* delta) {
   Vector3d b1, b2;
@@ -67,7 +38,16 @@ internal::PoseManifold internal::GeneralPoseManifold() { return internal::PoseMa
 
 void SolveFivePoint(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
                     const std::vector<int>& sample, std::vector<Rigid3d>* poses) {
-  FivePointSolver(bearings_a, bearings_b)(sample, poses);
+  if (sample.size() != 5) return;
+  Vector3d sample_a[5], sample_b[5];
+  for (int k = 0; k < 5; ++k) {
+    sample_a[k] = bearings_a[sample[k]];
+    sample_b[k] = bearings_b[sample[k]];
+  }
+  std::vector<Matrix3d> essentials;
+  essentials.reserve(10);
+  SolveEssentialFivePoint(sample_a, sample_b, &essentials);
+  for (const Matrix3d& e : essentials) AppendPosesInFront(e, bearings_a, bearings_b, sample, poses);
 }
 
 TwoViewGeometry EstimateRelativePose(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
@@ -78,10 +58,11 @@ TwoViewGeometry EstimateRelativePose(const std::vector<Vector3d>& bearings_a, co
                                      [](const std::vector<int>&, std::vector<Rigid3d>*) {},
                                      internal::PoseManifold{5, &UpdateGeneralPose});
   }
-  const FivePointSolver solver(bearings_a, bearings_b);
   return internal::EstimateTwoView(
       bearings_a, bearings_b, focal_length_px, options, 5,
-      [&solver](const std::vector<int>& sample, std::vector<Rigid3d>* poses) { solver(sample, poses); },
+      [&](const std::vector<int>& sample, std::vector<Rigid3d>* poses) {
+        SolveFivePoint(bearings_a, bearings_b, sample, poses);
+      },
       internal::PoseManifold{5, &UpdateGeneralPose}, guess);
 }
 

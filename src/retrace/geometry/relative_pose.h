@@ -1,7 +1,7 @@
 #pragma once
 
-// Relative pose of two calibrated views from unit bearing vectors: the 5-point essential-matrix solver (Nistér 2004,
-// via OpenGV) inside the robust loop of two_view_geometry.h (MSAC scoring, adaptive iterations, cheirality on the
+// Relative pose of two calibrated views from unit bearing vectors: the 5-point essential-matrix solver (Nistér 2004;
+// Stewénius et al. 2006, five_point.h) inside the robust loop of two_view_geometry.h (MSAC scoring, adaptive iterations, cheirality on the
 // sample, LM refinement of R and unit t on the Sampson error, triangulation and σ_p of the inliers).
 //
 // Works for perspective and omnidirectional cameras alike: bearings may point anywhere on the sphere (including
