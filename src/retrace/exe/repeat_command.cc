@@ -37,6 +37,7 @@
 #include "retrace/repeat/evaluation.h"
 #include "retrace/repeat/localizer.h"
 #include "retrace/util/error.h"
+#include "retrace/util/memory_usage.h"
 #include "retrace/util/progress.h"
 #include "retrace/viz/plot.h"
 
@@ -411,8 +412,10 @@ void RunRepeat(const RepeatArguments& args) {
     std::nth_element(tracked_ms.begin(), tracked_ms.begin() + tracked_ms.size() / 2, tracked_ms.end());
     timing += fmt::format(", median {:.2f} ms per tracked frame", tracked_ms[tracked_ms.size() / 2]);
   }
-  std::cout << fmt::format("repeat: {} frames, {} tracking, {} re-initialisations, {} transitions{}\n", results.size(),
-                           tracking, std::max(0, bootstraps - 1), transitions, timing);
+  std::cout << fmt::format("repeat: {} frames, {} tracking, {} re-initialisations, {} transitions{}; peak memory "
+                           "{:.0f} MB\n",
+                           results.size(), tracking, std::max(0, bootstraps - 1), transitions, timing,
+                           PeakResidentBytes() / 1e6);
 
   if (args.evaluate) {
     // Pseudo-repeat: key-images are frames of the teach sequence (map metadata), repeat frames of this one.
@@ -476,6 +479,10 @@ void RegisterRepeatCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--min-confidence", args->options.belief.min_confidence,
                   "Belief confidence needed to report tracking (probability that the arc is right)")
+      ->capture_default_str();
+  cmd->add_option("--max-cached-key-images", args->options.max_cached_key_images,
+                  "Key-images whose pyramids, references and key-points stay in memory (least recently used "
+                  "released first; bounds memory on long drives)")
       ->capture_default_str();
   cmd->add_option("--retrieval-shortlist", args->options.retrieval_shortlist,
                   "Key-images verified first when localizing without a start arc, the most similar in appearance "

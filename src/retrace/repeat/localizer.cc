@@ -63,6 +63,7 @@ bool LocalizerOptions::Check(std::string* error) const {
     return fail("relocalization_neighbourhood and relocalization_widening must be >= 0");
   }
   if (global_relocalization_frames < 1) return fail("global_relocalization_frames must be >= 1");
+  if (max_cached_key_images < 1) return fail("max_cached_key_images must be >= 1");
   if (retrieval_shortlist < 0 || retrieval_confident_inliers < 0) {
     return fail("retrieval_shortlist and retrieval_confident_inliers must be >= 0");
   }
@@ -155,18 +156,21 @@ const Localizer::ArcData* Localizer::Arc(arc_t id) const {
 
 const ImagePyramid& Localizer::NodePyramid(node_t id) {
   NodeData& node = Node(id);
+  node.last_used = frame_counter_;
   if (!node.pyramid) node.pyramid = std::make_unique<ImagePyramid>(node.node->image, pyramid_options_);
   return *node.pyramid;
 }
 
 const WideBaselineFeatures& Localizer::NodeWideBaseline(node_t id) {
   NodeData& node = Node(id);
+  node.last_used = frame_counter_;
   if (!node.wide_baseline) node.wide_baseline = ExtractWideBaselineFeatures(node.node->image, options_.matching);
   return *node.wide_baseline;
 }
 
 const ReferencePatch* Localizer::Reference(node_t node_id, feature_t feature) {
   NodeData& node = Node(node_id);
+  node.last_used = frame_counter_;
   auto it = node.references.find(feature);
   if (it == node.references.end()) {
     std::unique_ptr<ReferencePatch> patch;
@@ -270,8 +274,28 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
     result.steering = 0.0;
   }
   FillCounts(&result);
+  ReleaseUnusedKeyImages();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
+}
+
+void Localizer::ReleaseUnusedKeyImages() {
+  std::vector<NodeData*> cached;
+  for (auto& [id, node] : nodes_) {
+    if (node->HasDerivedData()) cached.push_back(node.get());
+  }
+  const size_t capacity = static_cast<size_t>(options_.max_cached_key_images);
+  if (cached.size() <= capacity) return;
+  // The most recently used first (ties by node id, so that runs are repeatable).
+  std::sort(cached.begin(), cached.end(), [](const NodeData* a, const NodeData* b) {
+    return a->last_used != b->last_used ? a->last_used > b->last_used : a->node->id < b->node->id;
+  });
+  for (size_t i = capacity; i < cached.size(); ++i) cached[i]->ReleaseDerivedData();
+}
+
+int Localizer::NumCachedKeyImages() const {
+  return static_cast<int>(std::count_if(nodes_.begin(), nodes_.end(),
+                                        [](const auto& entry) { return entry.second->HasDerivedData(); }));
 }
 
 std::optional<double> Localizer::AlongCurrentArc() const {

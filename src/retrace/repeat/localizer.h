@@ -190,6 +190,11 @@ struct LocalizerOptions {
   // kitti07 and 60-150 in the simulated town).
   int retrieval_confident_inliers = 60;
   GlobalDescriptorOptions retrieval;
+  // Key-images whose derived data (image pyramid, cut references, wide-baseline key-points; 1-4 MB each at 320 to
+  // 1226 px width) is kept between frames, the least recently used released first. Bounds repeat's memory on a drive
+  // of any length: without it every key-image visited stayed in memory (kitti07's 1226 px: +4.2 MB per key-image).
+  // A released key-image's data is computed again when needed (its wide-baseline key-points are the costly part).
+  int max_cached_key_images = 24;
   // Bootstrap: matched key-points nearer than this (px at reference_width) predict a mapped feature's position.
   double bootstrap_neighbour_radius_px = 30.0;
   // Bootstrap: accept a located feature within this distance of its local prediction (px at reference_width).
@@ -309,6 +314,8 @@ class Localizer {
   const PlaceBelief& belief() const { return belief_; }
   // Thresholds in pixels of the frames given.
   double sigma_p_threshold_px() const { return max_sigma_p_px_; }
+  // Key-images whose derived data is in memory now (at most max_cached_key_images between frames).
+  int NumCachedKeyImages() const;
 
  private:
   struct NodeData;
@@ -379,6 +386,9 @@ class Localizer {
                         FrameResult* result);
   void ClearTracks();
   void FillCounts(FrameResult* result) const;
+  // Releases the derived data of the least recently used key-images beyond options_.max_cached_key_images (between
+  // frames only: pointers into it live within a frame).
+  void ReleaseUnusedKeyImages();
 
   std::unique_ptr<CameraModel> camera_;
   LocalizerOptions options_;

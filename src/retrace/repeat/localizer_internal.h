@@ -21,6 +21,15 @@ struct Localizer::NodeData {
   std::optional<WideBaselineFeatures> wide_baseline;
   std::optional<GlobalDescriptor> appearance;
   std::unordered_map<feature_t, std::unique_ptr<ReferencePatch>> references;  // null = cannot be cut
+  // Frame counter of the last use of the derived data above (pyramid, wide_baseline, references).
+  size_t last_used = 0;
+
+  bool HasDerivedData() const { return pyramid || wide_baseline || !references.empty(); }
+  void ReleaseDerivedData() {
+    pyramid.reset();
+    wide_baseline.reset();
+    references.clear();
+  }
 };
 
 struct Localizer::ArcData {

@@ -5,6 +5,7 @@
 // decides which arc was right and whether the steering command (Segvic 2009, eq. (10)) points where the taught path
 // goes.
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <string>
@@ -99,6 +100,46 @@ TEST(RepeatSim, AnotherTownAndRoute) {
   scenario.seed = 2;
   scenario.town.seed = 2;
   RepeatAndCheck(scenario, "town and drive of seed 2", /*check_steering=*/false);
+}
+
+// The localizer keeps the derived data (pyramids, references, key-points) of a bounded number of key-images, so a
+// drive of any length runs in flat memory; releasing it must change nothing but memory. The repeat drive is run
+// twice in a row (the second lap starts with a relocalization at the route's start) with room for 3 key-images and
+// for all of them: the same state, arc and position in every frame, and never more than 3 key-images held.
+TEST(RepeatSim, BoundedKeyImageCacheChangesNothingButMemory) {
+  Scenario scenario;
+  scenario.num_frames = 80;
+  const RecordedDrive teach = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kTeach));
+  const RecordedDrive repeat = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kRepeat));
+  Teacher teacher(*teach.camera, TeachOptions(), nullptr);
+  for (const Frame& frame : teach.frames) teacher.AddFrame(frame);
+  teacher.Finish();
+  const Map& map = teacher.map();
+  ASSERT_GE(map.nodes().size(), 8u);
+
+  LocalizerOptions bounded_options;
+  bounded_options.max_cached_key_images = 3;
+  LocalizerOptions unbounded_options;
+  unbounded_options.max_cached_key_images = static_cast<int>(map.nodes().size());
+  Localizer bounded(map, *repeat.camera, bounded_options);
+  Localizer unbounded(map, *repeat.camera, unbounded_options);
+  int largest_unbounded = 0, tracking = 0;
+  for (int lap = 0; lap < 2; ++lap) {
+    for (const Frame& frame : repeat.frames) {
+      const FrameResult a = bounded.ProcessFrame(frame);
+      const FrameResult b = unbounded.ProcessFrame(frame);
+      ASSERT_EQ(a.state, b.state) << "lap " << lap << " frame " << frame.index;
+      ASSERT_EQ(a.arc, b.arc) << "lap " << lap << " frame " << frame.index;
+      ASSERT_EQ(a.position_on_arc, b.position_on_arc) << "lap " << lap << " frame " << frame.index;
+      ASSERT_EQ(a.tracked, b.tracked) << "lap " << lap << " frame " << frame.index;
+      ASSERT_LE(bounded.NumCachedKeyImages(), 3);
+      largest_unbounded = std::max(largest_unbounded, unbounded.NumCachedKeyImages());
+      tracking += a.state == LocalizerState::kTracking;
+    }
+  }
+  // The bound was exercised: unbounded, the localizer held many more key-images.
+  EXPECT_GE(largest_unbounded, 8);
+  EXPECT_GE(tracking, 140);
 }
 
 }  // namespace
