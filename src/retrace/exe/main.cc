@@ -1,6 +1,8 @@
 // The `retrace` command-line tool: one binary, one subcommand per job (see `retrace --help`).
 
+#include <algorithm>
 #include <iostream>
+#include <string>
 
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
@@ -25,6 +27,28 @@ constexpr void (*kCommands[])(CLI::App&) = {
     &retrace::RegisterRepeatCommand,
 };
 
+// An error message fit for one line of a terminal, whatever an input file put into it: line breaks become spaces,
+// other control characters and bytes that are not UTF-8 become '?', and an empty message says so.
+std::string OneLineMessage(const std::string& message) {
+  std::string result;
+  for (size_t i = 0; i < message.size();) {
+    const auto byte = static_cast<unsigned char>(message[i]);
+    size_t length = byte < 0x80 ? 1 : (byte >> 5) == 0x6 ? 2 : (byte >> 4) == 0xE ? 3 : (byte >> 3) == 0x1E ? 4 : 0;
+    for (size_t k = 1; k < length; ++k) {
+      if (i + k >= message.size() || (static_cast<unsigned char>(message[i + k]) & 0xC0) != 0x80) length = 0;
+    }
+    if (byte == '\n' || byte == '\r' || byte == '\t') {
+      result += ' ';
+    } else if (length == 0 || byte < 0x20 || byte == 0x7F) {
+      result += '?';
+    } else {
+      result.append(message, i, length);
+    }
+    i += std::max<size_t>(length, 1);
+  }
+  return result.empty() ? "unknown error (no message)" : result;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -48,11 +72,8 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
-  } catch (const retrace::InputError& e) {
-    std::cerr << "retrace: error: " << e.what() << "\n";
-    return 1;
-  } catch (const std::exception& e) {
-    std::cerr << "retrace: error: " << e.what() << "\n";
+  } catch (const std::exception& e) {  // retrace::InputError and anything else
+    std::cerr << "retrace: error: " << OneLineMessage(e.what()) << "\n";
     return 1;
   }
   return 0;

@@ -46,7 +46,9 @@ bool LooksLikeWholeImage(const std::vector<uint8_t>& bytes) {
   const auto starts_with = [&](std::initializer_list<uint8_t> prefix) {
     return bytes.size() >= prefix.size() && std::equal(prefix.begin(), prefix.end(), bytes.begin());
   };
-  if (starts_with({0xFF, 0xD8, 0xFF})) return bytes.size() >= 4 && bytes[bytes.size() - 2] == 0xFF && bytes.back() == 0xD9;
+  if (starts_with({0xFF, 0xD8, 0xFF})) {
+    return bytes.size() >= 4 && bytes[bytes.size() - 2] == 0xFF && bytes.back() == 0xD9;
+  }
   if (starts_with({0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'})) {
     static const uint8_t kEnd[] = {'I', 'E', 'N', 'D', 0xAE, 0x42, 0x60, 0x82};
     return bytes.size() >= 8 + sizeof(kEnd) && std::equal(std::begin(kEnd), std::end(kEnd), bytes.end() - sizeof(kEnd));
@@ -217,9 +219,13 @@ void MapDatabase::CheckIntegrity() {
   const std::string source = path_.string();
   {
     SqliteStatement& check = database_->Prepare("PRAGMA quick_check(1);");  // pages, b-trees, records, NOT NULL
-    const std::string result = check.Step() ? check.ColumnText(0) : "no result";
+    std::string result = check.Step() ? check.ColumnText(0) : "no result";
     check.Reset();
-    if (result != "ok") throw InputError(source, kCorrupt + PrintableText(result));
+    if (result != "ok") {
+      const std::string kDatabaseName = "*** in database main ***";  // SQLite's heading, no news in one line
+      if (result.rfind(kDatabaseName, 0) == 0) result.erase(0, kDatabaseName.size());
+      throw InputError(source, kCorrupt + PrintableText(result));
+    }
   }
   CheckSchema();
   CheckReferences();
@@ -637,7 +643,9 @@ Map MapDatabase::ReadMap(bool load_images) {
     if (!is_rotation || !t.allFinite() || std::abs(t.norm() - 1.0) > 1e-6) {
       fail(arcs, "geometry of " + name + " is not a rotation and a unit translation");
     }
-    if (!std::isfinite(arc.sigma_p) || arc.sigma_p < 0) fail(arcs, fmt::format("sigma_p of {} is {}", name, arc.sigma_p));
+    if (!std::isfinite(arc.sigma_p) || arc.sigma_p < 0) {
+      fail(arcs, fmt::format("sigma_p of {} is {}", name, arc.sigma_p));
+    }
     map.AddArc(std::move(arc));
   }
   arcs.Reset();
@@ -754,7 +762,8 @@ std::unique_ptr<StagedMap> StagedMap::Begin(const std::filesystem::path& path, c
         throw InputError(source, "another retrace teach is writing this map now (" + staged->lock_path_.string() +
                                      " is locked); try again when it has finished");
       }
-      throw InputError(source, fmt::format("cannot lock {}: {}", staged->lock_path_.string(), std::strerror(flock_error)));
+      throw InputError(source,
+                       fmt::format("cannot lock {}: {}", staged->lock_path_.string(), std::strerror(flock_error)));
     }
     struct stat by_descriptor {};
     struct stat by_path {};
@@ -800,7 +809,8 @@ void StagedMap::Commit() {
   RemoveSideFiles(path_);
   if (overwrite_) {
     if (std::rename(staging_path_.c_str(), path_.c_str()) != 0) {
-      throw InputError(source, fmt::format("cannot move {} into place: {}", staging_path_.string(), std::strerror(errno)));
+      throw InputError(source,
+                       fmt::format("cannot move {} into place: {}", staging_path_.string(), std::strerror(errno)));
     }
   } else {
     // Never replace a file that appeared meanwhile (file systems without RENAME_NOREPLACE: checked just before).
@@ -812,7 +822,8 @@ void StagedMap::Commit() {
       throw InputError(source, "map file exists already (choose another name or overwrite)");
     }
     if (moved != 0) {
-      throw InputError(source, fmt::format("cannot move {} into place: {}", staging_path_.string(), std::strerror(errno)));
+      throw InputError(source,
+                       fmt::format("cannot move {} into place: {}", staging_path_.string(), std::strerror(errno)));
     }
   }
   const std::filesystem::path directory = path_.has_parent_path() ? path_.parent_path() : std::filesystem::path(".");

@@ -31,7 +31,11 @@ std::string PrintableText(const std::string& text, size_t max_length) {
       break;
     }
     const auto byte = static_cast<unsigned char>(c);
-    result += (byte >= 0x20 && byte < 0x7f) ? c : '?';
+    if (c == '\n' || c == '\t' || c == '\r') {
+      if (!result.empty() && result.back() != ' ') result += ' ';  // a line break separates words
+    } else {
+      result += (byte >= 0x20 && byte < 0x7f) ? c : '?';
+    }
   }
   return result;
 }

@@ -16,8 +16,9 @@
 
 namespace retrace {
 
-// `text` with every byte outside printable ASCII (control characters, line breaks, non-ASCII) replaced by '?',
-// cut after `max_length` characters: fit to quote untrusted bytes in a one-line error message.
+// `text` with line breaks and tabs turned into spaces and every other byte outside printable ASCII (control
+// characters, non-ASCII) replaced by '?', cut after `max_length` characters: fit to quote untrusted bytes in a
+// one-line error message.
 std::string PrintableText(const std::string& text, size_t max_length = 200);
 
 // The one-line message of an SQLite error: printable, and saying "not a retrace map" for a foreign file and
