@@ -5,18 +5,29 @@
 #include <stdexcept>
 #include <string>
 
+#include <fmt/format.h>
+
 namespace retrace {
 
 bool ClosedLoopOptions::Check(std::string* error) const {
-  const auto fail = [error](const char* message) {
+  const auto fail = [error](const std::string& message) {
     if (error != nullptr) *error = message;
     return false;
   };
-  if (!(speed > 0)) return fail("speed must be positive");
-  if (!(frame_period > 0)) return fail("frame_period must be positive");
-  if (!std::isfinite(steering_gain)) return fail("steering_gain must be finite");
-  if (max_frames < 1) return fail("max_frames must be >= 1");
-  if (!(max_deviation > 0)) return fail("max_deviation must be positive");
+  // Plausible ranges (as the scenario's keys, sim/scenario.h): a car, a camera's frame rate, a run that ends.
+  if (!(speed > 0 && speed <= 50)) return fail(fmt::format("speed must be in (0, 50] m/s, got {}", speed));
+  if (!(frame_period > 0 && frame_period <= 10)) {
+    return fail(fmt::format("frame_period must be in (0, 10] s, got {}", frame_period));
+  }
+  if (!(std::abs(steering_gain) <= 100)) {
+    return fail(fmt::format("steering_gain must be in [-100, 100], got {}", steering_gain));
+  }
+  if (!(max_frames >= 1 && max_frames <= 1000000)) {
+    return fail(fmt::format("max_frames must be in 1..1000000, got {}", max_frames));
+  }
+  if (!(max_deviation > 0 && max_deviation <= 1000)) {
+    return fail(fmt::format("max_deviation must be in (0, 1000] m, got {}", max_deviation));
+  }
   return true;
 }
 
@@ -92,6 +103,8 @@ ClosedLoopSummary DriveClosedLoop(Simulator* simulator, Localizer* localizer, co
       break;
     }
     if (summary.left_path) break;
+    summary.left_route = simulator->OffRoute();
+    if (summary.left_route) break;
     view = simulator->Step(step.wheels, options.speed, options.frame_period);
   }
   return summary;

@@ -50,6 +50,8 @@ struct ClosedLoopSummary {
   int tracking = 0;          // frames in state kTracking
   bool reached_end = false;  // past the end of the taught route
   bool left_path = false;    // stopped farther than max_deviation from the taught path
+  bool left_route = false;   // stopped where the simulated world ends (Simulator::OffRoute: past the scenario
+                             // route's end or far off it), e.g. lost without taught poses to measure the deviation
   std::vector<double> deviations;  // per frame, when taught poses were given
 
   double MedianDeviation() const;
@@ -62,7 +64,8 @@ double DistanceToPath(const Vector3d& position, const std::vector<TimedPose>& ta
 
 // Drives `simulator` (placed at its scenario's start) with `localizer`'s steering until the car is past the end of
 // the taught route (the last taught pose, or the end of the map's last arc without taught poses), leaves the taught
-// path, or `max_frames` have gone by. `on_step` (optional) sees every frame.
+// path, leaves the simulated route (Simulator::OffRoute), or `max_frames` have gone by. `on_step` (optional) sees
+// every frame.
 ClosedLoopSummary DriveClosedLoop(Simulator* simulator, Localizer* localizer, const Map& map,
                                   const std::vector<TimedPose>& taught, const ClosedLoopOptions& options,
                                   const std::function<void(const ClosedLoopStep&)>& on_step = {});

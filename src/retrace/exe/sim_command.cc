@@ -23,12 +23,22 @@ namespace retrace {
 
 namespace {
 
-// Overrides (negative / zero = keep) shared by `sim render` and `sim drive`.
-void ApplyBasicOverrides(int width, int height, int64_t seed, ScenarioOverrides* overrides) {
-  if (width > 0) overrides->width = width;
-  if (height > 0) overrides->height = height;
-  if (seed >= 0) overrides->seed = seed;
+// Applies the command line's overrides to the scenario read from `scenario_file` ("" = the built-in scenario) and
+// checks the result (Scenario::Check, the one check of scenario files and options). Throws a one-line InputError.
+Scenario ReadScenarioWithOverrides(const std::string& scenario_file, const ScenarioOverrides& overrides) {
+  Scenario scenario = scenario_file.empty() ? Scenario() : ReadScenario(scenario_file);
+  if (const std::string bad = overrides.Apply(&scenario); !bad.empty()) {
+    // A bad option names itself; a key of the file that no longer fits the options is the file's.
+    throw InputError(bad.rfind("--", 0) == 0 || scenario_file.empty() ? "" : scenario_file, bad);
+  }
+  return scenario;
 }
+
+// Largest frame count of a recording (the range of `frames`): also the bound of a whole route's frames.
+int MaxFrames() { return static_cast<int>(FindScenarioKeyRange("frames")->max); }
+
+// The documented range of a scenario key for an option's help ("0..1000").
+std::string RangeOf(const char* key) { return FindScenarioKeyRange(key)->Text(); }
 
 struct RenderArguments {
   std::string scenario;
@@ -54,8 +64,10 @@ struct RenderArguments {
 
 // `sim render`: a teach or repeat drive of the scenario with the command line's overrides.
 void RunRender(const CLI::App& command, const RenderArguments& args) {
-  Scenario scenario = args.scenario.empty() ? Scenario() : ReadScenario(args.scenario);
   const auto given = [&](const char* name) { return command.get_option(name)->count() > 0; };
+  if (given("--contact-sheet-every") && !(args.sheet_every >= 1 && args.sheet_every <= MaxFrames())) {
+    throw InputError("", fmt::format("--contact-sheet-every: must be in 1..{}, got {}", MaxFrames(), args.sheet_every));
+  }
   ScenarioOverrides overrides;
   if (given("--frames")) overrides.frames = args.frames;
   if (given("--width")) overrides.width = args.width;
@@ -69,12 +81,17 @@ void RunRender(const CLI::App& command, const RenderArguments& args) {
   if (given("--lighting")) overrides.lighting = args.lighting;
   if (given("--repeat-lighting")) overrides.repeat_lighting = args.repeat_lighting;
   if (given("--lateral-offset")) overrides.lateral_offset = args.lateral_offset;
-  if (const std::string bad = overrides.Apply(&scenario); !bad.empty()) throw InputError("", bad);
-  if (args.threads > 0) scenario.render.num_threads = args.threads;
-  const std::string problem = scenario.Validate();
-  if (!problem.empty()) throw InputError(args.scenario.empty() ? "command line" : args.scenario, problem);
+  if (given("--threads")) overrides.threads = args.threads;
+  const Scenario scenario = ReadScenarioWithOverrides(args.scenario, overrides);
   const ScenarioVariant v = args.variant == "repeat" ? ScenarioVariant::kRepeat : ScenarioVariant::kTeach;
   Simulator simulator(ApplyVariant(scenario, v));
+  if (simulator.ExpectedFrames() > MaxFrames()) {
+    throw InputError(args.scenario.empty() ? "" : args.scenario,
+                     fmt::format("the route ({:.0f} m) takes about {} frames at {} Hz, more than {}: set frames "
+                                 "(--frames) or a shorter route",
+                                 simulator.route().length(), simulator.ExpectedFrames(), scenario.frame_rate,
+                                 MaxFrames()));
+  }
   RecordOptions options;
   options.progress = !args.quiet;
   options.contact_sheet = args.contact_sheet;
@@ -84,6 +101,11 @@ void RunRender(const CLI::App& command, const RenderArguments& args) {
                            "fps)\n",
                            summary.frames, summary.driven_m, summary.route_length_m, args.variant, args.out,
                            summary.seconds, summary.frames / std::max(1e-9, summary.seconds));
+  if (summary.stopped_at_route_end) {
+    std::cout << fmt::format("the route ends after {} frames: {} fewer than the {} asked for (frames 0 drives the "
+                             "whole route)\n",
+                             summary.frames, summary.frames_requested - summary.frames, summary.frames_requested);
+  }
   if (!args.contact_sheet.empty()) std::cout << "contact sheet: " << args.contact_sheet << "\n";
 }
 
@@ -100,13 +122,13 @@ struct DriveArguments {
 };
 
 // `sim drive`: the repeat variant of the scenario driven by the localizer's steering (closed loop).
-void RunDrive(const DriveArguments& args) {
-  Scenario scenario = args.scenario.empty() ? Scenario() : ReadScenario(args.scenario);
+void RunDrive(const CLI::App& command, const DriveArguments& args) {
+  const auto given = [&](const char* name) { return command.get_option(name)->count() > 0; };
   ScenarioOverrides overrides;
-  ApplyBasicOverrides(args.width, args.height, args.seed, &overrides);
-  if (const std::string bad = overrides.Apply(&scenario); !bad.empty()) throw InputError("", bad);
-  const std::string problem = scenario.Validate();
-  if (!problem.empty()) throw InputError(args.scenario.empty() ? "command line" : args.scenario, problem);
+  if (given("--width")) overrides.width = args.width;
+  if (given("--height")) overrides.height = args.height;
+  if (given("--seed")) overrides.seed = args.seed;
+  const Scenario scenario = ReadScenarioWithOverrides(args.scenario, overrides);
   std::string error;
   if (!args.drive.Check(&error)) throw InputError("sim drive options", error);
   const std::vector<TimedPose> taught =
@@ -188,6 +210,9 @@ void RunDrive(const DriveArguments& args) {
   std::cout << fmt::format("drive: {} frames, {} tracking; {}\n", summary.frames, summary.tracking,
                            summary.reached_end ? "reached the end of the taught route"
                            : summary.left_path ? fmt::format("left the taught path (> {} m)", args.drive.max_deviation)
+                           : summary.left_route
+                               ? fmt::format("left the simulated route (past its end or > {} m off it)",
+                                             Simulator::kMaxDistanceFromRoute)
                                                : "stopped before the end of the taught route");
   if (!deviation.x.empty()) {
     PlotOptions options;
@@ -228,23 +253,29 @@ void RegisterSimCommand(CLI::App& app) {
   render->add_option("--variant", render_args->variant,
                      "teach, or repeat (other sun and exposure, 1 m lateral offset, wobble)")
       ->check(CLI::IsMember({"teach", "repeat"}));
-  render->add_option("--frames", render_args->frames, "Number of frames (0 = whole route); overrides the scenario");
-  render->add_option("--width", render_args->width, "Image width; overrides the scenario (keeps the field of view)");
-  render->add_option("--height", render_args->height, "Image height; overrides the scenario");
+  render->add_option("--frames", render_args->frames,
+                     "Number of frames, " + RangeOf("frames") + " (0 = the whole route; the drive stops at the "
+                         "route's end either way and says so); overrides the scenario");
+  render->add_option("--width", render_args->width,
+                     "Image width, " + RangeOf("camera.width") + "; overrides the scenario (keeps the field of view)");
+  render->add_option("--height", render_args->height,
+                     "Image height, " + RangeOf("camera.height") + "; overrides the scenario");
   render->add_option("--seed", render_args->seed, "Seed of the drive and the town; overrides the scenario");
   render->add_option("--route", render_args->route,
                      fmt::format("Route type: auto (seeded, --segments streets), loop (around blocks) or crossing (a "
                                  "figure eight that crosses itself); default {}",
                                  defaults.route.type));
   render->add_option("--segments", render_args->segments,
-                     fmt::format("Streets of an auto route (about 60 m each); default {}", defaults.route.segments));
+                     fmt::format("Streets of an auto route (about 60 m each), {}; default {}",
+                                 RangeOf("route.segments"), defaults.route.segments));
   render->add_option("--speed", render_args->speed,
-                     fmt::format("Top speed on straight streets, m/s (slower in turns); default {}",
-                                 defaults.drive.max_speed));
+                     fmt::format("Top speed on straight streets (slower in turns), {}; default {}",
+                                 RangeOf("drive.max_speed"), defaults.drive.max_speed));
   render->add_option("--frame-rate", render_args->frame_rate,
-                     fmt::format("Frames per second; default {}", defaults.frame_rate));
+                     fmt::format("Frames per second, {}; default {}", RangeOf("frame_rate"), defaults.frame_rate));
   render->add_option("--pedestrians", render_args->pedestrians,
-                     fmt::format("Walking pedestrians in the town; default {}", defaults.town.num_pedestrians));
+                     fmt::format("Walking pedestrians in the town, {}; default {}", RangeOf("town.pedestrians"),
+                                 defaults.town.num_pedestrians));
   render->add_option("--lighting", render_args->lighting,
                      "Light of the teach drive (sun, sky and exposure): " + presets +
                          "; default the scenario's (sun at 160 deg, 55 deg high)");
@@ -252,11 +283,14 @@ void RegisterSimCommand(CLI::App& app) {
                      "Light of the repeat variant, as --lighting; default the scenario's (sun at 250 deg, 25 deg "
                      "high)");
   render->add_option("--lateral-offset", render_args->lateral_offset,
-                     fmt::format("Repeat variant: metres right of the teach drive; default {}",
-                                 defaults.repeat.lateral_offset));
-  render->add_option("--threads", render_args->threads, "Render threads; overrides the scenario");
+                     fmt::format("Repeat variant: distance right of the teach drive, {}; default {}",
+                                 RangeOf("repeat.lateral_offset"), defaults.repeat.lateral_offset));
+  render->add_option("--threads", render_args->threads,
+                     fmt::format("Render threads, {}; overrides the scenario (default {})", RangeOf("render.threads"),
+                                 defaults.render.num_threads));
   render->add_option("--contact-sheet", render_args->contact_sheet, "Also write a PNG with every Nth frame");
-  render->add_option("--contact-sheet-every", render_args->sheet_every, "N for --contact-sheet (default 10)");
+  render->add_option("--contact-sheet-every", render_args->sheet_every,
+                     fmt::format("N for --contact-sheet, 1..{} (default 10)", MaxFrames()));
   render->add_flag("--quiet", render_args->quiet, "No progress bar");
   render->callback([render, render_args]() { RunRender(*render, *render_args); });
 
@@ -268,18 +302,23 @@ void RegisterSimCommand(CLI::App& app) {
   drive->add_option("--out", args->out, "Output folder: drive.csv, path.png (and deviation.png)")->required();
   drive->add_option("--taught-poses", args->taught_poses,
                     "Ground-truth poses of the teach drive (its poses.txt): distance from the taught path per frame");
-  drive->add_option("--width", args->width, "Image width; overrides the scenario (must match the map)");
-  drive->add_option("--height", args->height, "Image height; overrides the scenario");
+  drive->add_option("--width", args->width,
+                    "Image width, " + RangeOf("camera.width") + "; overrides the scenario (must match the map)");
+  drive->add_option("--height", args->height,
+                    "Image height, " + RangeOf("camera.height") + "; overrides the scenario");
   drive->add_option("--seed", args->seed, "Seed of the drive and the town; overrides the scenario");
-  drive->add_option("--speed", args->drive.speed, "Constant speed, m/s")->capture_default_str();
-  drive->add_option("--steering-gain", args->drive.steering_gain, "Front wheels = -gain * w of eq. (10)")
+  drive->add_option("--speed", args->drive.speed, "Constant speed, (0, 50] m/s")->capture_default_str();
+  drive->add_option("--steering-gain", args->drive.steering_gain, "Front wheels = -gain * w of eq. (10), [-100, 100]")
       ->capture_default_str();
-  drive->add_option("--max-frames", args->drive.max_frames, "Stop after this many frames")->capture_default_str();
+  drive->add_option("--max-frames", args->drive.max_frames,
+                    "Stop after this many frames, 1..1000000 (the drive also stops where the simulated route "
+                    "ends or more than 20 m off it)")
+      ->capture_default_str();
   drive->add_option("--max-deviation", args->drive.max_deviation,
-                    "Stop when farther than this from the taught path, metres (with --taught-poses)")
+                    "Stop when farther than this from the taught path, (0, 1000] m (with --taught-poses)")
       ->capture_default_str();
   drive->add_flag("--quiet", args->quiet, "No progress bar");
-  drive->callback([args]() { RunDrive(*args); });
+  drive->callback([drive, args]() { RunDrive(*drive, *args); });
 }
 
 }  // namespace retrace

@@ -71,6 +71,8 @@ RecordSummary RecordSequence(Simulator* sim, const std::filesystem::path& out_di
     progress.Advance(1);
   }
   progress.Finish();
+  summary.frames_requested = sim->scenario().num_frames;
+  summary.stopped_at_route_end = summary.frames_requested > 0 && summary.frames < summary.frames_requested;
   if (!options.contact_sheet.empty() && !thumbs.empty()) {
     const cv::Mat sheet = MakeContactSheet(thumbs, labels, options.contact_sheet_columns, 320);
     if (!cv::imwrite(options.contact_sheet.string(), sheet)) {

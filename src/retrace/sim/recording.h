@@ -35,13 +35,17 @@ struct RecordOptions {
 
 struct RecordSummary {
   int frames = 0;
+  // The scenario's frame count (0 = the whole route) and whether the route ended before it: then `frames` is the
+  // number of frames up to the route's end, fewer than asked for.
+  int frames_requested = 0;
+  bool stopped_at_route_end = false;
   double route_length_m = 0.0;
   double driven_m = 0.0;
   double seconds = 0.0;  // wall-clock time of rendering and writing
 };
 
-// Drives the simulator's autopilot to the end of the route (or the scenario's frame count) and writes the sequence
-// into `out_dir` (created if needed). Throws InputError when the folder cannot be written.
+// Drives the simulator's autopilot to the end of the route or the scenario's frame count, whichever comes first, and
+// writes the sequence into `out_dir` (created if needed). Throws InputError when the folder cannot be written.
 RecordSummary RecordSequence(Simulator* simulator, const std::filesystem::path& out_dir,
                              const RecordOptions& options);
 

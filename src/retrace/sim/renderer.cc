@@ -156,17 +156,6 @@ Vector3d Lighting::SunDirection() const {
   return Vector3d(std::sin(az) * std::cos(el), std::cos(az) * std::cos(el), std::sin(el));
 }
 
-bool Lighting::Check() const {
-  return std::isfinite(sun_azimuth_deg) && sun_elevation_deg >= -90.0 && sun_elevation_deg <= 90.0 &&
-         sun_irradiance >= 0.0 && sky_irradiance >= 0.0;
-}
-
-bool SensorOptions::Check() const { return exposure > 0.0 && gain > 0.0 && noise_sigma >= 0.0; }
-
-bool RenderOptions::Check() const {
-  return antialiasing >= 1 && antialiasing <= 8 && edge_contrast >= 0.0 && num_threads >= 1;
-}
-
 struct Renderer::Frame {
   const Scene* scene;
   Eigen::Matrix3f rotation;  // town_from_cam

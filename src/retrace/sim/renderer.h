@@ -55,7 +55,6 @@ struct Lighting {
 
   // Unit vector towards the sun in the town frame (X east, Y north, Z up).
   Vector3d SunDirection() const;
-  bool Check() const;
 };
 
 struct SensorOptions {
@@ -67,8 +66,6 @@ struct SensorOptions {
   double noise_sigma = 1.0;
   // Colour (CV_8UC3, BGR) instead of grey (CV_8UC1) images.
   bool color = false;
-
-  bool Check() const;
 };
 
 struct RenderOptions {
@@ -83,8 +80,6 @@ struct RenderOptions {
   bool shadows = true;
   // Threads over image tiles (1 = render on the calling thread).
   int num_threads = 2;
-
-  bool Check() const;
 };
 
 class Renderer {

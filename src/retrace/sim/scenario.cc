@@ -1,6 +1,8 @@
 #include "retrace/sim/scenario.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <fmt/format.h>
 
@@ -8,16 +10,6 @@
 #include "retrace/camera/unified_camera.h"
 
 namespace retrace {
-
-bool CameraSpec::Check() const {
-  if (width < 8 || height < 8 || width > 8192 || height > 8192) return false;
-  if (model == "perspective") return (fx > 0.0 || (hfov_deg > 1.0 && hfov_deg < 179.0)) && fy >= 0.0;
-  if (model == "unified") {
-    const double half = 0.5 * hfov_deg * M_PI / 180.0;
-    return xi >= 0.0 && (fx > 0.0 || (hfov_deg > 1.0 && std::cos(half) + xi > 0.05));
-  }
-  return model == "equirectangular";
-}
 
 std::unique_ptr<CameraModel> CameraSpec::MakeCamera() const {
   if (model == "equirectangular") return std::make_unique<EquirectangularCamera>(width, height);
@@ -34,35 +26,242 @@ std::unique_ptr<CameraModel> CameraSpec::MakeCamera() const {
   return std::make_unique<PerspectiveCamera>(width, height, f, f_y, c_x, c_y, 0.0, distortion);
 }
 
-bool RouteSpec::Check() const {
-  if (type == "auto") return segments >= 1;
-  if (type == "loop") return loop_i0 >= 0 && loop_j0 >= 0 && loop_i1 > loop_i0 && loop_j1 > loop_j0;
-  if (type == "crossing") return loop_i0 >= 0 && loop_j0 >= 0;
-  if (type == "waypoints") return waypoints.size() >= 2;
-  return false;
+namespace {
+
+// A numeric key, its range and where its value lives.
+struct NumericKey {
+  ScenarioKeyRange range;
+  double (*value)(const Scenario&);
+};
+
+// Every numeric key with a fixed range, in the order of a scenario file (ScenarioToYaml). The ranges are what a
+// plausible drive needs with room to spare; beyond them the renderer or the town would exhaust the machine (threads,
+// memory) or the drive would never end. The largest town they allow (16 x 16 blocks of 100 m, 50 upper floors,
+// trees every 5 m, 1000 pedestrians and cars, every parking slot taken) takes about 2 GB and 15 s to build; the
+// default town 0.15 GB and 1 s.
+const std::vector<NumericKey>& NumericKeys() {
+  using S = const Scenario&;
+  static const std::vector<NumericKey> keys = {
+      {{"frames", 0, 1000000, true, false, ""}, [](S s) -> double { return s.num_frames; }},
+      {{"frame_rate", 0.1, 1000, false, false, "Hz"}, [](S s) { return s.frame_rate; }},
+      {{"time_offset", -1e6, 1e6, false, false, "s"}, [](S s) { return s.time_offset; }},
+      {{"scene_scale", 1e-6, 1e6, false, false, ""}, [](S s) { return s.scene_scale; }},
+      {{"marker_radius", 0.001, 100, false, false, "m"}, [](S s) { return s.marker_radius; }},
+      {{"marker_brightness", 0, 100, false, false, ""}, [](S s) { return s.marker_brightness; }},
+      {{"town.blocks_x", 1, 16, true, false, ""}, [](S s) -> double { return s.town.blocks_x; }},
+      {{"town.blocks_y", 1, 16, true, false, ""}, [](S s) -> double { return s.town.blocks_y; }},
+      {{"town.block_size_min", 10, 100, false, false, "m"}, [](S s) { return s.town.block_size_min; }},
+      {{"town.block_size_max", 10, 100, false, false, "m"}, [](S s) { return s.town.block_size_max; }},
+      {{"town.road_width", 3, 40, false, false, "m"}, [](S s) { return s.town.road_width; }},
+      {{"town.sidewalk_width", 0.5, 10, false, false, "m"}, [](S s) { return s.town.sidewalk_width; }},
+      {{"town.sidewalk_height", 0, 1, false, false, "m"}, [](S s) { return s.town.sidewalk_height; }},
+      {{"town.park_probability", 0, 1, false, false, ""}, [](S s) { return s.town.park_probability; }},
+      {{"town.min_upper_floors", 0, 50, true, false, ""}, [](S s) -> double { return s.town.min_upper_floors; }},
+      {{"town.max_upper_floors", 0, 50, true, false, ""}, [](S s) -> double { return s.town.max_upper_floors; }},
+      {{"town.tree_spacing", 5, 1000, false, true, "m"}, [](S s) { return s.town.tree_spacing; }},
+      {{"town.parked_car_probability", 0, 1, false, false, ""}, [](S s) { return s.town.parked_car_probability; }},
+      {{"town.pedestrians", 0, 1000, true, false, ""}, [](S s) -> double { return s.town.num_pedestrians; }},
+      {{"town.moving_cars", 0, 1000, true, false, ""}, [](S s) -> double { return s.town.num_moving_cars; }},
+      {{"camera.width", 8, 8192, true, false, "pixels"}, [](S s) -> double { return s.camera.width; }},
+      {{"camera.height", 8, 8192, true, false, "pixels"}, [](S s) -> double { return s.camera.height; }},
+      {{"camera.hfov_deg", 1, 360, false, false, "degrees"}, [](S s) { return s.camera.hfov_deg; }},
+      {{"camera.xi", 0, 10, false, false, ""}, [](S s) { return s.camera.xi; }},
+      {{"camera.fx", 1, 1e6, false, true, "pixels"}, [](S s) { return s.camera.fx; }},
+      {{"camera.fy", 1, 1e6, false, true, "pixels"}, [](S s) { return s.camera.fy; }},
+      {{"camera.distortion.k1", -100, 100, false, false, ""}, [](S s) { return s.camera.distortion.k1; }},
+      {{"camera.distortion.k2", -100, 100, false, false, ""}, [](S s) { return s.camera.distortion.k2; }},
+      {{"camera.distortion.k3", -100, 100, false, false, ""}, [](S s) { return s.camera.distortion.k3; }},
+      {{"camera.distortion.p1", -1, 1, false, false, ""}, [](S s) { return s.camera.distortion.p1; }},
+      {{"camera.distortion.p2", -1, 1, false, false, ""}, [](S s) { return s.camera.distortion.p2; }},
+      {{"vehicle.wheelbase", 0.5, 20, false, false, "m"}, [](S s) { return s.vehicle.wheelbase; }},
+      {{"vehicle.max_steering_deg", 1, 79, false, false, "degrees"}, [](S s) { return s.vehicle.max_steering_deg; }},
+      {{"vehicle.camera_height", 0.1, 50, false, false, "m"}, [](S s) { return s.vehicle.camera_height; }},
+      {{"vehicle.camera_forward", -20, 20, false, false, "m"}, [](S s) { return s.vehicle.camera_forward; }},
+      {{"vehicle.camera_tilt_deg", -88, 88, false, false, "degrees"}, [](S s) { return s.vehicle.camera_tilt_deg; }},
+      {{"route.segments", 1, 1000, true, false, ""}, [](S s) -> double { return s.route.segments; }},
+      {{"drive.max_speed", 0.5, 50, false, false, "m/s"}, [](S s) { return s.drive.max_speed; }},
+      {{"drive.max_lateral_acceleration", 0.1, 20, false, false, "m/s^2"},
+       [](S s) { return s.drive.max_lateral_acceleration; }},
+      {{"drive.max_acceleration", 0.1, 20, false, false, "m/s^2"}, [](S s) { return s.drive.max_acceleration; }},
+      {{"drive.max_deceleration", 0.1, 20, false, false, "m/s^2"}, [](S s) { return s.drive.max_deceleration; }},
+      {{"drive.corner_radius", 0, 100, false, false, "m"}, [](S s) { return s.drive.corner_radius; }},
+      {{"drive.lateral_offset", -10, 10, false, false, "m"}, [](S s) { return s.drive.lateral_offset; }},
+      {{"drive.wobble_amplitude", 0, 5, false, false, "m"}, [](S s) { return s.drive.wobble_amplitude; }},
+      {{"drive.wobble_wavelength", 1, 10000, false, false, "m"}, [](S s) { return s.drive.wobble_wavelength; }},
+      {{"lighting.sun_azimuth_deg", -360, 360, false, false, "degrees"},
+       [](S s) { return s.lighting.sun_azimuth_deg; }},
+      {{"lighting.sun_elevation_deg", -90, 90, false, false, "degrees"},
+       [](S s) { return s.lighting.sun_elevation_deg; }},
+      {{"lighting.sun_irradiance", 0, 100, false, false, ""}, [](S s) { return s.lighting.sun_irradiance; }},
+      {{"lighting.sky_irradiance", 0, 100, false, false, ""}, [](S s) { return s.lighting.sky_irradiance; }},
+      {{"sensor.exposure", 0.001, 100, false, false, ""}, [](S s) { return s.sensor.exposure; }},
+      {{"sensor.gain", 0.001, 100, false, false, ""}, [](S s) { return s.sensor.gain; }},
+      {{"sensor.noise_sigma", 0, 100, false, false, "grey levels"}, [](S s) { return s.sensor.noise_sigma; }},
+      {{"render.antialiasing", 1, 8, true, false, ""}, [](S s) -> double { return s.render.antialiasing; }},
+      {{"render.edge_contrast", 0, 255, false, false, "grey levels"}, [](S s) { return s.render.edge_contrast; }},
+      {{"render.threads", 1, 256, true, false, ""}, [](S s) -> double { return s.render.num_threads; }},
+      {{"repeat.sun_azimuth_deg", -360, 360, false, false, "degrees"},
+       [](S s) { return s.repeat.lighting.sun_azimuth_deg; }},
+      {{"repeat.sun_elevation_deg", -90, 90, false, false, "degrees"},
+       [](S s) { return s.repeat.lighting.sun_elevation_deg; }},
+      {{"repeat.sun_irradiance", 0, 100, false, false, ""}, [](S s) { return s.repeat.lighting.sun_irradiance; }},
+      {{"repeat.sky_irradiance", 0, 100, false, false, ""}, [](S s) { return s.repeat.lighting.sky_irradiance; }},
+      {{"repeat.exposure", 0.001, 100, false, false, ""}, [](S s) { return s.repeat.exposure; }},
+      {{"repeat.lateral_offset", -10, 10, false, false, "m"}, [](S s) { return s.repeat.lateral_offset; }},
+      {{"repeat.wobble_amplitude", 0, 5, false, false, "m"}, [](S s) { return s.repeat.wobble_amplitude; }},
+      {{"repeat.time_offset", -1e6, 1e6, false, false, "s"}, [](S s) { return s.repeat.time_offset; }},
+  };
+  return keys;
+}
+
+// A number as the messages show it: integers without a decimal point, others in the shortest form.
+std::string Number(double value) { return fmt::format("{}", value); }
+
+ScenarioProblem OutOfRange(const ScenarioKeyRange& range, double value) {
+  return {range.key, fmt::format("must be {}, got {}", range.Text(), Number(value))};
+}
+
+// Length of a polyline (metres).
+double PolylineLength(const std::vector<Vector2d>& points) {
+  double length = 0.0;
+  for (size_t i = 1; i < points.size(); ++i) length += (points[i] - points[i - 1]).norm();
+  return length;
+}
+
+}  // namespace
+
+std::string ScenarioKeyRange::Text() const {
+  const std::string unit_text = unit[0] == '\0' ? "" : std::string(" ") + unit;
+  const std::string interval = integer ? fmt::format("in {}..{}", Number(min), Number(max))
+                                       : fmt::format("in [{}, {}]", Number(min), Number(max));
+  return (zero_allowed ? "0 or " : "") + interval + unit_text;
+}
+
+bool ScenarioKeyRange::Contains(double value) const {
+  if (zero_allowed && value == 0.0) return true;
+  return value >= min && value <= max && (!integer || value == std::floor(value));
+}
+
+const std::vector<ScenarioKeyRange>& ScenarioKeyRanges() {
+  static const std::vector<ScenarioKeyRange> ranges = [] {
+    std::vector<ScenarioKeyRange> out;
+    for (const NumericKey& key : NumericKeys()) out.push_back(key.range);
+    return out;
+  }();
+  return ranges;
+}
+
+const ScenarioKeyRange* FindScenarioKeyRange(const std::string& key) {
+  for (const ScenarioKeyRange& range : ScenarioKeyRanges()) {
+    if (key == range.key) return &range;
+  }
+  return nullptr;
+}
+
+std::optional<ScenarioProblem> Scenario::Check() const {
+  for (const NumericKey& key : NumericKeys()) {
+    const double value = key.value(*this);
+    if (!key.range.Contains(value)) return OutOfRange(key.range, value);
+  }
+  // Rules that tie keys together.
+  if (town.block_size_max < town.block_size_min) {
+    return ScenarioProblem{"town.block_size_max",
+                           fmt::format("must be >= town.block_size_min ({}), got {}", Number(town.block_size_min),
+                                       Number(town.block_size_max))};
+  }
+  if (town.max_upper_floors < town.min_upper_floors) {
+    return ScenarioProblem{"town.max_upper_floors",
+                           fmt::format("must be >= town.min_upper_floors ({}), got {}", town.min_upper_floors,
+                                       town.max_upper_floors)};
+  }
+  const double samples = static_cast<double>(camera.width) * camera.height *
+                         std::max(4, render.antialiasing * render.antialiasing);
+  if (samples > kMaxRenderSamples) {
+    return ScenarioProblem{
+        "camera.width",
+        fmt::format("{} x {} pixels at render.antialiasing {} exceed the renderer's memory budget: width x height x "
+                    "max(4, antialiasing^2) must be <= {} (e.g. 4096 x 4096 up to antialiasing 2), got {}",
+                    camera.width, camera.height, render.antialiasing, Number(kMaxRenderSamples), Number(samples))};
+  }
+  if (camera.model == "perspective" && camera.fx == 0.0 && !(camera.hfov_deg <= 179.0)) {
+    return ScenarioProblem{"camera.hfov_deg",
+                           fmt::format("must be in [1, 179] degrees for a perspective camera, got {}",
+                                       Number(camera.hfov_deg))};
+  }
+  if (camera.model == "unified" && camera.fx == 0.0 &&
+      !(std::cos(0.5 * camera.hfov_deg * M_PI / 180.0) + camera.xi > 0.05)) {
+    return ScenarioProblem{"camera.hfov_deg",
+                           fmt::format("{} degrees is beyond what a unified camera with xi = {} sees (cos(hfov / 2) + "
+                                       "xi must be > 0.05)",
+                                       Number(camera.hfov_deg), Number(camera.xi))};
+  }
+  const auto principal_point = [](const char* key, double value, int size) -> std::optional<ScenarioProblem> {
+    if (std::isfinite(value) && value <= size) return std::nullopt;
+    return ScenarioProblem{key, fmt::format("must be negative (the image centre) or in [0, {}] pixels, got {}", size,
+                                            Number(value))};
+  };
+  if (auto problem = principal_point("camera.cx", camera.cx, camera.width)) return problem;
+  if (auto problem = principal_point("camera.cy", camera.cy, camera.height)) return problem;
+  if (camera.model != "perspective" && camera.model != "unified" && camera.model != "equirectangular") {
+    return ScenarioProblem{"camera.model",
+                           fmt::format("must be perspective, unified or equirectangular, got '{}'", camera.model)};
+  }
+
+  if (!scene_file.empty() && route.type != "waypoints") {
+    return ScenarioProblem{"route.type", "a scene file needs route type waypoints, got '" + route.type + "'"};
+  }
+  if (route.type == "loop" &&
+      !(route.loop_i0 >= 0 && route.loop_j0 >= 0 && route.loop_i1 > route.loop_i0 && route.loop_j1 > route.loop_j0 &&
+        route.loop_i1 <= town.blocks_x && route.loop_j1 <= town.blocks_y)) {
+    return ScenarioProblem{"route.loop", fmt::format("[i0, j0, i1, j1] must have 0 <= i0 < i1 <= town.blocks_x ({}) "
+                                                     "and 0 <= j0 < j1 <= town.blocks_y ({}), got [{}, {}, {}, {}]",
+                                                     town.blocks_x, town.blocks_y, route.loop_i0, route.loop_j0,
+                                                     route.loop_i1, route.loop_j1)};
+  }
+  if (route.type == "crossing" && !(route.loop_i0 >= 0 && route.loop_j0 >= 0 &&
+                                    route.loop_i0 + 2 <= town.blocks_x && route.loop_j0 + 2 <= town.blocks_y)) {
+    return ScenarioProblem{"route.loop",
+                           fmt::format("the crossing's 2 x 2 blocks from [i0, j0] = [{}, {}] exceed the town's "
+                                       "junction grid: 0 <= i0 <= town.blocks_x - 2 ({}) and 0 <= j0 <= "
+                                       "town.blocks_y - 2 ({})",
+                                       route.loop_i0, route.loop_j0, town.blocks_x - 2, town.blocks_y - 2)};
+  }
+  if (route.type == "waypoints") {
+    if (route.waypoints.size() < 2 || route.waypoints.size() > static_cast<size_t>(kMaxWaypoints)) {
+      return ScenarioProblem{"route.waypoints", fmt::format("a waypoints route needs 2..{} points, got {}",
+                                                            kMaxWaypoints, route.waypoints.size())};
+    }
+    for (size_t i = 0; i < route.waypoints.size(); ++i) {
+      if (!(route.waypoints[i].cwiseAbs().maxCoeff() <= kMaxCoordinate)) {
+        return ScenarioProblem{fmt::format("route.waypoints[{}]", i),
+                               fmt::format("coordinates must be within +-{} m, got [{}, {}]", Number(kMaxCoordinate),
+                                           Number(route.waypoints[i].x()), Number(route.waypoints[i].y()))};
+      }
+    }
+    const double length = PolylineLength(route.waypoints);
+    if (!(length >= 1.0 && length <= kMaxRouteLength)) {
+      return ScenarioProblem{"route.waypoints", fmt::format("the route must be 1..{} m long, got {:.1f} m",
+                                                            Number(kMaxRouteLength), length)};
+    }
+  } else if (route.type != "auto" && route.type != "loop" && route.type != "crossing") {
+    return ScenarioProblem{"route.type", "must be auto, loop, crossing or waypoints, got '" + route.type + "'"};
+  }
+  if (markers.size() > static_cast<size_t>(kMaxMarkers)) {
+    return ScenarioProblem{"markers", fmt::format("at most {} markers, got {}", kMaxMarkers, markers.size())};
+  }
+  for (size_t i = 0; i < markers.size(); ++i) {
+    if (!(markers[i].cwiseAbs().maxCoeff() <= kMaxCoordinate)) {
+      return ScenarioProblem{fmt::format("markers[{}]", i),
+                             fmt::format("coordinates must be within +-{} m, got [{}, {}, {}]", Number(kMaxCoordinate),
+                                         Number(markers[i].x()), Number(markers[i].y()), Number(markers[i].z()))};
+    }
+  }
+  return std::nullopt;
 }
 
 std::string Scenario::Validate() const {
-  if (!town.Check()) return "town: invalid town parameters";
-  if (!camera.Check()) return "camera: invalid camera (model must be perspective, unified or equirectangular, size >= 8)";
-  if (!vehicle.Check()) return "vehicle: invalid vehicle parameters";
-  if (!scene_file.empty() && route.type != "waypoints") return "route: a scene file needs route type waypoints";
-  if (!(scene_scale > 0.0)) return "scene_scale must be > 0";
-  if (!route.Check()) return "route: invalid route (type auto/loop/crossing/waypoints with enough points)";
-  if (route.type == "loop" && (route.loop_i1 > town.blocks_x || route.loop_j1 > town.blocks_y)) {
-    return "route: loop exceeds the town's junction grid";
-  }
-  if (route.type == "crossing" && (route.loop_i0 + 2 > town.blocks_x || route.loop_j0 + 2 > town.blocks_y)) {
-    return "route: the crossing's 2 x 2 blocks from the loop corner exceed the town's junction grid";
-  }
-  if (!drive.Check()) return "drive: invalid driving parameters";
-  if (!lighting.Check()) return "lighting: invalid sun or sky values";
-  if (!sensor.Check()) return "sensor: exposure and gain must be > 0, noise_sigma >= 0";
-  if (!render.Check()) return "render: antialiasing must be 1..8, edge_contrast >= 0 and threads >= 1";
-  if (!(frame_rate > 0.0)) return "frame_rate must be > 0";
-  if (num_frames < 0) return "frames must be >= 0";
-  if (!markers.empty() && !(marker_radius > 0.0)) return "marker_radius must be > 0";
-  return "";
+  const std::optional<ScenarioProblem> problem = Check();
+  return problem ? problem->ToString() : "";
 }
 
 const std::vector<LightingPreset>& LightingPresets() {
@@ -85,23 +284,12 @@ const LightingPreset* FindLightingPreset(const std::string& name) {
 }
 
 std::string ScenarioOverrides::Apply(Scenario* scenario) const {
-  if (frames && *frames < 0) return fmt::format("--frames: must be >= 0, got {}", *frames);
-  if (width && *width < 8) return fmt::format("--width: must be >= 8 pixels, got {}", *width);
-  if (height && *height < 8) return fmt::format("--height: must be >= 8 pixels, got {}", *height);
-  if (seed && *seed < 0) return fmt::format("--seed: must be >= 0, got {}", *seed);
+  // Names first (they are not numbers with a range), then the numbers through Scenario::Check.
+  if (seed && *seed < 0) {
+    return fmt::format("--seed: must be in 0..{}, got {}", std::numeric_limits<int64_t>::max(), *seed);
+  }
   if (route && *route != "auto" && *route != "loop" && *route != "crossing") {
     return fmt::format("--route: unknown route '{}' (auto, loop or crossing)", *route);
-  }
-  if (segments && *segments < 1) return fmt::format("--segments: must be >= 1, got {}", *segments);
-  if (max_speed && !(*max_speed > 0.0 && *max_speed <= 50.0)) {
-    return fmt::format("--speed: must be in (0, 50] m/s, got {}", *max_speed);
-  }
-  if (frame_rate && !(*frame_rate > 0.0 && *frame_rate <= 1000.0)) {
-    return fmt::format("--frame-rate: must be in (0, 1000] Hz, got {}", *frame_rate);
-  }
-  if (pedestrians && *pedestrians < 0) return fmt::format("--pedestrians: must be >= 0, got {}", *pedestrians);
-  if (lateral_offset && !(std::abs(*lateral_offset) <= 10.0)) {
-    return fmt::format("--lateral-offset: must be within +-10 m, got {}", *lateral_offset);
   }
   const LightingPreset* teach_light = lighting ? FindLightingPreset(*lighting) : nullptr;
   if (lighting && teach_light == nullptr) {
@@ -112,10 +300,10 @@ std::string ScenarioOverrides::Apply(Scenario* scenario) const {
     return fmt::format("--repeat-lighting: unknown lighting '{}' (noon, low-sun, dusk or overcast)", *repeat_lighting);
   }
 
-  Scenario& s = *scenario;
+  Scenario s = *scenario;
   if (frames) s.num_frames = *frames;
   if (width) {
-    if (s.camera.fx > 0.0) {  // intrinsics given in pixels scale with the width
+    if (s.camera.fx > 0.0 && *width > 0) {  // intrinsics given in pixels scale with the width
       const double f = static_cast<double>(*width) / s.camera.width;
       s.camera.fx *= f;
       s.camera.fy *= f;
@@ -144,6 +332,32 @@ std::string ScenarioOverrides::Apply(Scenario* scenario) const {
     s.repeat.exposure = repeat_light->exposure;
   }
   if (lateral_offset) s.repeat.lateral_offset = *lateral_offset;
+  if (threads) s.render.num_threads = *threads;
+
+  if (const std::optional<ScenarioProblem> problem = s.Check()) {
+    // The option that set the key at fault, if one did.
+    struct OptionOfKey {
+      const char* key;
+      const char* option;
+      bool given;
+    };
+    const OptionOfKey options[] = {
+        {"frames", "--frames", frames.has_value()},
+        {"camera.width", "--width", width.has_value()},
+        {"camera.height", "--height", height.has_value()},
+        {"route.segments", "--segments", segments.has_value()},
+        {"drive.max_speed", "--speed", max_speed.has_value()},
+        {"frame_rate", "--frame-rate", frame_rate.has_value()},
+        {"town.pedestrians", "--pedestrians", pedestrians.has_value()},
+        {"repeat.lateral_offset", "--lateral-offset", lateral_offset.has_value()},
+        {"render.threads", "--threads", threads.has_value()},
+    };
+    for (const OptionOfKey& o : options) {
+      if (o.given && problem->key == o.key) return std::string(o.option) + ": " + problem->message;
+    }
+    return problem->ToString();
+  }
+  *scenario = s;
   return "";
 }
 

@@ -36,7 +36,6 @@ struct CameraSpec {
   double fx = 0.0, fy = 0.0, cx = -1.0, cy = -1.0;
   LensDistortion distortion;
 
-  bool Check() const;
   std::unique_ptr<CameraModel> MakeCamera() const;
 };
 
@@ -50,8 +49,6 @@ struct RouteSpec {
   int segments = 8;
   int loop_i0 = 0, loop_j0 = 0, loop_i1 = 2, loop_j1 = 1;
   std::vector<Vector2d> waypoints;
-
-  bool Check() const;
 };
 
 // Overrides for the repeat recording of a route.
@@ -61,6 +58,15 @@ struct RepeatSpec {
   double lateral_offset = 1.0;     // metres right of the route (teach drives at the scenario's offset)
   double wobble_amplitude = 0.25;  // metres
   double time_offset = 37.0;       // seconds added to the clock of the moving occluders
+};
+
+// What is wrong with a scenario: the key at fault as a scenario file spells it ("town.pedestrians") and a sentence
+// with the allowed range and the value, e.g. "must be in 0..1000, got 100000000".
+struct ScenarioProblem {
+  std::string key;
+  std::string message;
+
+  std::string ToString() const { return key + ": " + message; }
 };
 
 struct Scenario {
@@ -80,7 +86,8 @@ struct Scenario {
   Lighting lighting;
   SensorOptions sensor;
   RenderOptions render;
-  // Frames per second of the recording and number of frames (0 = until the end of the route).
+  // Frames per second of the recording and number of frames (0 = until the end of the route). The drive always
+  // stops at the route's end: a larger count gives fewer frames (RecordSummary says how many).
   double frame_rate = 10.0;
   int num_frames = 0;
   // Seconds on the occluders' clock at the first frame.
@@ -92,9 +99,46 @@ struct Scenario {
   double marker_brightness = 0.8;
   RepeatSpec repeat;
 
-  // Returns an explanation of the first invalid field, or "" when the scenario is valid.
+  // Checks every field against its documented range (ScenarioKeyRanges) and the rules that tie fields together;
+  // returns the first problem, or nothing when the scenario is valid. The one place where scenarios are checked:
+  // scenario files (scenario_io.h) and the command line's overrides (ScenarioOverrides) both come through here.
+  std::optional<ScenarioProblem> Check() const;
+  // Check() as one line "key: problem", or "" when the scenario is valid.
   std::string Validate() const;
 };
+
+// The documented range of a numeric scenario key. Values outside it are refused before anything is built (a huge
+// count or size would exhaust the memory or the threads of the machine first). Ranges are inclusive.
+struct ScenarioKeyRange {
+  const char* key;     // as a scenario file spells it: "town.pedestrians", "render.threads"
+  double min, max;
+  bool integer;
+  bool zero_allowed;   // 0 (= none / off / automatic) is allowed besides [min, max]
+  const char* unit;    // "m", "m/s", "" ...
+
+  // "0..1000", "[0.5, 50] m/s", "0 or [2, 1000] m".
+  std::string Text() const;
+  bool Contains(double value) const;
+};
+
+// The range of every numeric key of a scenario file with a fixed range, in the order of the file. Keys not listed:
+// the seeds (any integer 0..2^64-1), camera.cx / cy (negative = the image centre, else 0..width / height), and the
+// rules that tie keys together, checked by Scenario::Check: town.block_size_max >= block_size_min,
+// town.max_upper_floors >= min_upper_floors, camera.hfov_deg below 179 for perspective cameras, image size x
+// antialiasing within the renderer's memory (kMaxRenderSamples), route.loop inside the town's junction grid,
+// route.waypoints (2..kMaxWaypoints points within kMaxCoordinate m, a route of at most kMaxRouteLength m) and
+// markers (at most kMaxMarkers, within kMaxCoordinate m).
+const std::vector<ScenarioKeyRange>& ScenarioKeyRanges();
+// The range of `key`, nullptr when it has none of its own.
+const ScenarioKeyRange* FindScenarioKeyRange(const std::string& key);
+
+// Width x height x max(4, antialiasing^2) of the rendered images: each sample costs the renderer about 25 bytes
+// (rays, buffers, sub-sample rays), so 2^26 samples (e.g. 4096 x 4096 pixels up to antialiasing 2) is about 1.5 GB.
+constexpr double kMaxRenderSamples = 67108864.0;
+constexpr int kMaxWaypoints = 100000;
+constexpr int kMaxMarkers = 1000;
+constexpr double kMaxCoordinate = 100000.0;   // metres from the origin (waypoints, markers)
+constexpr double kMaxRouteLength = 100000.0;  // metres of a waypoint route
 
 // A named light for the command line: the sun, the sky and the exposure a camera would choose in it.
 struct LightingPreset {
@@ -124,8 +168,11 @@ struct ScenarioOverrides {
   std::optional<std::string> lighting;   // --lighting: preset of the teach drive (sun, sky, exposure)
   std::optional<std::string> repeat_lighting;  // --repeat-lighting: preset of the repeat variant
   std::optional<double> lateral_offset;  // --lateral-offset: repeat.lateral_offset, metres right of the teach drive
+  std::optional<int> threads;            // --threads: render.threads
 
-  // Applies the set fields; returns "" or a one-line explanation of the first bad value.
+  // Applies the set fields and checks the result with Scenario::Check; returns "" or a one-line explanation of the
+  // first bad value, naming the option when one of them is at fault ("--frames: must be in 0..1000000, got -1").
+  // The scenario is left unchanged unless all is well.
   std::string Apply(Scenario* scenario) const;
 };
 

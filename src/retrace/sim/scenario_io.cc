@@ -1,6 +1,7 @@
 #include "retrace/sim/scenario_io.h"
 
 #include <fstream>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -227,8 +228,20 @@ Scenario ParseNode(const YAML::Node& root, const Reader& r) {
     r.Number(n, "repeat", "wobble_amplitude", &s.repeat.wobble_amplitude);
     r.Number(n, "repeat", "time_offset", &s.repeat.time_offset);
   }
-  const std::string problem = s.Validate();
-  if (!problem.empty()) throw InputError(r.source(), problem);
+  if (const std::optional<ScenarioProblem> problem = s.Check()) {
+    // Name the line of the key at fault when the file sets it ("route.waypoints[3]" is on the line of
+    // route.waypoints); a key left at its default is at fault only through another one, named in the message.
+    YAML::Node node;
+    node.reset(root);  // reset, not =: assigning to a YAML::Node writes into the node it refers to
+    std::stringstream path(problem->key.substr(0, problem->key.find('[')));
+    for (std::string part; std::getline(path, part, '.');) {
+      const YAML::Node map = node;  // const lookups add no keys
+      const YAML::Node child = map.IsMap() ? map[part] : YAML::Node();
+      if (!child) throw InputError(r.source(), problem->ToString());
+      node.reset(child);
+    }
+    r.Fail(node, problem->key, problem->message);
+  }
   return s;
 }
 
@@ -259,14 +272,36 @@ Scenario ReadScenario(const std::filesystem::path& path) {
   return scenario;
 }
 
+namespace {
+
+// `text` (a line of ScenarioToYaml) with the documented range of its key appended to its comment; `section` is the
+// current top-level key, updated by top-level lines.
+std::string WithRange(const std::string& text, std::string* section) {
+  const size_t indent = text.find_first_not_of(' ');
+  const size_t colon = text.find(':');
+  if (indent == std::string::npos || colon == std::string::npos || text[indent] == '#') return text;
+  const std::string key = text.substr(indent, colon - indent);
+  if (indent == 0) *section = key;
+  const ScenarioKeyRange* range = FindScenarioKeyRange(indent == 0 ? key : *section + "." + key);
+  if (range == nullptr) return text;
+  return text + (text.find(" # ") == std::string::npos ? "  # " : "; ") + range->Text();
+}
+
+}  // namespace
+
 std::string ScenarioToYaml(const Scenario& s) {
   std::string o;
-  auto line = [&](const std::string& text) { o += text + "\n"; };
+  std::string section;
+  auto line = [&](const std::string& text) { o += WithRange(text, &section) + "\n"; };
   auto b = [](bool v) { return v ? "true" : "false"; };
   line("# retrace simulator scenario. Every key is optional; missing keys take these defaults.");
   line("# Render with: retrace sim render --scenario FILE --out DIR [--variant teach|repeat]");
-  line(fmt::format("seed: {}                # seed of the drive (and of the town unless town.seed is given)", s.seed));
-  line(fmt::format("frames: {}              # number of frames; 0 = drive the whole route", s.num_frames));
+  line(fmt::format("seed: {}                # seed of the drive (and of the town unless town.seed is given); seeds: "
+                   "0..2^64-1",
+                   s.seed));
+  line(fmt::format("frames: {}              # number of frames; 0 = drive the whole route (it stops at the route's "
+                   "end anyway)",
+                   s.num_frames));
   line(fmt::format("frame_rate: {}         # frames per second", s.frame_rate));
   line(fmt::format("time_offset: {}         # seconds on the clock of moving pedestrians/cars at frame 0", s.time_offset));
   line(fmt::format("scene_file: \"{}\"          # your scene (glTF/OBJ/...); \"\" = the built-in town below. Needs "
@@ -276,7 +311,7 @@ std::string ScenarioToYaml(const Scenario& s) {
   std::string markers;
   for (const auto& p : s.markers) markers += fmt::format("{}[{}, {}, {}]", markers.empty() ? "" : ", ", p.x(), p.y(), p.z());
   line(fmt::format("markers: [{}]             # self-luminous spheres at world-frame points (x right, y down, z forward "
-                   "at the route start)", markers));
+                   "at the route start); at most 1000, within +-100 km", markers));
   line(fmt::format("marker_radius: {}", s.marker_radius));
   line(fmt::format("marker_brightness: {}", s.marker_brightness));
   line("town:                    # the built-in procedural town (X east, Y north, Z up, metres)");
@@ -302,16 +337,19 @@ std::string ScenarioToYaml(const Scenario& s) {
   line(fmt::format("  model: {}     # perspective (with distortion), unified (fisheye/omnidirectional) or "
                    "equirectangular (360 degree panorama)",
                    s.camera.model));
-  line(fmt::format("  width: {}", s.camera.width));
+  line(fmt::format("  width: {}             # width x height x max(4, render.antialiasing^2) <= 67108864",
+                   s.camera.width));
   line(fmt::format("  height: {}", s.camera.height));
   line(fmt::format("  hfov_deg: {}           # horizontal field of view; sets fx = fy when fx is 0", s.camera.hfov_deg));
   line(fmt::format("  xi: {}                  # unified model: 0 = pinhole, 1 = parabolic mirror / wide fisheye",
                    s.camera.xi));
   line(fmt::format("  fx: {}                  # pixels; 0 = from hfov_deg", s.camera.fx));
   line(fmt::format("  fy: {}", s.camera.fy));
-  line(fmt::format("  cx: {}                 # pixels; negative = image centre", s.camera.cx));
+  line(fmt::format("  cx: {}                 # pixels; negative = image centre, else 0..width (cy: 0..height)",
+                   s.camera.cx));
   line(fmt::format("  cy: {}", s.camera.cy));
-  line(fmt::format("  distortion: {{k1: {}, k2: {}, p1: {}, p2: {}, k3: {}}}  # OpenCV radial-tangential",
+  line(fmt::format("  distortion: {{k1: {}, k2: {}, p1: {}, p2: {}, k3: {}}}  # OpenCV radial-tangential; k: "
+                   "[-100, 100], p: [-1, 1]",
                    s.camera.distortion.k1, s.camera.distortion.k2, s.camera.distortion.p1, s.camera.distortion.p2,
                    s.camera.distortion.k3));
   line("vehicle:                 # bicycle model carrying the camera");
@@ -326,11 +364,13 @@ std::string ScenarioToYaml(const Scenario& s) {
                    s.route.type));
   line(fmt::format("  segments: {}            # auto: number of junction-to-junction streets", s.route.segments));
   line(fmt::format("  loop: [{}, {}, {}, {}]      # loop: junction indices [i0, j0, i1, j1] of the rectangle; "
-                   "crossing: i0, j0 = its south-west junction",
+                   "crossing: i0, j0 = its south-west junction; inside the town's junction grid",
                    s.route.loop_i0, s.route.loop_j0, s.route.loop_i1, s.route.loop_j1));
   std::string points;
   for (const auto& p : s.route.waypoints) points += fmt::format("{}[{}, {}]", points.empty() ? "" : ", ", p.x(), p.y());
-  line(fmt::format("  waypoints: [{}]  # waypoints: town-frame [x, y] points", points));
+  line(fmt::format("  waypoints: [{}]  # waypoints: town-frame [x, y] points; 2..100000 within +-100 km, at most "
+                   "100 km long",
+                   points));
   line("drive:");
   line(fmt::format("  max_speed: {}            # m/s on straight streets", s.drive.max_speed));
   line(fmt::format("  max_lateral_acceleration: {}  # m/s^2: sets how much the car slows down in turns",
@@ -361,7 +401,7 @@ std::string ScenarioToYaml(const Scenario& s) {
                    s.render.edge_contrast));
   line(fmt::format("  filter_textures: {}   # mip-mapped anisotropic texture filtering", b(s.render.filter_textures)));
   line(fmt::format("  shadows: {}", b(s.render.shadows)));
-  line(fmt::format("  threads: {}", s.render.num_threads));
+  line(fmt::format("  threads: {}              # 1 = render on the calling thread", s.render.num_threads));
   line("repeat:                  # what --variant repeat changes: another time of day and a shifted drive");
   line(fmt::format("  sun_azimuth_deg: {}", s.repeat.lighting.sun_azimuth_deg));
   line(fmt::format("  sun_elevation_deg: {}", s.repeat.lighting.sun_elevation_deg));

@@ -1,11 +1,15 @@
 #include "retrace/sim/scenario.h"
 
+#include <algorithm>
 #include <cmath>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include "retrace/sim/scenario_io.h"
 #include "retrace/sim/simulator.h"
 #include "retrace/sim/town.h"
+#include "retrace/util/error.h"
 
 namespace retrace {
 namespace {
@@ -119,7 +123,12 @@ TEST(ScenarioTest, CommandLineOverridesReachTheScenarioAndItsRepeatVariant) {
   EXPECT_EQ(repeat.frame_rate, 5.0);
 
   // Every preset is a valid light; dusk has no direct sun, overcast no sun either but a brighter sky than noon.
-  for (const LightingPreset& preset : LightingPresets()) EXPECT_TRUE(preset.lighting.Check()) << preset.name;
+  for (const LightingPreset& preset : LightingPresets()) {
+    Scenario lit;
+    lit.lighting = preset.lighting;
+    lit.sensor.exposure = preset.exposure;
+    EXPECT_EQ(lit.Validate(), "") << preset.name;
+  }
   EXPECT_LE(dusk->lighting.sun_elevation_deg, 0.0);
   EXPECT_EQ(FindLightingPreset("overcast")->lighting.sun_irradiance, 0.0);
   EXPECT_GT(FindLightingPreset("overcast")->lighting.sky_irradiance, noon->lighting.sky_irradiance);
@@ -137,13 +146,13 @@ TEST(ScenarioTest, BadOverridesNameTheOptionAndLeaveTheScenarioAlone) {
   ScenarioOverrides o;
   o.lateral_offset = 2.0;  // valid, but not applied when another value is bad
   o.max_speed = 0.0;
-  EXPECT_EQ(problem(o), "--speed: must be in (0, 50] m/s, got 0");
+  EXPECT_EQ(problem(o), "--speed: must be in [0.5, 50] m/s, got 0");
   o.max_speed.reset();
   o.frame_rate = -10.0;
-  EXPECT_EQ(problem(o), "--frame-rate: must be in (0, 1000] Hz, got -10");
+  EXPECT_EQ(problem(o), "--frame-rate: must be in [0.1, 1000] Hz, got -10");
   o.frame_rate.reset();
   o.pedestrians = -1;
-  EXPECT_EQ(problem(o), "--pedestrians: must be >= 0, got -1");
+  EXPECT_EQ(problem(o), "--pedestrians: must be in 0..1000, got -1");
   o.pedestrians.reset();
   o.repeat_lighting = "sunset";
   EXPECT_EQ(problem(o), "--repeat-lighting: unknown lighting 'sunset' (noon, low-sun, dusk or overcast)");
@@ -152,7 +161,165 @@ TEST(ScenarioTest, BadOverridesNameTheOptionAndLeaveTheScenarioAlone) {
   EXPECT_EQ(problem(o), "--route: unknown route 'spiral' (auto, loop or crossing)");
   o.route.reset();
   o.lateral_offset = 12.0;
-  EXPECT_EQ(problem(o), "--lateral-offset: must be within +-10 m, got 12");
+  EXPECT_EQ(problem(o), "--lateral-offset: must be in [-10, 10] m, got 12");
+}
+
+// A scenario file that sets one key ("town.pedestrians" -> "town:\n  pedestrians: 5\n") plus `extra` top-level
+// text; the key's value is on line `*line`.
+std::string FileSetting(const std::string& key, const std::string& value, int* line) {
+  std::string text;
+  std::string indent;
+  size_t begin = 0;
+  int lines = 0;
+  for (size_t dot; (dot = key.find('.', begin)) != std::string::npos; begin = dot + 1) {
+    text += indent + key.substr(begin, dot - begin) + ":\n";
+    indent += "  ";
+    ++lines;
+  }
+  text += indent + key.substr(begin) + ": " + value + "\n";
+  *line = lines + 1;
+  return text;
+}
+
+// Keys whose bounds are only valid together with another key: what else the file must set.
+std::string Companion(const std::string& key, double value) {
+  if (key == "town.block_size_min") return fmt::format("  block_size_max: {}\n", value);
+  if (key == "town.max_upper_floors") return fmt::format("  min_upper_floors: {}\n", std::min(value, 1.0));
+  if (key == "town.min_upper_floors") return fmt::format("  max_upper_floors: {}\n", value);
+  if (key == "town.block_size_max") return fmt::format("  block_size_min: {}\n", value);
+  if (key == "camera.hfov_deg") return "  model: unified\n  xi: 2\n";  // a perspective camera ends at 179 degrees
+  return "";
+}
+
+std::string ParseProblem(const std::string& text) {
+  try {
+    ParseScenario(text, "town.yaml");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// Every numeric key of a scenario file: both bounds of its documented range are accepted, the values just outside
+// are refused with one line that names the file, the line, the key, the range and the value.
+TEST(ScenarioRangeTest, EveryKeyAcceptsItsBoundsAndRefusesValuesOutsideThem) {
+  ASSERT_GE(ScenarioKeyRanges().size(), 60u);
+  for (const ScenarioKeyRange& range : ScenarioKeyRanges()) {
+    const std::string key = range.key;
+    for (const double bound : {range.min, range.max}) {
+      int line = 0;
+      std::string text = FileSetting(key, fmt::format("{}", bound), &line);
+      text += Companion(key, bound);
+      EXPECT_EQ(ParseProblem(text), "") << key << " = " << bound << "\n" << text;
+    }
+    if (range.zero_allowed) {
+      int line = 0;
+      EXPECT_EQ(ParseProblem(FileSetting(key, "0", &line)), "") << key;
+    }
+    const double step = range.integer ? 1.0 : std::max(1e-3, 1e-3 * std::abs(range.max - range.min));
+    const double below = range.zero_allowed && range.min > 0.0 ? 0.5 * range.min : range.min - step;
+    for (const double bad : {below, range.max + step}) {
+      int line = 0;
+      const std::string text = FileSetting(key, fmt::format("{}", bad), &line);
+      EXPECT_EQ(ParseProblem(text),
+                fmt::format("town.yaml: line {}: {}: must be {}, got {}", line, key, range.Text(), bad))
+          << text;
+    }
+  }
+  // A few messages in full.
+  EXPECT_EQ(ParseProblem("town:\n  pedestrians: 100000000\n"),
+            "town.yaml: line 2: town.pedestrians: must be in 0..1000, got 100000000");
+  EXPECT_EQ(ParseProblem("route:\n  segments: 100000000\n"),
+            "town.yaml: line 2: route.segments: must be in 1..1000, got 100000000");
+  EXPECT_EQ(ParseProblem("seed: 1\nrender:\n  threads: 100000\n"),
+            "town.yaml: line 3: render.threads: must be in 1..256, got 100000");
+  EXPECT_EQ(ParseProblem("frames: -5\n"), "town.yaml: line 1: frames: must be in 0..1000000, got -5");
+  EXPECT_EQ(ParseProblem("town:\n  tree_spacing: 0.001\n"),
+            "town.yaml: line 2: town.tree_spacing: must be 0 or in [5, 1000] m, got 0.001");
+  EXPECT_EQ(ParseProblem("drive:\n  max_speed: .nan\n"),
+            "town.yaml: line 2: drive.max_speed: must be in [0.5, 50] m/s, got nan");
+  EXPECT_EQ(ParseProblem("seed: -1\n"), "town.yaml: line 1: seed: expected a non-negative integer, got '-1'");
+  EXPECT_EQ(ParseProblem("seed: 18446744073709551615\n"), "");
+}
+
+// The rules that tie keys together, with the key at fault named.
+TEST(ScenarioRangeTest, RulesBetweenKeys) {
+  EXPECT_EQ(ParseProblem("town:\n  block_size_min: 60\n"),
+            "town.yaml: town.block_size_max: must be >= town.block_size_min (60), got 55");
+  EXPECT_EQ(ParseProblem("town:\n  min_upper_floors: 3\n  max_upper_floors: 2\n"),
+            "town.yaml: line 3: town.max_upper_floors: must be >= town.min_upper_floors (3), got 2");
+  // The renderer's memory: width x height x max(4, antialiasing^2) <= 2^26.
+  EXPECT_EQ(ParseProblem("camera:\n  width: 4096\n  height: 4096\n"), "");
+  EXPECT_EQ(ParseProblem("camera:\n  width: 1024\n  height: 1024\nrender:\n  antialiasing: 8\n"), "");
+  EXPECT_NE(ParseProblem("camera:\n  width: 1025\n  height: 1024\nrender:\n  antialiasing: 8\n")
+                .find("town.yaml: line 2: camera.width: 1025 x 1024 pixels at render.antialiasing 8 exceed the "
+                      "renderer's memory budget"),
+            std::string::npos);
+  EXPECT_NE(ParseProblem("camera:\n  width: 8192\n  height: 8192\n").find("camera.width: 8192 x 8192 pixels"),
+            std::string::npos);
+  EXPECT_EQ(ParseProblem("camera:\n  hfov_deg: 179.5\n"),
+            "town.yaml: line 2: camera.hfov_deg: must be in [1, 179] degrees for a perspective camera, got 179.5");
+  EXPECT_EQ(ParseProblem("camera:\n  cx: -1\n  cy: 240\n"), "");
+  EXPECT_EQ(ParseProblem("camera:\n  cx: 320.5\n"),
+            "town.yaml: line 2: camera.cx: must be negative (the image centre) or in [0, 320] pixels, got 320.5");
+  EXPECT_EQ(ParseProblem("route:\n  type: loop\n  loop: [0, 0, 5, 1]\n"),
+            "town.yaml: line 3: route.loop: [i0, j0, i1, j1] must have 0 <= i0 < i1 <= town.blocks_x (4) and 0 <= "
+            "j0 < j1 <= town.blocks_y (4), got [0, 0, 5, 1]");
+  EXPECT_EQ(ParseProblem("route:\n  type: waypoints\n  waypoints: [[0, 0]]\n"),
+            "town.yaml: line 3: route.waypoints: a waypoints route needs 2..100000 points, got 1");
+  EXPECT_EQ(ParseProblem("route:\n  type: waypoints\n  waypoints: [[0, 0], [1e6, 0]]\n"),
+            "town.yaml: line 3: route.waypoints[1]: coordinates must be within +-100000 m, got [1000000, 0]");
+  EXPECT_EQ(ParseProblem("route:\n  type: waypoints\n  waypoints: [[0, 0], [90000, 0], [0, 0]]\n"),
+            "town.yaml: line 3: route.waypoints: the route must be 1..100000 m long, got 180000.0 m");
+  std::string many = "markers: [";
+  for (int i = 0; i <= kMaxMarkers; ++i) many += i == 0 ? "[0, 0, 1]" : ", [0, 0, 1]";
+  EXPECT_EQ(ParseProblem(many + "]\n"), "town.yaml: line 1: markers: at most 1000 markers, got 1001");
+}
+
+// The command line's overrides go through the same check as the file: `--frames -1` is refused as `frames: -5` is,
+// with the option named instead of the key.
+TEST(ScenarioRangeTest, OverridesAreCheckedAsTheFileIs) {
+  const auto problem = [](const ScenarioOverrides& o) {
+    Scenario scenario;
+    return o.Apply(&scenario);
+  };
+  ScenarioOverrides o;
+  o.frames = -1;
+  EXPECT_EQ(problem(o), "--frames: must be in 0..1000000, got -1");
+  o.frames = 1000000;
+  EXPECT_EQ(problem(o), "");
+  o = {};
+  o.threads = 100000;
+  EXPECT_EQ(problem(o), "--threads: must be in 1..256, got 100000");
+  o.threads = 256;
+  EXPECT_EQ(problem(o), "");
+  o.threads = 0;
+  EXPECT_EQ(problem(o), "--threads: must be in 1..256, got 0");
+  o = {};
+  o.pedestrians = 100000000;
+  EXPECT_EQ(problem(o), "--pedestrians: must be in 0..1000, got 100000000");
+  o = {};
+  o.segments = 1001;
+  EXPECT_EQ(problem(o), "--segments: must be in 1..1000, got 1001");
+  o = {};
+  o.width = 7;
+  EXPECT_EQ(problem(o), "--width: must be in 8..8192 pixels, got 7");
+  o.width = 8192;
+  o.height = 8192;
+  EXPECT_NE(problem(o).find("--width: 8192 x 8192 pixels at render.antialiasing 2 exceed"), std::string::npos);
+  o = {};
+  o.height = 0;
+  EXPECT_EQ(problem(o), "--height: must be in 8..8192 pixels, got 0");
+  o = {};
+  o.seed = -1;
+  EXPECT_EQ(problem(o), "--seed: must be in 0..9223372036854775807, got -1");
+  // A key the file set badly for the overridden route: named as the file spells it.
+  Scenario small;
+  small.town.blocks_x = 1;
+  o = {};
+  o.route = "crossing";
+  EXPECT_NE(o.Apply(&small).find("route.loop: the crossing's 2 x 2 blocks"), std::string::npos);
+  EXPECT_EQ(small.route.type, "auto");  // left unchanged
 }
 
 }  // namespace

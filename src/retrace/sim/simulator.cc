@@ -64,12 +64,14 @@ Simulator::Simulator(const Scenario& scenario) : scenario_(scenario) {
 Simulator::~Simulator() = default;
 
 int Simulator::ExpectedFrames() const {
-  if (scenario_.num_frames > 0) return scenario_.num_frames;
   // Integrate the travel time of the speed profile.
   double t = 0.0;
   for (double s = 0.0; s < route_->length(); s += 0.5) t += 0.5 / std::max(0.3, route_->Speed(s));
-  return static_cast<int>(t * scenario_.frame_rate) + 1;
+  const int route_frames = static_cast<int>(t * scenario_.frame_rate) + 1;
+  return scenario_.num_frames > 0 ? std::min(scenario_.num_frames, route_frames) : route_frames;
 }
+
+bool Simulator::RouteFinished() const { return driver_->Finished(); }
 
 SimFrame Simulator::RenderCurrent() {
   SimFrame frame;
@@ -99,7 +101,7 @@ void Simulator::Drive(double dt) {
 
 bool Simulator::NextFrame(SimFrame* frame) {
   if (scenario_.num_frames > 0 && frame_index_ >= scenario_.num_frames) return false;
-  if (scenario_.num_frames == 0 && driver_->Finished()) return false;
+  if (driver_->Finished()) return false;
   *frame = RenderCurrent();
   Drive(1.0 / scenario_.frame_rate);
   return true;
@@ -112,6 +114,10 @@ SimFrame Simulator::Step(double steering, double speed, double dt) {
   double unused_steering, unused_speed;
   driver_->Control(vehicle_->state(), &unused_steering, &unused_speed);  // keeps the progress up to date
   return RenderCurrent();
+}
+
+bool Simulator::OffRoute() const {
+  return driver_->Finished() || driver_->DistanceFromPath(vehicle_->state().position) > kMaxDistanceFromRoute;
 }
 
 cv::Mat Simulator::RenderAt(const Rigid3d& world_from_cam, double time, uint64_t noise_seed) {

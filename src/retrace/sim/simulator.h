@@ -50,13 +50,22 @@ class Simulator {
   size_t last_supersampled_pixels() const { return renderer_->last_supersampled_pixels(); }
 
   // Autopilot: renders the current view into `frame`, then drives one frame period along the route. Returns false
-  // (and leaves `frame` untouched) when the route is finished or the scenario's frame count is reached.
+  // (and leaves `frame` untouched) when the route is finished or the scenario's frame count is reached, whichever
+  // comes first: the car never drives on past the route's end (out of the town).
   bool NextFrame(SimFrame* frame);
-  // Number of frames the autopilot will produce (estimated from the speed profile when num_frames = 0).
+  // The autopilot stopped because the route was finished (NextFrame returned false at the route's end, possibly
+  // before the scenario's frame count).
+  bool RouteFinished() const;
+  // Number of frames the autopilot will produce: the scenario's frame count or, when the route ends before it (or
+  // num_frames = 0), the frames of the whole route estimated from the speed profile.
   int ExpectedFrames() const;
 
   // Closed loop: applies `steering` (radians, positive left) and `speed` (m/s) for `dt` seconds, then renders.
   SimFrame Step(double steering, double speed, double dt);
+  // Closed loop: the car has left the world built around the route: past the route's end (RouteFinished) or
+  // farther than kMaxDistanceFromRoute from it, where the town ends or a block begins. A controller should stop.
+  bool OffRoute() const;
+  static constexpr double kMaxDistanceFromRoute = 20.0;  // metres from the route's lane
 
   // Renders the world at `time` from any camera pose given in the world frame (for tests and tools).
   cv::Mat RenderAt(const Rigid3d& world_from_cam, double time, uint64_t noise_seed = 0);

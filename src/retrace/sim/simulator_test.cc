@@ -269,5 +269,81 @@ TEST(SimulatorTest, ScenarioRoundTripsThroughYaml) {
   EXPECT_DOUBLE_EQ(r.markers[0].z(), 10.0);
 }
 
+// Issue 18: frames beyond the route's end. The autopilot stops at the end of the route whatever the frame count
+// (as frames 0 does) and the recording says how many frames it wrote instead of driving on out of the town.
+TEST(SimulatorTest, RecordingStopsAtTheRouteEndAndSaysHowManyFramesItWrote) {
+  Scenario s = SmallTown();
+  s.camera.width = 32;
+  s.camera.height = 24;
+  s.town.num_pedestrians = 0;
+  s.town.num_moving_cars = 0;
+  s.route.segments = 1;  // one street: about 60 m, some 80 frames
+  RecordOptions options;
+  options.progress = false;
+
+  Simulator whole(s);
+  const int route_frames = whole.ExpectedFrames();
+  const RecordSummary all = RecordSequence(&whole, testing::MakeTempDir("sim_route_whole"), options);
+  EXPECT_FALSE(all.stopped_at_route_end);  // nothing was asked for beyond the route
+  EXPECT_TRUE(whole.RouteFinished());
+  EXPECT_NEAR(all.frames, route_frames, 0.05 * route_frames);
+
+  s.num_frames = 10 * all.frames;
+  Simulator beyond(s);
+  EXPECT_LE(beyond.ExpectedFrames(), route_frames);
+  const std::filesystem::path dir = testing::MakeTempDir("sim_route_beyond");
+  const RecordSummary summary = RecordSequence(&beyond, dir, options);
+  EXPECT_EQ(summary.frames, all.frames);
+  EXPECT_EQ(summary.frames_requested, s.num_frames);
+  EXPECT_TRUE(summary.stopped_at_route_end);
+  EXPECT_NEAR(summary.driven_m, summary.route_length_m, 1.0);
+  // The written poses end at the route's end: the last one is within a frame's travel of it.
+  const std::vector<TimedPose> poses = ReadKittiPoses(dir / "poses.txt", dir / "times.txt");
+  ASSERT_EQ(poses.size(), static_cast<size_t>(summary.frames));
+  const Vector2d end = beyond.route().Position(beyond.route().length());
+  const Rigid3d town_from_cam = beyond.town_from_world() * poses.back().world_from_cam;
+  EXPECT_LT((town_from_cam.translation.head<2>() - end).norm(), 5.0);
+
+  // Fewer frames than the route: exactly those, not stopped at the end.
+  s.num_frames = all.frames / 2;
+  Simulator part(s);
+  const RecordSummary half = RecordSequence(&part, testing::MakeTempDir("sim_route_half"), options);
+  EXPECT_EQ(half.frames, s.num_frames);
+  EXPECT_FALSE(half.stopped_at_route_end);
+  EXPECT_FALSE(part.RouteFinished());
+}
+
+// The closed loop's bound: a car steered straight on where the route turns (a lost controller) leaves the route,
+// which the simulator reports, as it does past the route's end.
+TEST(SimulatorTest, CarDrivingOffTheRouteIsOffRoute) {
+  Scenario s = SmallTown();
+  s.camera.width = 16;
+  s.camera.height = 12;
+  s.route.type = "waypoints";
+  s.route.waypoints = {{0.0, 0.0}, {40.0, 0.0}, {40.0, 40.0}};  // east, then a left turn north
+  Simulator straight(s);
+  EXPECT_FALSE(straight.OffRoute());
+  int frames = 0;
+  while (!straight.OffRoute() && frames < 200) {
+    straight.Step(0.0, 5.0, 0.2);
+    ++frames;
+  }
+  EXPECT_TRUE(straight.OffRoute());
+  // Off by more than 20 m from the route: beyond the turn, about 60 m along the first street (at 1 m per frame).
+  EXPECT_GT(frames, 45);
+  EXPECT_LT(frames, 90);
+
+  // Following the route to its end: off route there, not before.
+  Simulator follower(s);
+  SimFrame frame;
+  int driven = 0;
+  for (bool off = follower.OffRoute(); follower.NextFrame(&frame); off = follower.OffRoute()) {
+    EXPECT_FALSE(off) << "frame " << driven;
+    ++driven;
+  }
+  EXPECT_GT(driven, 10);
+  EXPECT_TRUE(follower.OffRoute());
+}
+
 }  // namespace
 }  // namespace retrace

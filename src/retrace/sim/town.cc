@@ -225,14 +225,6 @@ void AddBuilding(Mesh& mesh, const Materials& m, const TownOptions& options, dou
 
 }  // namespace
 
-bool TownOptions::Check() const {
-  return blocks_x >= 1 && blocks_y >= 1 && blocks_x <= 30 && blocks_y <= 30 && block_size_min >= 10.0 &&
-         block_size_max >= block_size_min && road_width >= 3.0 && sidewalk_width >= 0.5 && sidewalk_height >= 0.0 &&
-         park_probability >= 0.0 && park_probability <= 1.0 && min_upper_floors >= 0 &&
-         max_upper_floors >= min_upper_floors && tree_spacing >= 0.0 && parked_car_probability >= 0.0 &&
-         parked_car_probability <= 1.0 && num_pedestrians >= 0 && num_moving_cars >= 0;
-}
-
 TownLayout BuildTown(const TownOptions& options, Scene* scene) {
   SimRandom rng(options.seed);
   const Materials m = MakeMaterials(options, scene);

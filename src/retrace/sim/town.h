@@ -45,8 +45,6 @@ struct TownOptions {
   // Optional folder of the user's photos (.jpg/.png): used as the facade textures of upper floors (each photo
   // covers 12 m of facade width) instead of the procedural facades. Empty = procedural only.
   std::string photo_folder;
-
-  bool Check() const;
 };
 
 struct TownLayout {

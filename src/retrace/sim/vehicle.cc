@@ -16,16 +16,6 @@ double WrapAngle(double a) {
 
 }  // namespace
 
-bool VehicleOptions::Check() const {
-  return wheelbase > 0.0 && max_steering_deg > 0.0 && max_steering_deg < 80.0 && camera_height > 0.0 &&
-         std::abs(camera_tilt_deg) < 89.0;
-}
-
-bool DriveOptions::Check() const {
-  return max_speed > 0.0 && max_lateral_acceleration > 0.0 && max_acceleration > 0.0 && max_deceleration > 0.0 &&
-         corner_radius >= 0.0 && wobble_amplitude >= 0.0 && wobble_wavelength > 0.0;
-}
-
 Vehicle::Vehicle(const VehicleOptions& options, const VehicleState& initial) : options_(options), state_(initial) {}
 
 void Vehicle::Step(double steering, double speed, double dt) {
@@ -223,6 +213,10 @@ VehicleState RouteDriver::StartState() const {
   state.heading = std::atan2(ahead.y() - state.position.y(), ahead.x() - state.position.x());
   state.speed = path_->Speed(0.0);
   return state;
+}
+
+double RouteDriver::DistanceFromPath(const Vector2d& position) const {
+  return (position - path_->Position(path_->Project(position, progress_ - 1.0, progress_ + 5.0))).norm();
 }
 
 void RouteDriver::Control(const VehicleState& state, double* steering, double* speed) {

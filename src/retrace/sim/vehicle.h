@@ -33,8 +33,6 @@ struct VehicleOptions {
   double camera_height = 1.5;
   double camera_forward = 1.8;
   double camera_tilt_deg = 5.0;
-
-  bool Check() const;
 };
 
 struct VehicleState {
@@ -83,8 +81,6 @@ struct DriveOptions {
   double wobble_wavelength = 40.0;
   // Seed of the wobble phases.
   uint64_t wobble_seed = 0;
-
-  bool Check() const;
 };
 
 // The dense, smoothed route with arc length, heading, curvature and speed profile.
@@ -120,6 +116,9 @@ class RouteDriver {
   double Offset(double s) const;
   double progress() const { return progress_; }
   bool Finished() const { return progress_ >= path_->length() - 0.5; }
+  // Distance (m) of `position` from the nearest point of the path near the current progress (0 on the route's
+  // centre line of the lane; it grows without bound when the car drives on past the route's end).
+  double DistanceFromPath(const Vector2d& position) const;
 
  private:
   Vector2d Target(double s) const;
