@@ -21,14 +21,14 @@ expect sim-bad-variant 105 'variant' -- "$bin" sim render --out "$tmp/bad" --var
 expect sim-overrides 0 'wrote 2 frames .* repeat variant' -- "$bin" sim render --out "$tmp/crossing" --variant repeat \
   --frames 2 --width 80 --height 60 --route crossing --speed 12 --frame-rate 5 --pedestrians 70 --lighting noon \
   --repeat-lighting dusk --lateral-offset 2.5 --quiet
-expect sim-bad-speed 1 '^retrace: error: --speed: must be in \(0, 50\] m/s, got 0$' -- \
+expect sim-bad-speed 1 '^retrace: error: --speed: must be in \[0.5, 50\] m/s, got 0$' -- \
   "$bin" sim render --out "$tmp/bad" --speed 0
 expect sim-bad-lighting 1 "^retrace: error: --lighting: unknown lighting 'sunset' \(noon, low-sun, dusk or " -- \
   "$bin" sim render --out "$tmp/bad" --lighting sunset
 expect sim-bad-route 1 "^retrace: error: --route: unknown route 'spiral'" -- \
   "$bin" sim render --out "$tmp/bad" --route spiral
 # sim drive (closed loop): bad options, a missing map, a map whose key-images do not fit the scenario's camera.
-expect sim-drive-bad-speed 1 '^retrace: error: sim drive options: speed must be positive$' -- \
+expect sim-drive-bad-speed 1 '^retrace: error: sim drive options: speed must be in \(0, 50\] m/s, got 0$' -- \
   "$bin" sim drive --map "$tmp/none.db" --out "$tmp/drive" --speed 0
 expect sim-drive-missing-map 1 '^retrace: error: .*none.db' -- "$bin" sim drive --map "$tmp/none.db" --out "$tmp/drive"
 if [[ -f $tmp/repeat_route.db ]]; then
