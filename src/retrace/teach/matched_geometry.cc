@@ -22,12 +22,11 @@ bool MatchBearings(const CameraModel& camera, const MatchableImage& a, const Mat
 MatchedGeometry RelateByMatching(const CameraModel& camera, const MatchableImage& a, const MatchableImage& b,
                                  const MatchedGeometryOptions& options) {
   MatchedGeometry result;
-  std::vector<Vector3d> bearings_a, bearings_b;
   for (const cv::DMatch& m : MatchWideBaseline(a.features, b.features, options.matching)) {
-    if (!MatchBearings(camera, a, b, m, &bearings_a, &bearings_b)) continue;
+    if (!MatchBearings(camera, a, b, m, &result.bearings_a, &result.bearings_b)) continue;
     result.matches.push_back(m);
   }
-  result.geometry = EstimateRelativePose(bearings_a, bearings_b, camera.FocalLength(), options.geometry);
+  result.geometry = EstimateRelativePose(result.bearings_a, result.bearings_b, camera.FocalLength(), options.geometry);
   result.trackable.assign(result.matches.size(), false);
   result.position_in_b.assign(result.matches.size(), Vector2d::Zero());
   if (!result.geometry.success) return result;
@@ -52,12 +51,9 @@ MatchedGeometry RelateByMatching(const CameraModel& camera, const MatchableImage
   return result;
 }
 
-TwoViewGeometry EstimateMatchedGeometryNear(const CameraModel& camera, const MatchableImage& a,
-                                            const MatchableImage& b, const MatchedGeometry& matched,
+TwoViewGeometry EstimateMatchedGeometryNear(const CameraModel& camera, const MatchedGeometry& matched,
                                             const TwoViewOptions& options, const Rigid3d& guess) {
-  std::vector<Vector3d> bearings_a, bearings_b;
-  for (const cv::DMatch& m : matched.matches) MatchBearings(camera, a, b, m, &bearings_a, &bearings_b);
-  return EstimateRelativePose(bearings_a, bearings_b, camera.FocalLength(), options, &guess);
+  return EstimateRelativePose(matched.bearings_a, matched.bearings_b, camera.FocalLength(), options, &guess);
 }
 
 }  // namespace retrace

@@ -28,6 +28,7 @@ struct MatchableImage {
 struct MatchedGeometry {
   TwoViewGeometry geometry;        // over `matches` (index-aligned); b_from_a maps A's frame into B's
   std::vector<cv::DMatch> matches;  // queryIdx: key-point of A, trainIdx: key-point of B
+  std::vector<Vector3d> bearings_a, bearings_b;  // of each match (the geometry's correspondences)
   // Per match: an inlier that the tracker follows from A to B, and where it converged in B.
   std::vector<bool> trackable;
   std::vector<Vector2d> position_in_b;
@@ -55,8 +56,7 @@ MatchedGeometry RelateByMatching(const CameraModel& camera, const MatchableImage
 // The geometry of the matches of `matched` (between A and B) estimated again with `guess` as the first hypothesis:
 // the refined guess is kept unless a sampled motion fits the matches clearly better (TwoViewOptions::
 // guess_preference). A second look at a pair whose matches fit several motions almost equally well.
-TwoViewGeometry EstimateMatchedGeometryNear(const CameraModel& camera, const MatchableImage& a,
-                                            const MatchableImage& b, const MatchedGeometry& matched,
+TwoViewGeometry EstimateMatchedGeometryNear(const CameraModel& camera, const MatchedGeometry& matched,
                                             const TwoViewOptions& options, const Rigid3d& guess);
 
 }  // namespace retrace

@@ -96,6 +96,7 @@ struct Teacher::FrameState {
   std::vector<TrackedFeature> features;  // tracker state after this frame
   TwoViewGeometry geometry;              // W(K, this frame)
   std::vector<feature_t> geometry_ids;   // feature of each correspondence of `geometry`
+  std::vector<Vector3d> bearings_key, bearings_frame;  // the correspondences of `geometry`
   int survivors = 0;                     // features of the key-image still tracked here
 };
 
@@ -251,7 +252,10 @@ void Teacher::AddFrame(const Frame& frame) {
 
 void Teacher::EstimateGeometryToKey(FrameState* frame) {
   ScopedTimer timer(&statistics_.seconds_geometry);
-  std::vector<Vector3d> bearings_key, bearings_frame;
+  std::vector<Vector3d>& bearings_key = frame->bearings_key;
+  std::vector<Vector3d>& bearings_frame = frame->bearings_frame;
+  bearings_key.clear();
+  bearings_frame.clear();
   frame->geometry_ids.clear();
   for (const TrackedFeature& f : frame->features) {
     const auto it = subrange_->bearings.find(f.id);
@@ -328,6 +332,20 @@ void Teacher::StartSubrange(FrameState* frame) {
 
 void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool with_arc,
                                const MatchableImage* matched) {
+  // A tracked arc whose inliers one plane explains does not determine the motion: the key-image is registered
+  // without it, and the map is disconnected there (TeachOptions::reject_planar_geometry).
+  if (with_arc && reason != KeyImageReason::kGap) {
+    if (std::string planar; PlanarGeometry(frame->bearings_key, frame->bearings_frame, frame->geometry, &planar)) {
+      statistics_.rejected_links.push_back(
+          {"tracking", subrange_->node, static_cast<node_t>(map_.nodes().size()),
+           map_.FindNode(subrange_->node)->source_frame, static_cast<int64_t>(frame->frame.source_index),
+           frame->geometry.num_inliers, frame->geometry.num_inliers, frame->geometry.sigma_p, planar});
+      spdlog::warn("teach: tracked arc from key-image {} to frame {} rejected ({}); the map is disconnected there",
+                   subrange_->node, frame->frame.name, planar);
+      with_arc = false;
+      reason = KeyImageReason::kDisconnected;
+    }
+  }
   // A gap arc still waiting for confirmation is settled by this key-image: by the frames tracked from the gap's
   // key-image to this one, or by this key-image when a gap arc reaches it from there; without either, rejected.
   std::unique_ptr<PendingGap> earlier_gap = std::move(pending_gap_);
@@ -490,6 +508,31 @@ bool Teacher::AcceptableMatchedGeometry(const MatchedGeometry& matched, int min_
          matched.geometry.num_inliers >= min_inliers;
 }
 
+bool Teacher::PlanarGeometry(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
+                             const TwoViewGeometry& geometry, std::string* description) const {
+  if (!options_.reject_planar_geometry || !geometry.success) return false;
+  PlanarDegeneracyOptions options;
+  options.inlier_threshold_px = geometry_options_.ransac.max_error_px;
+  options.distinct_rotation_deg = options_.max_link_rotation_disagreement_deg;
+  options.distinct_direction_deg = options_.max_link_direction_disagreement_deg;
+  options.preference = geometry_options_.guess_preference;
+  const PlanarDegeneracy test = TestPlanarDegeneracy(bearings_a, bearings_b, geometry.inlier_mask, geometry.b_from_a,
+                                                     camera_->FocalLength(), options);
+  *description = fmt::format("{} of its {} inliers lie on one plane (GRIC homography {:.0f}, motion {:.0f}, noise "
+                             "{:.2f} px{}): the pair does not determine the motion",
+                             test.homography_inliers, test.num_points, test.gric_homography, test.gric_essential,
+                             test.sigma_px,
+                             test.alternative_cost_ratio > 0
+                                 ? fmt::format("; another motion of the plane, {:.1f} deg / {:.1f} deg away, fits at "
+                                               "{:.2f} times the cost",
+                                               test.alternative_rotation_deg, test.alternative_direction_deg,
+                                               test.alternative_cost_ratio)
+                                 : "");
+  spdlog::debug("teach: planar test: {}{}{}", *description, test.planar ? " [planar]" : "",
+                test.ambiguous ? " [ambiguous]" : "");
+  return test.ambiguous;
+}
+
 bool Teacher::RecoverGap(FrameState* frame) {
   ScopedTimer timer(&statistics_.seconds_matching);
   if (!subrange_->has_wide_baseline) {
@@ -505,6 +548,17 @@ bool Teacher::RecoverGap(FrameState* frame) {
                 matched.matches.size(), matched.geometry.num_inliers, matched.num_trackable,
                 matched.geometry.sigma_p);
   if (!AcceptableMatchedGeometry(matched, options_.min_matched_inliers)) return false;
+  if (std::string planar; PlanarGeometry(matched.bearings_a, matched.bearings_b, matched.geometry, &planar)) {
+    // The frame becomes the next node, a disconnected key-image (AddFrame).
+    statistics_.rejected_links.push_back({"gap", subrange_->node, static_cast<node_t>(map_.nodes().size()),
+                                          map_.FindNode(subrange_->node)->source_frame,
+                                          static_cast<int64_t>(frame->frame.source_index),
+                                          matched.geometry.num_inliers, matched.num_trackable,
+                                          matched.geometry.sigma_p, planar});
+    spdlog::warn("teach: gap candidate from key-image {} to frame {} rejected: {}", subrange_->node,
+                 frame->frame.name, planar);
+    return false;
+  }
   if (options_.verify_links && last_arc_ != kInvalidArcId && map_.FindArc(last_arc_)->to == subrange_->node) {
     // The key-image before the gap may be out of reach of matching, but it must not contradict the gap arc (the
     // frames after the gap confirm it, ResolvePendingGap).
@@ -546,6 +600,8 @@ bool Teacher::RecoverGap(FrameState* frame) {
     subrange_->observations[id] = {id, position_key, cv::Mat()};
   }
   frame->geometry = std::move(matched.geometry);
+  frame->bearings_key = std::move(matched.bearings_a);
+  frame->bearings_frame = std::move(matched.bearings_b);
   RegisterKeyImage(frame, KeyImageReason::kGap, /*with_arc=*/true, &current);
   return true;
 }
@@ -662,7 +718,7 @@ Teacher::WitnessVerdict Teacher::WeighWitness(const MatchableImage& x, const Mat
       if (!(direction.norm() > 1e-9)) continue;
       const Rigid3d guess(composed_rotation, direction.normalized());
       MatchedGeometry guided;
-      guided.geometry = EstimateMatchedGeometryNear(*camera_, x, z, matched, SecondLookOptions(), guess);
+      guided.geometry = EstimateMatchedGeometryNear(*camera_, matched, SecondLookOptions(), guess);
       MotionAgreement guided_agreement;
       if (!AcceptableMatchedGeometry(guided, options_.min_matched_inliers) ||
           !agrees_with(guided.geometry, &guided_agreement)) {
@@ -734,8 +790,10 @@ void Teacher::RelateFramesByMatching(size_t a, size_t b) {
   // Arcs join consecutive frames of the drive here, so they cannot link places that are not neighbours; they are
   // not witnessed (TeachOptions::verify_links): a halfway frame as witness also turned down arcs whose own
   // geometry was right, and splitting those made one-frame arcs worse than the arcs it removed (simulated town).
+  std::string planar;
   const bool acceptable =
-      AcceptableMatchedGeometry(matched, options_.min_features) && matched.num_trackable >= options_.min_features;
+      AcceptableMatchedGeometry(matched, options_.min_features) && matched.num_trackable >= options_.min_features &&
+      !PlanarGeometry(matched.bearings_a, matched.bearings_b, matched.geometry, &planar);
   spdlog::debug("teach (matching): frames {}-{}: {} inliers, {} trackable, sigma_p {:.2f} px{}", a, b,
                 matched.geometry.num_inliers, matched.num_trackable, matched.geometry.sigma_p,
                 acceptable ? "" : b - a > 1 ? ": splitting" : ": cannot relate");
@@ -846,9 +904,15 @@ void Teacher::CloseLoop() {
     spdlog::debug("teach: loop closing with key-image {}: {} matches, {} inliers, sigma_p {:.2f} px", node.id,
                   matched.matches.size(), matched.geometry.num_inliers, matched.geometry.sigma_p);
     // A wrong loop closure is worse than none: more support is required than for a gap.
-    if (AcceptableMatchedGeometry(matched, options_.min_loop_inliers)) {
-      candidates.push_back({&node, std::move(image), std::move(matched)});
+    if (!AcceptableMatchedGeometry(matched, options_.min_loop_inliers)) continue;
+    if (std::string planar; PlanarGeometry(matched.bearings_a, matched.bearings_b, matched.geometry, &planar)) {
+      statistics_.rejected_links.push_back({"loop", last.id, node.id, last.source_frame, node.source_frame,
+                                            matched.geometry.num_inliers, matched.num_trackable,
+                                            matched.geometry.sigma_p, planar});
+      spdlog::info("teach: loop candidate from key-image {} to {} rejected: {}", last.id, node.id, planar);
+      continue;
     }
+    candidates.push_back({&node, std::move(image), std::move(matched)});
   }
   std::stable_sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
     return a.matched.geometry.num_inliers > b.matched.geometry.num_inliers;

@@ -60,6 +60,7 @@
 #include "retrace/map/map.h"
 #include "retrace/map/map_database.h"
 #include "retrace/teach/matched_geometry.h"
+#include "retrace/teach/planar_degeneracy.h"
 
 namespace retrace {
 
@@ -134,6 +135,14 @@ struct TeachOptions {
   // few matches over a long baseline at low resolution, a pair fits a family of motions several degrees apart
   // (rotation traded for translation) almost equally well. false: the sampled geometry alone decides.
   bool second_look = true;
+  // A geometry whose pair does not tell the motions of a plane apart (most inliers on one plane, and another motion
+  // of that plane fits the correspondences within TwoViewOptions::guess_preference of the estimate:
+  // planar_degeneracy.h) does not determine the motion: on a pavement of identical slabs tracked arcs were 95-110
+  // degrees off with σ_p 0.1 px. Teach writes no such arc (tracked, gap, loop, matching): the key-image is kept, the
+  // map is disconnected there and the arc is reported with the reason (TeachStatistics::rejected_links). Witnesses of
+  // links are not tested (kitti07 at 320 px every 4th frame: the witness of the true gap 140-144 fits the plane's
+  // other motion alike and confirms on its second look). false: σ_p and the inlier count alone.
+  bool reject_planar_geometry = true;
 
   FeatureTrackerOptions tracker;
   CornerDetectorOptions detector;
@@ -163,9 +172,10 @@ struct TeachOptions {
 enum class KeyImageReason { kStart, kSigmaP, kFeatures, kGap, kEnd, kDisconnected, kMatching };
 const char* KeyImageReasonName(KeyImageReason reason);
 
-// A link that wide-baseline matching proposed but verification turned down (TeachOptions::verify_links).
+// A link that wide-baseline matching proposed but verification turned down (TeachOptions::verify_links), or an arc
+// whose geometry one plane explains (TeachOptions::reject_planar_geometry).
 struct RejectedLink {
-  std::string kind;  // "loop" or "gap"
+  std::string kind;  // "loop", "gap", "tracking" or "matching"
   node_t from = kInvalidNodeId;
   node_t to = kInvalidNodeId;
   int64_t from_frame = -1;  // source frames of the two key-images
@@ -248,6 +258,10 @@ class Teacher {
   // The geometry options of a witness's second look (WeighWitness).
   TwoViewOptions SecondLookOptions() const;
   bool AcceptableMatchedGeometry(const MatchedGeometry& matched, int min_inliers) const;
+  // Whether one plane explains the inliers of `geometry` over these correspondences (planar_degeneracy.h);
+  // `description` says how, for the report. Always false when TeachOptions::reject_planar_geometry is off.
+  bool PlanarGeometry(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
+                      const TwoViewGeometry& geometry, std::string* description) const;
   MatchableImage PrepareForMatching(const cv::Mat& image) const;
   void Commit(const MapNode* node, const MapArc* arc, const std::vector<NodeScale>& scales,
               const std::vector<std::pair<node_t, std::vector<FeatureObservation>>>& extra_observations);

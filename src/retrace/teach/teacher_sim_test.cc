@@ -233,6 +233,7 @@ TEST(TeachSim, LookAlikeCrossingDoesNotCloseTheLoop) {
   // key-image at the other crossing.
   TeachOptions single_pair;
   single_pair.verify_links = false;
+  single_pair.reject_planar_geometry = false;
   const Taught unverified = Teach(drive, FrameRange(0, 299), single_pair);
   ASSERT_TRUE(unverified.statistics.loop_closed);
   const std::vector<std::string> premise = FalseLinks(unverified.map, drive.truth);
@@ -245,7 +246,9 @@ TEST(TeachSim, LookAlikeCrossingDoesNotCloseTheLoop) {
   EXPECT_EQ(Join(FalseLinks(taught.map, drive.truth)), "");
   EXPECT_FALSE(stats.loop_closed);
   EXPECT_EQ(taught.map.arcs().size() + 1, taught.map.nodes().size()) << "a linear graph";
-  // The candidate is reported, with its reason: the key-image after its target does not relate to the last one.
+  // The candidate is reported, with its reason: its matches lie on the zebra crossing, whose other motion fits them
+  // alike (41 of 50 inliers on that plane, TeachOptions::reject_planar_geometry), or, without that test, the
+  // key-image after its target does not relate to the last one.
   ASSERT_EQ(stats.rejected_links.size(), 1u);
   const RejectedLink& rejected = stats.rejected_links[0];
   EXPECT_EQ(rejected.kind, "loop");
@@ -253,7 +256,9 @@ TEST(TeachSim, LookAlikeCrossingDoesNotCloseTheLoop) {
   EXPECT_EQ(rejected.from_frame, 299);
   EXPECT_LT(rejected.to_frame, 20);
   EXPECT_GE(rejected.inliers, TeachOptions().min_loop_inliers) << "its own geometry passed the single-pair test";
-  EXPECT_NE(rejected.reason.find("after"), std::string::npos) << rejected.reason;
+  EXPECT_TRUE(rejected.reason.find("one plane") != std::string::npos ||
+              rejected.reason.find("after") != std::string::npos)
+      << rejected.reason;
 }
 
 // A recording that resumes elsewhere: the frames before the last crossing of the look-alike town, then the drive
@@ -268,6 +273,7 @@ TEST(TeachSim, GapOntoALookAlikePlaceStaysDisconnected) {
   options.close_loop = false;
   TeachOptions single_pair = options;
   single_pair.verify_links = false;
+  single_pair.reject_planar_geometry = false;
   const Taught unverified = Teach(drive, frames, single_pair);
   ASSERT_EQ(unverified.statistics.gaps_recovered, 1) << "the premise: one pair of images links across the jump";
   const std::vector<std::string> premise = FalseLinks(unverified.map, drive.truth);
@@ -297,7 +303,10 @@ TEST(TeachSim, GapOntoALookAlikePlaceStaysDisconnected) {
 // gap arc, confirmed by the key-image after it (K -> G by K matched with H, G -> H being a gap arc too). The link
 // across the jump must be rejected, and the runs of gap arcs on either side of it must stay connected. The true gap
 // arc into frame 299 loses its witness with the false one after it, and the last gap arc of the recording has none:
-// both are rejected and reported too.
+// both are rejected and reported too. Near the crossing, the gap arcs 275 -> 281 and 281 -> 287 rest on matches of
+// which 38 of 62 and 48 of 63 lie on the zebra crossing, and the crossing's other motion fits them within 19 % and 7 %
+// of the estimate's cost: the pairs do not determine the motion (TeachOptions::reject_planar_geometry), and the run
+// before the jump is three pieces (263-275, with the arc 269 -> 275 lost with its witness, and 287-293).
 TEST(TeachSim, RunOfGapArcsOntoALookAlikePlaceStaysDisconnected) {
   const RecordedDrive& drive = LookAlikeTown();
   std::vector<size_t> frames;
@@ -308,6 +317,7 @@ TEST(TeachSim, RunOfGapArcsOntoALookAlikePlaceStaysDisconnected) {
   options.close_loop = false;
   TeachOptions single_pair = options;
   single_pair.verify_links = false;
+  single_pair.reject_planar_geometry = false;
   const Taught unverified = Teach(drive, frames, single_pair);
   ASSERT_EQ(unverified.map.arcs().size() + 1, unverified.map.nodes().size()) << "the premise: all frames linked";
   const std::vector<std::string> premise = FalseLinks(unverified.map, drive.truth);
@@ -319,7 +329,7 @@ TEST(TeachSim, RunOfGapArcsOntoALookAlikePlaceStaysDisconnected) {
   PrintRejected(taught.statistics);
   int links = 0;
   EXPECT_EQ(Join(FalseLinks(map, drive.truth, &links)), "");
-  EXPECT_GE(links, 10) << "the runs of gap arcs are confirmed";
+  EXPECT_GE(links, 8) << "the runs of gap arcs are confirmed (but where they rest on the crossing alone)";
   const auto jump = std::find_if(taught.statistics.rejected_links.begin(), taught.statistics.rejected_links.end(),
                                  [](const RejectedLink& r) { return r.from_frame == 299 && r.to_frame == 6; });
   ASSERT_NE(jump, taught.statistics.rejected_links.end()) << "the link across the jump is reported";
@@ -334,7 +344,8 @@ TEST(TeachSim, RunOfGapArcsOntoALookAlikePlaceStaysDisconnected) {
   };
   for (const MapArc& arc : map.arcs()) piece[root(arc.from)] = root(arc.to);
   const auto joined = [&](int64_t a, int64_t b) { return root(node_of_frame.at(a)) == root(node_of_frame.at(b)); };
-  EXPECT_TRUE(joined(263, 293));
+  EXPECT_TRUE(joined(263, 269));
+  EXPECT_TRUE(joined(287, 293));
   EXPECT_TRUE(joined(6, 42));
   EXPECT_FALSE(joined(293, 6));
   EXPECT_FALSE(joined(299, 6));
