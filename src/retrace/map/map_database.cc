@@ -218,7 +218,9 @@ void MapDatabase::CheckIsRetraceMap() {
 void MapDatabase::CheckIntegrity() {
   const std::string source = path_.string();
   {
-    SqliteStatement& check = database_->Prepare("PRAGMA quick_check(1);");  // pages, b-trees, records, NOT NULL
+    // Pages, b-trees, records, NOT NULL, and that indexes match their tables (quick_check skips that, and a damaged
+    // index made one command fail and another read on).
+    SqliteStatement& check = database_->Prepare("PRAGMA integrity_check(1);");
     std::string result = check.Step() ? check.ColumnText(0) : "no result";
     check.Reset();
     if (result != "ok") {
@@ -745,6 +747,9 @@ std::unique_ptr<StagedMap> StagedMap::Begin(const std::filesystem::path& path, c
     MapDatabase::CheckReplaceable(path);
   };
   check_destination();
+  std::error_code ec;
+  const std::filesystem::path folder = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+  if (!std::filesystem::is_directory(folder, ec)) throw InputError(source, "no such folder: " + folder.string());
   std::unique_ptr<StagedMap> staged(new StagedMap(path, overwrite));
 
   // The lock: a writer that finds the file locked fails at once; one that locked a file the holder removed
@@ -778,7 +783,6 @@ std::unique_ptr<StagedMap> StagedMap::Begin(const std::filesystem::path& path, c
   check_destination();  // again, now that no other writer can change it
 
   // A stale staging map of an interrupted teach is replaced (Create removes it and its side files).
-  std::error_code ec;
   if (std::filesystem::exists(staged->staging_path_, ec)) MapDatabase::CheckReplaceable(staged->staging_path_);
   staged->database_ = MapDatabase::Create(staged->staging_path_, options, /*overwrite=*/true);
   staged->database_->SetMetadata(MapDatabase::kTeachStateKey, MapDatabase::kIncomplete);

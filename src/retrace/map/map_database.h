@@ -14,7 +14,7 @@
 // The schema version is in `PRAGMA user_version` and the file is marked as a retrace map by
 // `PRAGMA application_id`, so opening a foreign file or a map of a newer schema gives a clear error.
 //
-// Opening a map checks it (CheckIntegrity(), the same for every command): SQLite's `PRAGMA quick_check`, the tables
+// Opening a map checks it (CheckIntegrity(), the same for every command): SQLite's `PRAGMA integrity_check`, the tables
 // and columns of the schema, every reference between tables (arcs to nodes, observations to nodes, points to arcs,
 // scales to the two arcs they join at their node, and `PRAGMA foreign_key_check`) and the checksum of every
 // key-image; ReadMap() then checks the values it reads (finite numbers, rotations, unit translations, image sizes).
