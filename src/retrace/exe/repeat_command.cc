@@ -255,7 +255,16 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
   MapForLocalizer loaded;
   loaded.map = database->ReadMap(/*load_images=*/true);
   if (loaded.map.arcs().empty()) throw InputError(path.string(), "the map has no arcs");
-  if (const auto yaml = database->ReadCameraYaml()) loaded.camera = ParseCameraText(*yaml, path.string());
+  if (const auto yaml = database->ReadCameraYaml()) {
+    loaded.camera = ParseCameraText(*yaml, path.string());
+    // The map's camera images its own key-images; when it does not, the map is damaged (not the sequence).
+    const MapNode& key_image = loaded.map.nodes().front();
+    if (loaded.camera->width() != key_image.image.cols || loaded.camera->height() != key_image.image.rows) {
+      throw InputError(path.string(), fmt::format("corrupt map: its camera images {}x{} but its key-images are {}x{}",
+                                                  loaded.camera->width(), loaded.camera->height(),
+                                                  key_image.image.cols, key_image.image.rows));
+    }
+  }
   loaded.source_sequence = database->Metadata("source_sequence");
   // The tracker must pre-smooth frames as teach smoothed the key-images (maps written before this was stored
   // used the current default).

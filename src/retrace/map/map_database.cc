@@ -288,6 +288,9 @@ void MapDatabase::CheckReferences() {
       {"SELECT s.node_id, s.arc_in, s.arc_out FROM node_scales s JOIN arcs i ON i.arc_id = s.arc_in "
        "JOIN arcs o ON o.arc_id = s.arc_out WHERE i.to_node != s.node_id OR o.from_node != s.node_id LIMIT 1;",
        "scale at node {} does not join arc {} to arc {} there", 3},
+      {"SELECT n.node_id, n.width, n.height FROM nodes n, (SELECT width, height FROM cameras ORDER BY camera_id "
+       "LIMIT 1) c WHERE n.image IS NOT NULL AND (n.width != c.width OR n.height != c.height) LIMIT 1;",
+       "key-image of node {} is {}x{}, not the size of the map's camera", 3},
   };
   for (const Reference& reference : kReferences) {
     SqliteStatement& query = database_->Prepare(reference.sql);

@@ -226,6 +226,8 @@ TEST(MapDatabase, DamagedMapsAreRefusedWithTheFault) {
   ExpectDamagedMapRefused("feature_outside", "UPDATE observations SET x = 1e300 WHERE node_id = 1;",
                           "lies outside its 64x48 key-image");
   ExpectDamagedMapRefused("negative_scale", "UPDATE node_scales SET scale = -1;", "is -1");
+  ExpectDamagedMapRefused("camera_size", "INSERT INTO cameras VALUES (0, 'perspective', 64, 40, 'yaml');",
+                          "key-image of node 0 is 64x48, not the size of the map's camera");
   // A schema whose text was damaged: SQLite quotes it, the message must not.
   ExpectDamagedMapRefused("binary_schema",
                           "PRAGMA writable_schema=ON; UPDATE sqlite_master SET sql = 'CREATE TABLE nodes (' || "
