@@ -43,6 +43,8 @@
 
 namespace retrace {
 
+// Ranges of the fields (here, in SensorOptions and RenderOptions): Scenario::Check (sim/scenario.h,
+// ScenarioKeyRanges).
 struct Lighting {
   // Compass direction of the sun in degrees, clockwise from north (+Y of the town frame); east (+X) = 90.
   double sun_azimuth_deg = 160.0;

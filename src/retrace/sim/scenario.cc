@@ -163,7 +163,21 @@ std::optional<ScenarioProblem> Scenario::Check() const {
     const double value = key.value(*this);
     if (!key.range.Contains(value)) return OutOfRange(key.range, value);
   }
-  // Rules that tie keys together.
+  // Rules that tie keys together. The repeat variant (ApplyVariant) adds its offsets to the teach drive's: the sums
+  // have the ranges of the teach drive's keys.
+  const ScenarioKeyRange& offset = *FindScenarioKeyRange("drive.lateral_offset");
+  if (!offset.Contains(drive.lateral_offset + repeat.lateral_offset)) {
+    return ScenarioProblem{"repeat.lateral_offset",
+                           fmt::format("the repeat drive's offset drive.lateral_offset + repeat.lateral_offset must be "
+                                       "{}, got {}",
+                                       offset.Text(), Number(drive.lateral_offset + repeat.lateral_offset))};
+  }
+  const ScenarioKeyRange& clock = *FindScenarioKeyRange("time_offset");
+  if (!clock.Contains(time_offset + repeat.time_offset)) {
+    return ScenarioProblem{"repeat.time_offset",
+                           fmt::format("the repeat drive's clock time_offset + repeat.time_offset must be {}, got {}",
+                                       clock.Text(), Number(time_offset + repeat.time_offset))};
+  }
   if (town.block_size_max < town.block_size_min) {
     return ScenarioProblem{"town.block_size_max",
                            fmt::format("must be >= town.block_size_min ({}), got {}", Number(town.block_size_min),

@@ -188,6 +188,9 @@ std::string Companion(const std::string& key, double value) {
   if (key == "town.min_upper_floors") return fmt::format("  max_upper_floors: {}\n", value);
   if (key == "town.block_size_max") return fmt::format("  block_size_min: {}\n", value);
   if (key == "camera.hfov_deg") return "  model: unified\n  xi: 2\n";  // a perspective camera ends at 179 degrees
+  // The repeat variant adds its offsets to these: they reach their bounds alone.
+  if (key == "drive.lateral_offset") return "repeat:\n  lateral_offset: 0\n";
+  if (key == "time_offset") return "repeat:\n  time_offset: 0\n";
   return "";
 }
 
@@ -257,6 +260,12 @@ TEST(ScenarioRangeTest, RulesBetweenKeys) {
             std::string::npos);
   EXPECT_NE(ParseProblem("camera:\n  width: 8192\n  height: 8192\n").find("camera.width: 8192 x 8192 pixels"),
             std::string::npos);
+  EXPECT_EQ(ParseProblem("drive:\n  lateral_offset: 9.5\n"),
+            "town.yaml: repeat.lateral_offset: the repeat drive's offset drive.lateral_offset + repeat.lateral_offset "
+            "must be in [-10, 10] m, got 10.5");
+  EXPECT_EQ(ParseProblem("time_offset: -1000000\nrepeat:\n  time_offset: -1\n"),
+            "town.yaml: line 3: repeat.time_offset: the repeat drive's clock time_offset + repeat.time_offset must be "
+            "in [-1000000, 1000000] s, got -1000001");
   EXPECT_EQ(ParseProblem("camera:\n  hfov_deg: 179.5\n"),
             "town.yaml: line 2: camera.hfov_deg: must be in [1, 179] degrees for a perspective camera, got 179.5");
   EXPECT_EQ(ParseProblem("camera:\n  cx: -1\n  cy: 240\n"), "");

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
+#include <stdexcept>
 
 #include "retrace/sim/procedural_texture.h"
 #include "retrace/sim/scene_file.h"
@@ -23,6 +25,10 @@ std::vector<Vector2d> ResolveRoute(const Scenario& scenario, const TownLayout& l
 }
 
 Simulator::Simulator(const Scenario& scenario) : scenario_(scenario) {
+  // Out-of-range values would exhaust the machine (threads, memory) before anything else noticed them.
+  if (const std::optional<ScenarioProblem> problem = scenario.Check()) {
+    throw std::invalid_argument("Simulator: invalid scenario: " + problem->ToString());
+  }
   scene_ = std::make_unique<Scene>();
   if (scenario.scene_file.empty()) {
     layout_ = BuildTown(scenario.town, scene_.get());

@@ -35,6 +35,7 @@ struct SimFrame {
 class Simulator {
  public:
   // Builds the world (takes a few hundred milliseconds for the town) and places the vehicle at the route's start.
+  // Throws std::invalid_argument when the scenario fails Scenario::Check (files and options are checked before).
   explicit Simulator(const Scenario& scenario);
   ~Simulator();
 

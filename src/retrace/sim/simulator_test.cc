@@ -345,5 +345,17 @@ TEST(SimulatorTest, CarDrivingOffTheRouteIsOffRoute) {
   EXPECT_TRUE(follower.OffRoute());
 }
 
+// A scenario built in code is checked too: no simulator with 100000 render threads.
+TEST(SimulatorTest, RefusesAScenarioOutsideItsRanges) {
+  Scenario s = SmallTown();
+  s.render.num_threads = 100000;
+  try {
+    Simulator simulator(s);
+    FAIL() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "Simulator: invalid scenario: render.threads: must be in 1..256, got 100000");
+  }
+}
+
 }  // namespace
 }  // namespace retrace

@@ -17,6 +17,7 @@
 
 namespace retrace {
 
+// Ranges of the fields: Scenario::Check (sim/scenario.h, ScenarioKeyRanges), the one place they are checked.
 struct TownOptions {
   // Seed of every random choice (layout, buildings, textures, trees, cars, pedestrians).
   uint64_t seed = 1;

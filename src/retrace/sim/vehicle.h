@@ -24,6 +24,7 @@
 
 namespace retrace {
 
+// Ranges of the fields (here and in DriveOptions): Scenario::Check (sim/scenario.h, ScenarioKeyRanges).
 struct VehicleOptions {
   // Distance between the axles (m).
   double wheelbase = 2.7;
