@@ -32,7 +32,7 @@ expect safety-overwrite-foreign 1 "^retrace: error: $ms/notes.txt: not a retrace
 expect safety-foreign-intact 0 '^my notes$' -- cat "$ms/notes.txt"
 
 # One writer at a time: while another process holds the map's lock, teach fails at once with one line.
-flock "$ms/route.db.lock" sleep 3 &
+flock -o "$ms/route.db.lock" sleep 5 &  # -o: the lock dies with flock itself
 holder=$!
 sleep 0.5
 expect safety-locked 1 "^retrace: error: $ms/route.db: another retrace teach is writing this map now" -- \
