@@ -298,9 +298,10 @@ void MapDatabase::CheckReferences() {
       std::vector<int64_t> ids;
       for (int i = 0; i < reference.num_columns; ++i) ids.push_back(query.ColumnInt(i));
       query.Reset();
-      const std::string what = reference.num_columns == 1   ? fmt::format(reference.message, ids[0])
-                               : reference.num_columns == 2 ? fmt::format(reference.message, ids[0], ids[1])
-                                                            : fmt::format(reference.message, ids[0], ids[1], ids[2]);
+      const auto pattern = fmt::runtime(reference.message);
+      const std::string what = reference.num_columns == 1   ? fmt::format(pattern, ids[0])
+                               : reference.num_columns == 2 ? fmt::format(pattern, ids[0], ids[1])
+                                                            : fmt::format(pattern, ids[0], ids[1], ids[2]);
       throw InputError(source, kCorrupt + what);
     }
     query.Reset();
