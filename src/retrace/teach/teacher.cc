@@ -335,7 +335,8 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
   // A tracked arc whose inliers one plane explains does not determine the motion: the key-image is registered
   // without it, and the map is disconnected there (TeachOptions::reject_planar_geometry).
   if (with_arc && reason != KeyImageReason::kGap) {
-    if (std::string planar; PlanarGeometry(frame->bearings_key, frame->bearings_frame, frame->geometry, &planar)) {
+    if (std::string planar;
+        PlanarGeometry(frame->bearings_key, frame->bearings_frame, frame->geometry, &planar, /*tracked=*/true)) {
       statistics_.rejected_links.push_back(
           {"tracking", subrange_->node, static_cast<node_t>(map_.nodes().size()),
            map_.FindNode(subrange_->node)->source_frame, static_cast<int64_t>(frame->frame.source_index),
@@ -509,13 +510,16 @@ bool Teacher::AcceptableMatchedGeometry(const MatchedGeometry& matched, int min_
 }
 
 bool Teacher::PlanarGeometry(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
-                             const TwoViewGeometry& geometry, std::string* description) const {
+                             const TwoViewGeometry& geometry, std::string* description, bool tracked) const {
   if (!options_.reject_planar_geometry || !geometry.success) return false;
   PlanarDegeneracyOptions options;
   options.inlier_threshold_px = geometry_options_.ransac.max_error_px;
   options.distinct_rotation_deg = options_.max_link_rotation_disagreement_deg;
   options.distinct_direction_deg = options_.max_link_direction_disagreement_deg;
-  options.preference = geometry_options_.guess_preference;
+  // A tracked geometry carries the evidence of the frames before it (each W(K, f) starts from W(K, f - 1) and keeps
+  // it unless a sample fits better by guess_preference): it is rejected only when the pair fits the plane's other
+  // motion at least as well. A pair related by matching has no such history: within guess_preference is a tie.
+  options.preference = tracked ? 0.0 : geometry_options_.guess_preference;
   const PlanarDegeneracy test = TestPlanarDegeneracy(bearings_a, bearings_b, geometry.inlier_mask, geometry.b_from_a,
                                                      camera_->FocalLength(), options);
   *description = fmt::format("{} of its {} inliers lie on one plane (GRIC homography {:.0f}, motion {:.0f}, noise "
