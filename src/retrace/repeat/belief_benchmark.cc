@@ -7,31 +7,14 @@
 #include <benchmark/benchmark.h>
 
 #include "retrace/repeat/belief.h"
+#include "retrace/repeat/linear_map_testing.h"
 
 namespace retrace {
 namespace {
 
-Map LinearMap(int arcs) {
-  Map map;
-  for (int i = 0; i <= arcs; ++i) {
-    MapNode node;
-    node.id = i;
-    node.source_frame = 4 * i;
-    map.AddNode(node);
-  }
-  for (int k = 0; k < arcs; ++k) {
-    MapArc arc;
-    arc.id = k;
-    arc.from = k;
-    arc.to = k + 1;
-    map.AddArc(arc);
-  }
-  return map;
-}
-
 // Argument: arcs of the map. The camera moves a quarter arc per frame, placed by an absolute pose every frame.
 void BM_BeliefTracking(benchmark::State& state) {
-  PlaceBelief belief(LinearMap(static_cast<int>(state.range(0))));
+  PlaceBelief belief(LinearMap(static_cast<int>(state.range(0)), {}, /*frames_per_arc=*/4));
   size_t frame = 0;
   double position = 0.0;
   for (auto _ : state) {
@@ -48,7 +31,7 @@ BENCHMARK(BM_BeliefTracking)->Arg(60)->Arg(1000)->Unit(benchmark::kMicrosecond);
 
 // Argument: arcs of the map. No placements at all: the belief spreads with the speed unknown.
 void BM_BeliefLost(benchmark::State& state) {
-  PlaceBelief belief(LinearMap(static_cast<int>(state.range(0))));
+  PlaceBelief belief(LinearMap(static_cast<int>(state.range(0)), {}, /*frames_per_arc=*/4));
   size_t frame = 0;
   for (auto _ : state) {
     belief.Predict(1);

@@ -2,31 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include "retrace/repeat/linear_map_testing.h"
+
 namespace retrace {
 namespace {
-
-// A linear route of `arcs` arcs (nodes 0..arcs, arc k from node k to k + 1, taught 10 frames apart), with the
-// stored relative scale `scales[k]` at node k + 1 (ℓ_{k+1} = s ℓ_k) when given.
-Map LinearMap(int arcs, const std::vector<double>& scales = {}) {
-  Map map;
-  for (int i = 0; i <= arcs; ++i) {
-    MapNode node;
-    node.id = i;
-    node.source_frame = 10 * i;
-    map.AddNode(node);
-  }
-  for (int k = 0; k < arcs; ++k) {
-    MapArc arc;
-    arc.id = k;
-    arc.from = k;
-    arc.to = k + 1;
-    map.AddArc(arc);
-  }
-  for (size_t k = 0; k < scales.size(); ++k) {
-    map.AddScale({static_cast<node_t>(k + 1), static_cast<arc_t>(k), static_cast<arc_t>(k + 1), scales[k]});
-  }
-  return map;
-}
 
 PlaceMeasurement Pose(arc_t arc, double along, double sigma = 0.03) { return {arc, along, sigma, 0.02}; }
 
