@@ -33,6 +33,7 @@ struct TeachArguments {
   size_t offset = 0;
   bool overwrite = false;
   bool no_progress = false;
+  double camera_height = 0.0;  // metres above the ground, stored for repeat's metric path (0 = not given)
   TeachOptions options;
   MapDatabaseOptions storage;
 };
@@ -87,6 +88,7 @@ void RunTeach(const TeachArguments& args) {
   database->SetMetadata("max_residual", fmt::format("{:.2f}", args.options.max_residual));
   // Repeat must pre-smooth its images exactly as teach did, or R means something else against the key-images.
   database->SetMetadata("reference_width", std::to_string(args.options.reference_width));
+  if (args.camera_height > 0) database->SetMetadata("camera_height", fmt::format("{:g}", args.camera_height));
   database->SetMetadata("smoothing_sigma_px", fmt::format("{}", args.options.smoothing_sigma_px));
 
   const auto start = std::chrono::steady_clock::now();
@@ -175,6 +177,10 @@ void RegisterTeachCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--width", args->width, "Work on images resized to this width (default: native)")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--camera-height", args->camera_height,
+                  "Height of the camera above the ground (m), stored in the map: repeat then measures the camera's "
+                  "offset from the taught path in metres")
+      ->check(CLI::Range(0.0, 100.0));
   cmd->add_option("--every", args->every, "Use every k-th frame (e.g. 2 = even frames)")->check(CLI::PositiveNumber);
   cmd->add_option("--offset", args->offset, "First frame used with --every (1 = odd frames)");
   cmd->add_flag("--overwrite", args->overwrite,
