@@ -106,6 +106,16 @@ double MaxAbsAfter(const DriveResult& drive, double skip_m) {
   return worst;
 }
 
+// A tracked frame, on the path, with a confident belief and a metric offset, 0.1 s after the previous one.
+PathTrackingInput ConfidentFrame() {
+  PathTrackingInput input;
+  input.tracking = true;
+  input.confidence = 1.0;
+  input.metric = true;
+  input.dt = 0.1;
+  return input;
+}
+
 PathTrackingOptions FastOptions() {
   PathTrackingOptions options;
   options.max_speed = 8.0;
@@ -174,11 +184,7 @@ TEST(PathTracker, StopsAtOnceWhenLostAndRampsUpWhenTrackingAgain) {
   options.max_speed = 6.0;
   options.max_acceleration = 2.0;
   PathTracker tracker(options);
-  PathTrackingInput input;
-  input.tracking = true;
-  input.confidence = 1.0;
-  input.metric = true;
-  input.dt = 0.1;
+  PathTrackingInput input = ConfidentFrame();
   double speed = 0.0;
   for (int i = 0; i < 50; ++i) speed = tracker.Update(input).speed;
   EXPECT_DOUBLE_EQ(speed, 6.0);
@@ -208,13 +214,9 @@ TEST(PathTracker, SlowsDownForTheCurvatureAheadAndLimitsTheCommand) {
   options.max_curvature = 0.2;
   options.max_curvature_rate = 1.0;
   PathTracker tracker(options);
-  PathTrackingInput input;
-  input.tracking = true;
-  input.confidence = 1.0;
-  input.metric = true;
+  PathTrackingInput input = ConfidentFrame();
   input.curvature_ahead = 1.0 / 6.0;
   input.lateral_m = 5.0;  // far right: the law wants a sharp left turn
-  input.dt = 0.1;
   const PathTrackingCommand first = tracker.Update(input);
   EXPECT_NEAR(first.speed, std::sqrt(1.5 * 6.0), 1e-9);
   EXPECT_NEAR(first.curvature, 0.1, 1e-12);  // rate limit: 1 /m/s for 0.1 s

@@ -18,7 +18,6 @@ bool ClosedLoopOptions::Check(std::string* error) const {
     return false;
   };
   // Plausible ranges (as the scenario's keys, sim/scenario.h): a car, a camera's frame rate, a run that ends.
-  if (!(speed > 0 && speed <= 50)) return fail(fmt::format("speed must be in (0, 50] m/s, got {}", speed));
   if (!(frame_period > 0 && frame_period <= 10)) {
     return fail(fmt::format("frame_period must be in (0, 10] s, got {}", frame_period));
   }
@@ -67,21 +66,9 @@ PathTrackingFigures ClosedLoopSummary::Figures(double skip_m) const {
 }
 
 double DistanceToPath(const Vector3d& position, const std::vector<TimedPose>& taught, double* along) {
-  const Vector2d p(position.x(), position.z());
-  double best = std::numeric_limits<double>::infinity();
-  for (size_t i = 0; i + 1 < taught.size(); ++i) {
-    const Vector3d& a3 = taught[i].world_from_cam.translation;
-    const Vector3d& b3 = taught[i + 1].world_from_cam.translation;
-    const Vector2d a(a3.x(), a3.z());
-    const Vector2d ab = Vector2d(b3.x(), b3.z()) - a;
-    const double t = ab.squaredNorm() > 0 ? std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
-    const double d = (a + t * ab - p).norm();
-    if (d < best) {
-      best = d;
-      if (along != nullptr) *along = static_cast<double>(i) + t;
-    }
-  }
-  return best;
+  const PathTruth truth = TruthAgainstTaughtPath(Rigid3d(Matrix3d::Identity(), position), taught, 0, taught.size());
+  if (along != nullptr && truth.valid) *along = truth.along_index;
+  return truth.valid ? truth.distance_m : std::numeric_limits<double>::infinity();
 }
 
 ClosedLoopSummary DriveClosedLoop(Simulator* simulator, Localizer* localizer, const Map& map,
@@ -95,9 +82,7 @@ ClosedLoopSummary DriveClosedLoop(Simulator* simulator, Localizer* localizer, co
     if (map.ArcsFrom(arc.to).empty()) last_arcs.push_back(arc.id);
   }
 
-  PathTrackingOptions tracking = options.tracking;
-  tracking.max_speed = options.speed;
-  PathTracker tracker(tracking);
+  PathTracker tracker(options.tracking);
   const double wheelbase = simulator->scenario().vehicle.wheelbase;
 
   ClosedLoopSummary summary;
@@ -125,7 +110,7 @@ ClosedLoopSummary DriveClosedLoop(Simulator* simulator, Localizer* localizer, co
     input.metric = result.path.valid;
     input.lateral_m = result.path.lateral_m;
     input.heading_error_rad = result.path.heading_error_rad;
-    input.curvature_ahead = result.path.valid ? result.path.curvature_ahead : 0.0;
+    input.curvature_ahead = result.path.curvature_ahead;  // 0 when the frame has no metric path
     input.image_steering_valid = result.steering_valid;
     input.image_steering = result.steering;
     input.dt = options.frame_period;
@@ -140,14 +125,11 @@ ClosedLoopSummary DriveClosedLoop(Simulator* simulator, Localizer* localizer, co
     stopped_in_a_row = step.command.speed <= 0 ? stopped_in_a_row + 1 : 0;
     bool past_end = false;
     if (taught.size() >= 2) {
-      step.deviation = DistanceToPath(view.world_from_cam.translation, taught, &step.along);
-      const PathTruth truth = TruthAgainstTaughtPath(view.world_from_cam, taught,
-                                                     static_cast<size_t>(std::max(0.0, std::floor(step.along) - 2)),
-                                                     static_cast<size_t>(step.along) + 3);
-      if (truth.valid) {
-        step.true_lateral = truth.lateral_m;
-        step.true_heading_error = truth.heading_error_rad;
-      }
+      const PathTruth truth = TruthAgainstTaughtPath(view.world_from_cam, taught, 0, taught.size());
+      step.deviation = truth.valid ? truth.distance_m : std::numeric_limits<double>::infinity();
+      step.along = truth.along_index;
+      step.true_lateral = truth.lateral_m;
+      step.true_heading_error = truth.heading_error_rad;
       summary.deviations.push_back(step.deviation);
       summary.driven.push_back(driven);
       past_end = step.along >= static_cast<double>(taught.size()) - 1.5;

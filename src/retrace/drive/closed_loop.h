@@ -29,12 +29,10 @@ struct ClosedLoopOptions {
   // Steering law: the camera-point law on the metric offset (falling back to eq. (10) where there is none), or
   // eq. (10) alone, for comparison.
   ClosedLoopControl control = ClosedLoopControl::kPath;
-  // Top speed of the car (m/s; the path tracker slows down in turns and when unsure, and stops when lost). The
-  // built-in scenario teaches at up to 8 m/s and slows in its turns.
-  double speed = 8.0;
   // Time between frames (seconds): the car drives this long with one command.
   double frame_period = 0.1;
-  // The path tracker (its max_speed is `speed`; its camera_forward should be the vehicle's).
+  // The path tracker: its max_speed is the car's top speed (it slows down in turns and when unsure, and stops when
+  // lost; the built-in scenario teaches at up to 8 m/s), its camera_forward should be the vehicle's.
   PathTrackingOptions tracking;
   // A covered lens: frames [blackout_start, blackout_start + blackout_frames) are replaced by a black image (the
   // car must stop and resume; 0 frames = none).

@@ -32,7 +32,7 @@ TEST(DistanceToPath, MeasuresOnTheGroundPlaneAlongThePolyline) {
 TEST(ClosedLoopOptions, CheckRejectsBadValues) {
   ClosedLoopOptions options;
   EXPECT_TRUE(options.Check());
-  options.speed = 0;
+  options.tracking.max_speed = 0;
   EXPECT_FALSE(options.Check());
   options = ClosedLoopOptions();
   options.frame_period = -0.1;

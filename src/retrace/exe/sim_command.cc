@@ -335,7 +335,7 @@ void RegisterSimCommand(CLI::App& app) {
                     "where there is none) or eq10 (Segvic 2009 eq. (10) alone)")
       ->check(CLI::IsMember({"path", "eq10"}))
       ->capture_default_str();
-  drive->add_option("--speed", args->drive.speed, "Top speed, (0, 50] m/s (slower in turns, 0 when lost)")
+  drive->add_option("--speed", args->drive.tracking.max_speed, "Top speed, (0, 50] m/s (slower in turns, 0 when lost)")
       ->capture_default_str();
   drive->add_option("--camera-height", args->camera_height,
                     "Camera height above the ground (m) for the metric path; default: the scenario's vehicle");

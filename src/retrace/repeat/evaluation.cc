@@ -395,6 +395,7 @@ PathTruth TruthAgainstTaughtPath(const Rigid3d& world_from_cam, const std::vecto
     }
   }
   if (!std::isfinite(best)) return truth;
+  truth.distance_m = best;
   const Vector2d look = flat(world_from_cam.rotation * Vector3d::UnitZ());
   truth.heading_error_rad = std::atan2(tangent.y() * look.x() - tangent.x() * look.y(), tangent.dot(look));
   truth.valid = look.norm() > 1e-9;

@@ -164,6 +164,7 @@ TopologicalEvaluation EvaluateTopological(const Map& map, const std::vector<Time
 // wrong pass.
 struct PathTruth {
   bool valid = false;
+  double distance_m = 0.0;         // distance from the path (at a vertex larger than |lateral_m|)
   double lateral_m = 0.0;          // signed distance from the path, positive to the right in the direction of travel
   double heading_error_rad = 0.0;  // optical axis against the path's tangent, positive looking right of the path
   double along_index = 0.0;        // where the nearest point lies (taught frame index, fractional)

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 namespace retrace {
 namespace {
@@ -537,6 +538,35 @@ TEST(EvaluateTopological, CircularRouteInTwoPieces) {
   EXPECT_EQ(p.per_frame[2].error, 4);
   EXPECT_TRUE(p.per_frame[3].correct);
   EXPECT_EQ(p.per_frame[3].error, 1);
+}
+
+TEST(TruthAgainstTaughtPath, SignsFollowTheDirectionOfTravel) {
+  // Taught camera centres along +z (world: x right, y down, z forward), then turning to +x.
+  std::vector<TimedPose> taught(4);
+  taught[1].world_from_cam.translation = Vector3d(0, 0, 5);
+  taught[2].world_from_cam.translation = Vector3d(0, 0, 10);
+  taught[3].world_from_cam.translation = Vector3d(5, 0, 10);
+  // 0.8 m to the right (+x) of the first stretch, 1.5 m higher (height does not count), looking 0.1 rad to the
+  // right of +z (a rotation about the down axis y by +0.1 turns z towards +x).
+  const Matrix3d look_right = Eigen::AngleAxisd(0.1, Vector3d::UnitY()).toRotationMatrix();
+  PathTruth truth = TruthAgainstTaughtPath(Rigid3d(look_right, Vector3d(0.8, -1.5, 2.5)), taught, 0, 3);
+  ASSERT_TRUE(truth.valid);
+  EXPECT_NEAR(truth.lateral_m, 0.8, 1e-12);
+  EXPECT_NEAR(truth.distance_m, 0.8, 1e-12);
+  EXPECT_NEAR(truth.heading_error_rad, 0.1, 1e-12);
+  EXPECT_NEAR(truth.along_index, 0.5, 1e-12);
+  // Beside the last stretch (travel along +x), 0.5 m towards -z is to the right; looking along +z is 90 degrees
+  // to the left of the path.
+  truth = TruthAgainstTaughtPath(Rigid3d(Matrix3d::Identity(), Vector3d(2, 0, 9.5)), taught, 0, 3);
+  EXPECT_NEAR(truth.lateral_m, 0.5, 1e-12);
+  EXPECT_NEAR(truth.heading_error_rad, -M_PI / 2, 1e-12);
+  EXPECT_NEAR(truth.along_index, 2.4, 1e-12);
+  // Restricted to the first stretch, the same camera is measured against it (a route crossing itself).
+  truth = TruthAgainstTaughtPath(Rigid3d(Matrix3d::Identity(), Vector3d(2, 0, 9.5)), taught, 0, 1);
+  EXPECT_NEAR(truth.distance_m, std::hypot(2.0, 4.5), 1e-12);
+  EXPECT_LT(truth.along_index, 1.0 + 1e-12);
+  // Fewer than two taught poses in the range: no answer.
+  EXPECT_FALSE(TruthAgainstTaughtPath(Rigid3d(), taught, 2, 2).valid);
 }
 
 }  // namespace

@@ -8,6 +8,8 @@
 
 #include <fmt/format.h>
 
+#include "retrace/repeat/localizer_internal.h"
+
 namespace retrace {
 namespace {
 
@@ -68,11 +70,6 @@ struct Segment {
     return 0.5 * (lo + hi);
   }
 };
-
-double MedianOf(std::vector<double> values) {
-  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
-  return values[values.size() / 2];
-}
 
 }  // namespace
 
@@ -187,11 +184,11 @@ std::optional<double> TaughtPath::MetresPerUnit(arc_t arc_id) {
     }
   }
   if (scales.empty()) return std::nullopt;
-  const double median = MedianOf(scales);
+  const double median = internal::Median(scales);
   // Relative spread: the median absolute deviation of the log-scales (robust), at least the own fit's.
   std::vector<double> deviations;
   for (double s : scales) deviations.push_back(std::abs(std::log(s / median)));
-  double sigma = scales.size() >= 3 ? 1.4826 * MedianOf(deviations) : 0.0;
+  double sigma = scales.size() >= 3 ? 1.4826 * internal::Median(deviations) : 0.0;
   if (ground.plane.valid && ground.plane.distance_b > 0) {
     sigma = std::max(sigma, ground.plane.distance_sigma / ground.plane.distance_b);
   }

@@ -28,7 +28,7 @@ expect sim-bad-lighting 1 "^retrace: error: --lighting: unknown lighting 'sunset
 expect sim-bad-route 1 "^retrace: error: --route: unknown route 'spiral'" -- \
   "$bin" sim render --out "$tmp/bad" --route spiral
 # sim drive (closed loop): bad options, a missing map, a map whose key-images do not fit the scenario's camera.
-expect sim-drive-bad-speed 1 '^retrace: error: sim drive options: speed must be in \(0, 50\] m/s, got 0$' -- \
+expect sim-drive-bad-speed 1 '^retrace: error: sim drive options: tracking: max_speed must be in \(0, 50\] m/s, got 0$' -- \
   "$bin" sim drive --map "$tmp/none.db" --out "$tmp/drive" --speed 0
 expect sim-drive-missing-map 1 '^retrace: error: .*none.db' -- "$bin" sim drive --map "$tmp/none.db" --out "$tmp/drive"
 if [[ -f $tmp/repeat_route.db ]]; then
