@@ -45,7 +45,7 @@ def test_localizer_gives_the_states_and_arcs_of_repeat(drives):
 
 
 def test_localizer_takes_numpy_images_gray_or_bgr(drives):
-    rows = read_csv(drives.run)[:25]
+    rows = read_csv(drives.run)[:20]
     frames = [f for _, f in zip(range(len(rows)), retrace.Sequence(drives.repeat))]
     gray = retrace.Localizer(retrace.Map(drives.map, load_images=False))
     bgr = retrace.Localizer(str(drives.map), camera=retrace.Camera.read(drives.repeat / "camera.yaml"))
