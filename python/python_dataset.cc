@@ -57,18 +57,17 @@ void BindSequence(py::module_& module) {
            "Opens the sequence at `path`; every=k, offset=o keeps frames o, o + k, o + 2k, ... (as --every, "
            "--offset).")
       .def("__len__", &Sequence::size, "Frames the sequence lists (0 when unknown, e.g. some videos).")
-      .def("__iter__",
-           [](Sequence& sequence) -> Sequence& {
-             sequence.Rewind();
-             return sequence;
-           })
+      .def(
+          "__iter__",
+          [](Sequence& sequence) -> Sequence& {
+            sequence.Rewind();
+            return sequence;
+          },
+          "Iterates over the frames from the first one.")
       .def("__next__",
            [](Sequence& sequence) {
-             std::optional<Frame> frame;
-             {
-               py::gil_scoped_release release;
-               frame = sequence.Next();
-             }
+             // The GIL stays held while a frame is read: one reader at a time (a Sequence is not thread-safe).
+             std::optional<Frame> frame = sequence.Next();
              if (!frame) throw py::stop_iteration();
              return *frame;
            })

@@ -160,10 +160,10 @@ void BindMap(py::module_& module) {
                         "Relative scale at a node between the geometries of the arc ending there (arc_in) and the\n"
                         "arc starting there (arc_out): a length in units of arc_out times `scale` is in units of "
                         "arc_in.")
-      .def_readonly("node", &NodeScale::node)
-      .def_readonly("arc_in", &NodeScale::arc_in)
-      .def_readonly("arc_out", &NodeScale::arc_out)
-      .def_readonly("scale", &NodeScale::scale)
+      .def_readonly("node", &NodeScale::node, "The node where the two arcs meet.")
+      .def_readonly("arc_in", &NodeScale::arc_in, "The arc ending at the node.")
+      .def_readonly("arc_out", &NodeScale::arc_out, "The arc starting at the node.")
+      .def_readonly("scale", &NodeScale::scale, "Length in units of arc_in per unit of arc_out.")
       .def("__repr__", [](const NodeScale& s) {
         return fmt::format("<retrace.Scale at node {}: arc {} -> arc {}, {:.4f}>", s.node, s.arc_in, s.arc_out,
                            s.scale);

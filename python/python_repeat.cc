@@ -207,7 +207,8 @@ void BindLocalizer(py::module_& module) {
                        double min_confidence, int max_cached_key_images, int retrieval_shortlist, bool absolute_pose,
                        bool redefine_references) {
              // A retrace.Map is localized in through its file: the Localizer reads the settings teach stored there.
-             const py::object path = py::hasattr(map, "path") && !py::isinstance<py::str>(map) ? map.attr("path") : map;
+             const py::object map_type = py::module_::import("retrace").attr("Map");
+             const py::object path = py::isinstance(map, map_type) ? map.attr("path") : map;
              LocalizerOptions options;
              options.max_residual = max_residual;
              options.max_sigma_p_px = max_sigma_p;

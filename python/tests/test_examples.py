@@ -22,9 +22,16 @@ def run_example(name, *args):
 
 
 def test_localize_sequence_example(drives, tmp_path):
+    # A folder of the repeat drive's first 30 images: the start of the command line's run (frames are localized
+    # one after the other, whatever follows them).
+    folder = tmp_path / "images"
+    folder.mkdir()
+    for image in sorted((drives.repeat / "image_0").glob("*.png"))[:30]:
+        (folder / image.name).symlink_to(image)
     plot = tmp_path / "localization.png"
-    output = run_example("localize_sequence.py", drives.map, drives.repeat, plot)
-    rows = read_csv(drives.run)
+    output = run_example("localize_sequence.py", drives.map, folder, plot)
+    rows = read_csv(drives.run)[:30]
+    assert {row["state"] for row in rows} == {"tracking", "lost", "relocalizing"}
     tracking = sum(row["state"] == "tracking" for row in rows)
     assert f"{len(rows)} frames: {tracking} tracking, {len(rows) - tracking} lost or relocalizing" in output
     assert matplotlib.image.imread(plot).shape[:2] == (500, 900)
