@@ -24,7 +24,8 @@ std::optional<cv::Size> SizeFromTuple(const std::optional<std::pair<int, int>>& 
 // Points as an (N, dims) array of doubles from anything numpy reads as (N, dims) or (dims,).
 py::array_t<double> PointsArray(const py::handle& object, int dims, const char* what) {
   auto points = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(object);
-  if (!points || !((points.ndim() == 2 && points.shape(1) == dims) || (points.ndim() == 1 && points.shape(0) == dims))) {
+  if (!points ||
+      !((points.ndim() == 2 && points.shape(1) == dims) || (points.ndim() == 1 && points.shape(0) == dims))) {
     throw py::value_error(std::string(what) + ": expected an array of shape (N, " + std::to_string(dims) + ") or (" +
                           std::to_string(dims) + ",)");
   }
@@ -45,7 +46,8 @@ void BindCamera(py::module_& module) {
       .def_static(
           "read",
           [](const py::object& path, std::optional<std::pair<int, int>> image_size) {
-            return std::shared_ptr<CameraModel>(ReadCameraFile(PathFromObject(path, "path"), SizeFromTuple(image_size)));
+            return std::shared_ptr<CameraModel>(
+                ReadCameraFile(PathFromObject(path, "path"), SizeFromTuple(image_size)));
           },
           py::arg("path"), py::arg("image_size") = py::none(),
           "Reads a calibration file, recognised by its content (the readers of `retrace ... --camera`).\n"
@@ -76,7 +78,8 @@ void BindCamera(py::module_& module) {
           [](const CameraModel& self, const py::object& points_in_cam) {
             const auto points = PointsArray(points_in_cam, 3, "points_in_cam");
             const py::ssize_t n = points.size() / 3;
-            py::array_t<double> pixels(points.ndim() == 1 ? std::vector<py::ssize_t>{2} : std::vector<py::ssize_t>{n, 2});
+            py::array_t<double> pixels(points.ndim() == 1 ? std::vector<py::ssize_t>{2}
+                                                          : std::vector<py::ssize_t>{n, 2});
             const double* in = points.data();
             double* out = pixels.mutable_data();
             for (py::ssize_t i = 0; i < n; ++i) {
@@ -111,7 +114,8 @@ void BindCamera(py::module_& module) {
           "to_yaml", [](const CameraModel& self) { return CameraToYaml(self); },
           "The calibration as retrace writes it (ROS camera_info YAML, plus camera_model and xi when needed).")
       .def(
-          "write", [](const CameraModel& self, const py::object& path) { WriteCameraFile(self, PathFromObject(path, "path")); },
+          "write",
+          [](const CameraModel& self, const py::object& path) { WriteCameraFile(self, PathFromObject(path, "path")); },
           py::arg("path"), "Writes the calibration as to_yaml() gives it.")
       .def("__repr__", [](const CameraModel& self) {
         return "<retrace.Camera " + self.model_name() + " " + std::to_string(self.width()) + "x" +

@@ -95,8 +95,8 @@ void BindMap(py::module_& module) {
       .def_property_readonly(
           "num_features", [](const MapNode& node) { return node.features.size(); }, "Features seen in the key-image.")
       .def("__repr__", [](const MapNode& node) {
-        return fmt::format("<retrace.Node {}: frame {} ({}), {} features>", node.id, node.source_frame,
-                           node.image_name, node.features.size());
+        return fmt::format("<retrace.Node {}: frame {} ({}), {} features>", node.id, node.source_frame, node.image_name,
+                           node.features.size());
       });
 
   py::class_<MapArc>(module, "Arc",
@@ -152,8 +152,8 @@ void BindMap(py::module_& module) {
           "to_from_from", [](const MapArc& arc) { return MatrixFromRigid(arc.to_from_from); },
           "The motion as a 4x4 matrix [R t; 0 1] mapping node_from's camera frame to node_to's.")
       .def("__repr__", [](const MapArc& arc) {
-        return fmt::format("<retrace.Arc {}: {} -> {}, {}, {} features, sigma_p {:.3f} px>", arc.id, arc.from,
-                           arc.to, arc.kind, arc.points.size(), arc.sigma_p);
+        return fmt::format("<retrace.Arc {}: {} -> {}, {}, {} features, sigma_p {:.3f} px>", arc.id, arc.from, arc.to,
+                           arc.kind, arc.points.size(), arc.sigma_p);
       });
 
   py::class_<NodeScale>(module, "Scale",
@@ -183,7 +183,8 @@ void BindMap(py::module_& module) {
       .def_property_readonly(
           "path", [](const OpenedMap& m) { return m.path.string(); }, "The map file.")
       .def_property_readonly(
-          "nodes", [](const py::object& self) { return ReferenceList(self.cast<const OpenedMap&>().map.nodes(), self); },
+          "nodes",
+          [](const py::object& self) { return ReferenceList(self.cast<const OpenedMap&>().map.nodes(), self); },
           "The nodes (key-images) in the order teach added them.")
       .def_property_readonly(
           "arcs", [](const py::object& self) { return ReferenceList(self.cast<const OpenedMap&>().map.arcs(), self); },

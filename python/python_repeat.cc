@@ -44,14 +44,14 @@ class PythonLocalizer {
                                       ? CameraProjectionDifferencePx(*map_camera, *camera_)
                                       : std::numeric_limits<double>::infinity();
         if (!(difference <= kSameCameraPx) || camera_->model_name() != map_camera->model_name()) {
-          throw InputError("camera", fmt::format("differs from the map's camera ({} at the map's {} px width): {} "
-                                                 "{}x{} {} vs the map's {} {}x{} {}; omit camera to use the map's",
-                                                 std::isfinite(difference) ? fmt::format("{:.1f} px apart", difference)
-                                                                           : "another image or rays not imaged",
-                                                 key_width, camera_->model_name(), camera_->width(), camera_->height(),
-                                                 DescribeCameraIntrinsics(*camera_), map_camera->model_name(),
-                                                 map_camera->width(), map_camera->height(),
-                                                 DescribeCameraIntrinsics(*map_camera)));
+          throw InputError(
+              "camera", fmt::format("differs from the map's camera ({} at the map's {} px width): {} "
+                                    "{}x{} {} vs the map's {} {}x{} {}; omit camera to use the map's",
+                                    std::isfinite(difference) ? fmt::format("{:.1f} px apart", difference)
+                                                              : "another image or rays not imaged",
+                                    key_width, camera_->model_name(), camera_->width(), camera_->height(),
+                                    DescribeCameraIntrinsics(*camera_), map_camera->model_name(), map_camera->width(),
+                                    map_camera->height(), DescribeCameraIntrinsics(*map_camera)));
         }
       }
     } else {
@@ -89,7 +89,9 @@ class PythonLocalizer {
   std::mutex mutex_;  // one frame at a time (the GIL is released while a frame is processed)
 };
 
-std::optional<double> Finite(double value) { return std::isfinite(value) ? std::optional<double>(value) : std::nullopt; }
+std::optional<double> Finite(double value) {
+  return std::isfinite(value) ? std::optional<double>(value) : std::nullopt;
+}
 
 const char* RoleName(ArcRole role) {
   switch (role) {
@@ -117,8 +119,7 @@ void BindLocalizer(py::module_& module) {
           "state", [](const FrameResult& r) { return std::string(LocalizerStateName(r.state)); },
           "'tracking', 'lost' or 'relocalizing'.")
       .def_property_readonly(
-          "tracking", [](const FrameResult& r) { return r.state == LocalizerState::kTracking; },
-          "state == 'tracking'.")
+          "tracking", [](const FrameResult& r) { return r.state == LocalizerState::kTracking; }, "state == 'tracking'.")
       .def_readonly("arc", &FrameResult::arc, "The current arc's id; -1 unless tracking.")
       .def_readonly("node_from", &FrameResult::node_from, "Its first key-image (node id); -1 unless tracking.")
       .def_readonly("node_to", &FrameResult::node_to, "Its second key-image (node id); -1 unless tracking.")
@@ -129,7 +130,9 @@ void BindLocalizer(py::module_& module) {
       .def_readonly("evidence", &FrameResult::evidence, "Whether this frame gave the belief a placement it accepts.")
       .def_property_readonly(
           "position_on_arc",
-          [](const FrameResult& r) { return r.position_valid ? std::optional<double>(r.position_on_arc) : std::nullopt; },
+          [](const FrameResult& r) {
+            return r.position_valid ? std::optional<double>(r.position_on_arc) : std::nullopt;
+          },
           "The belief's position along the arc (0 at node_from, 1 at node_to), or None when unknown.")
       .def_readonly("position_sigma", &FrameResult::position_sigma,
                     "Spread of the belief's position on the arc, arc lengths.")
@@ -142,8 +145,7 @@ void BindLocalizer(py::module_& module) {
           "tracked_previous", [](const FrameResult& r) { return r.tracked_by_role[0]; },
           "... of them features of the previous arc.")
       .def_property_readonly(
-          "tracked_current", [](const FrameResult& r) { return r.tracked_by_role[1]; },
-          "... of the current arc.")
+          "tracked_current", [](const FrameResult& r) { return r.tracked_by_role[1]; }, "... of the current arc.")
       .def_property_readonly(
           "tracked_next", [](const FrameResult& r) { return r.tracked_by_role[2]; }, "... of the next arc.")
       .def_readonly("resumed", &FrameResult::resumed, "Features (re)started by prediction or bootstrap.")

@@ -111,10 +111,11 @@ Rigid3d RigidFromMatrix(const py::handle& object) {
 }  // namespace
 
 void BindSimulator(py::module_& module) {
-  py::class_<PythonSimFrame>(module, "SimFrame",
-                             "A frame rendered by the simulator with its ground truth. Poses are world_from_cam in the\n"
-                             "simulator's world frame (a level camera on the ground at the route's start: x right, y\n"
-                             "down, z forward), as `retrace sim render` writes them to poses.txt.")
+  py::class_<PythonSimFrame>(
+      module, "SimFrame",
+      "A frame rendered by the simulator with its ground truth. Poses are world_from_cam in the\n"
+      "simulator's world frame (a level camera on the ground at the route's start: x right, y\n"
+      "down, z forward), as `retrace sim render` writes them to poses.txt.")
       .def_readonly("index", &PythonSimFrame::index, "Frame number, from 0.")
       .def_property_readonly(
           "image", [](const PythonSimFrame& f) { return ArrayFromImage(f.frame.image); },
@@ -129,8 +130,8 @@ void BindSimulator(py::module_& module) {
       .def_property_readonly(
           "speed", [](const PythonSimFrame& f) { return f.frame.vehicle.speed; }, "The car's speed, m/s.")
       .def("__repr__", [](const PythonSimFrame& f) {
-        return fmt::format("<retrace.SimFrame {}: t = {:.2f} s, {:.1f} m along the route>", f.index,
-                           f.frame.timestamp, f.frame.progress);
+        return fmt::format("<retrace.SimFrame {}: t = {:.2f} s, {:.1f} m along the route>", f.index, f.frame.timestamp,
+                           f.frame.progress);
       });
 
   py::class_<PythonSimulator>(
@@ -211,7 +212,8 @@ void BindSimulator(py::module_& module) {
           py::arg("world_from_cam"), py::arg("time") = 0.0, py::arg("noise_seed") = 0,
           "Renders the world at `time` (seconds) from any camera pose world_from_cam (4x4 or 3x4).")
       .def_property_readonly(
-          "camera", [](const PythonSimulator& s) { return std::shared_ptr<CameraModel>(s.simulator().camera().Clone()); },
+          "camera",
+          [](const PythonSimulator& s) { return std::shared_ptr<CameraModel>(s.simulator().camera().Clone()); },
           "The camera of the rendered frames (retrace.Camera).")
       .def_property_readonly(
           "expected_frames", [](const PythonSimulator& s) { return s.simulator().ExpectedFrames(); },

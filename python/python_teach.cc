@@ -165,8 +165,8 @@ void BindTeacher(py::module_& module) {
                                                     options, storage, method);
            }),
            py::arg("path"), py::arg("camera"), py::kw_only(), py::arg("width") = 0, py::arg("source") = py::none(),
-           py::arg("overwrite") = false, py::arg("method") = "tracking",
-           py::arg("r_p") = TeachOptions().max_sigma_p_px, py::arg("min_features") = TeachOptions().min_features,
+           py::arg("overwrite") = false, py::arg("method") = "tracking", py::arg("r_p") = TeachOptions().max_sigma_p_px,
+           py::arg("min_features") = TeachOptions().min_features,
            py::arg("min_features_fraction") = TeachOptions().min_features_fraction,
            py::arg("max_residual") = TeachOptions().max_residual, py::arg("max_corners") = TeachOptions().max_corners,
            py::arg("matching_interval") = TeachOptions().matching_interval, py::arg("loop_closing") = true,

@@ -44,9 +44,10 @@ cv::Mat GrayImageFromArray(const py::handle& object, const std::string& what) {
   const bool gray = array.ndim() == 2;
   const bool colour = array.ndim() == 3 && (array.shape(2) == 1 || array.shape(2) == 3 || array.shape(2) == 4);
   if (!(gray || colour) || array.size() == 0) {
-    throw py::value_error(fmt::format("{}: expected a non-empty gray image (H, W) or a BGR image (H, W, 3), got "
-                                      "shape {}",
-                                      what, shape()));
+    throw py::value_error(
+        fmt::format("{}: expected a non-empty gray image (H, W) or a BGR image (H, W, 3), got "
+                    "shape {}",
+                    what, shape()));
   }
   // A C-contiguous view (a copy when the array is strided, e.g. a crop), wrapped without copying, then converted.
   const auto contiguous = py::array_t<uint8_t, py::array::c_style>::ensure(array);

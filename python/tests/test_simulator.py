@@ -41,7 +41,8 @@ def test_simulator_records_like_sim_render(drives, tmp_path):
     theirs = [f for _, f in zip(range(5), retrace.Sequence(drives.teach))]
     for a, b in zip(ours, theirs):
         np.testing.assert_array_equal(a.image, b.image)
-    np.testing.assert_array_equal(read_poses(tmp_path / "drive" / "poses.txt"), read_poses(drives.teach / "poses.txt")[:5])
+    np.testing.assert_array_equal(read_poses(tmp_path / "drive" / "poses.txt"),
+                                  read_poses(drives.teach / "poses.txt")[:5])
 
 
 def test_simulator_renders_any_pose():
