@@ -53,7 +53,9 @@ def test_localizer_takes_numpy_images_gray_or_bgr(drives):
     for frame, row in zip(frames, rows):
         image = frame.image
         assert_same_as_run_csv(gray.process(image), row)  # frames numbered 0, 1, ... as in run.csv
-        colour = np.ascontiguousarray(np.stack([image] * 3, axis=-1))
+        # BGR with the gray value in every channel, as a strided view of a BGRA array (copied where needed).
+        colour = np.repeat(image[:, :, None], 4, axis=2)[:, :, :3]
+        assert not colour.flags.c_contiguous
         assert_same_as_run_csv(bgr.process(colour), row)
 
 
