@@ -2,6 +2,8 @@
 // `retrace repeat` feeds the frames of a sequence.
 
 #include <cmath>
+#include <filesystem>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>

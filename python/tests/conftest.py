@@ -24,7 +24,7 @@ except ImportError:
 
 # The drives: a short stretch of one seeded town at 320x240. The repeat drive runs 3 m to the side of the taught
 # one under another sun, so that it has tracking, lost and relocalizing frames to compare.
-FRAMES = 80
+FRAMES = 60
 SIZE = ["--width", "320", "--height", "240"]
 SEED = ["--seed", "3"]
 
