@@ -6,6 +6,9 @@
 #include <string>
 
 #include <fmt/format.h>
+#include <opencv2/core.hpp>
+
+#include "retrace/repeat/evaluation.h"
 
 namespace retrace {
 
@@ -19,9 +22,12 @@ bool ClosedLoopOptions::Check(std::string* error) const {
   if (!(frame_period > 0 && frame_period <= 10)) {
     return fail(fmt::format("frame_period must be in (0, 10] s, got {}", frame_period));
   }
-  if (!(std::abs(steering_gain) <= 100)) {
-    return fail(fmt::format("steering_gain must be in [-100, 100], got {}", steering_gain));
+  std::string tracking_error;
+  if (!tracking.Check(&tracking_error)) return fail("tracking: " + tracking_error);
+  if (blackout_start < 0 || blackout_frames < 0) {
+    return fail(fmt::format("blackout frames must be >= 0, got start {} and count {}", blackout_start, blackout_frames));
   }
+  if (max_stopped_frames < 1) return fail(fmt::format("max_stopped_frames must be >= 1, got {}", max_stopped_frames));
   if (!(max_frames >= 1 && max_frames <= 1000000)) {
     return fail(fmt::format("max_frames must be in 1..1000000, got {}", max_frames));
   }
@@ -41,6 +47,23 @@ double ClosedLoopSummary::MedianDeviation() const {
 double ClosedLoopSummary::MaxDeviation() const {
   if (deviations.empty()) return std::numeric_limits<double>::quiet_NaN();
   return *std::max_element(deviations.begin(), deviations.end());
+}
+
+PathTrackingFigures ClosedLoopSummary::Figures(double skip_m) const {
+  PathTrackingFigures figures;
+  std::vector<double> kept;
+  for (size_t i = 0; i < deviations.size() && i < driven.size(); ++i) {
+    if (driven[i] >= skip_m) kept.push_back(deviations[i]);
+  }
+  if (kept.empty()) return figures;
+  figures.frames = static_cast<int>(kept.size());
+  double squares = 0.0;
+  for (double d : kept) squares += d * d;
+  figures.rms = std::sqrt(squares / kept.size());
+  std::sort(kept.begin(), kept.end());
+  figures.p95 = kept[std::min(kept.size() - 1, static_cast<size_t>(0.95 * kept.size()))];
+  figures.max = kept.back();
+  return figures;
 }
 
 double DistanceToPath(const Vector3d& position, const std::vector<TimedPose>& taught, double* along) {
@@ -72,25 +95,61 @@ ClosedLoopSummary DriveClosedLoop(Simulator* simulator, Localizer* localizer, co
     if (map.ArcsFrom(arc.to).empty()) last_arcs.push_back(arc.id);
   }
 
+  PathTrackingOptions tracking = options.tracking;
+  tracking.max_speed = options.speed;
+  PathTracker tracker(tracking);
+  const double wheelbase = simulator->scenario().vehicle.wheelbase;
+
   ClosedLoopSummary summary;
-  SimFrame view = simulator->Step(0.0, options.speed, 0.0);
+  int stopped_in_a_row = 0;
+  double driven = 0.0;
+  SimFrame view = simulator->Step(0.0, 0.0, 0.0);
+  Vector3d last_position = view.world_from_cam.translation;
   for (int i = 0; i < options.max_frames; ++i) {
     Frame frame;
     frame.index = frame.source_index = static_cast<size_t>(i);
     frame.timestamp = view.timestamp;
     frame.image = view.image;
+    if (i >= options.blackout_start && i < options.blackout_start + options.blackout_frames) {
+      frame.image = cv::Mat::zeros(view.image.size(), view.image.type());
+    }
     const FrameResult result = localizer->ProcessFrame(frame);
     ++summary.frames;
+    driven += (view.world_from_cam.translation - last_position).norm();
+    last_position = view.world_from_cam.translation;
     summary.tracking += result.state == LocalizerState::kTracking;
+
+    PathTrackingInput input;
+    input.tracking = result.state == LocalizerState::kTracking;
+    input.confidence = result.confidence;
+    input.metric = result.path.valid;
+    input.lateral_m = result.path.lateral_m;
+    input.heading_error_rad = result.path.heading_error_rad;
+    input.curvature_ahead = result.path.valid ? result.path.curvature_ahead : 0.0;
+    input.image_steering_valid = result.steering_valid;
+    input.image_steering = result.steering;
+    input.dt = options.frame_period;
 
     ClosedLoopStep step;
     step.view = &view;
     step.result = &result;
-    step.wheels = result.steering_valid ? -options.steering_gain * result.steering : 0.0;
+    step.command = tracker.Update(input, options.control == ClosedLoopControl::kImage);
+    step.wheels = std::atan(wheelbase * step.command.curvature);
+    summary.path_frames += step.command.mode == SteeringMode::kPath;
+    summary.stopped_frames += step.command.speed <= 0;
+    stopped_in_a_row = step.command.speed <= 0 ? stopped_in_a_row + 1 : 0;
     bool past_end = false;
     if (taught.size() >= 2) {
       step.deviation = DistanceToPath(view.world_from_cam.translation, taught, &step.along);
+      const PathTruth truth = TruthAgainstTaughtPath(view.world_from_cam, taught,
+                                                     static_cast<size_t>(std::max(0.0, std::floor(step.along) - 2)),
+                                                     static_cast<size_t>(step.along) + 3);
+      if (truth.valid) {
+        step.true_lateral = truth.lateral_m;
+        step.true_heading_error = truth.heading_error_rad;
+      }
       summary.deviations.push_back(step.deviation);
+      summary.driven.push_back(driven);
       past_end = step.along >= static_cast<double>(taught.size()) - 1.5;
       summary.left_path = step.deviation > options.max_deviation;
     } else {
@@ -105,7 +164,9 @@ ClosedLoopSummary DriveClosedLoop(Simulator* simulator, Localizer* localizer, co
     if (summary.left_path) break;
     summary.left_route = simulator->OffRoute();
     if (summary.left_route) break;
-    view = simulator->Step(step.wheels, options.speed, options.frame_period);
+    summary.stalled = stopped_in_a_row >= options.max_stopped_frames;
+    if (summary.stalled) break;
+    view = simulator->Step(step.wheels, step.command.speed, options.frame_period);
   }
   return summary;
 }

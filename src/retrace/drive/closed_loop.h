@@ -1,10 +1,13 @@
 #pragma once
 
-// Closed-loop teach and repeat in the simulator: the simulated car is steered by the repeat's command alone
-// (Segvic 2009, eq. (10)), frame by frame, as a robot would be. Every frame the simulator renders what the camera
-// sees, the Localizer places it in the taught map and returns w, and the front wheels are set to -gain * w (w > 0
-// means the features sit right of where the next key-image saw them; the simulator's steering is positive to the
-// left) for one frame period at a constant speed.
+// Closed-loop teach and repeat in the simulator: the simulated car is steered by retrace alone, frame by frame, as a
+// robot would be. Every frame the simulator renders what the camera sees, the Localizer places it in the taught map,
+// and the path tracker (control/path_tracking.h) turns its result into a curvature and a speed: by default the
+// camera-point law on the metric offset from the taught path (FrameResult::path; the Localizer needs the camera's
+// height), else — and with `control = kImage` always — Segvic 2009 eq. (10) on the image (w > 0 means the features
+// sit right of where the next key-image saw them: turn right). The front wheels are set to atan(L κ) (L the
+// scenario's wheelbase; the simulator's steering is positive to the left) for one frame period. The car stops when
+// the localizer is not tracking and drives on when it tracks again.
 //
 // Ground truth comes from the simulator: with the taught drive's camera poses, each frame is scored by its distance
 // from the taught camera path on the ground plane.
@@ -13,19 +16,32 @@
 #include <limits>
 #include <vector>
 
+#include "retrace/control/path_tracking.h"
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/repeat/localizer.h"
 #include "retrace/sim/simulator.h"
 
 namespace retrace {
 
+enum class ClosedLoopControl { kPath, kImage };
+
 struct ClosedLoopOptions {
-  // Constant speed of the car (m/s). The built-in scenario teaches at up to 8 m/s and slows in its turns.
-  double speed = 6.0;
-  // Time between frames (seconds): the car drives this long with one steering command.
+  // Steering law: the camera-point law on the metric offset (falling back to eq. (10) where there is none), or
+  // eq. (10) alone, for comparison.
+  ClosedLoopControl control = ClosedLoopControl::kPath;
+  // Top speed of the car (m/s; the path tracker slows down in turns and when unsure, and stops when lost). The
+  // built-in scenario teaches at up to 8 m/s and slows in its turns.
+  double speed = 8.0;
+  // Time between frames (seconds): the car drives this long with one command.
   double frame_period = 0.1;
-  // The front wheels are set to -steering_gain * w; the gain k of eq. (10) is the Localizer's own.
-  double steering_gain = 1.0;
+  // The path tracker (its max_speed is `speed`; its camera_forward should be the vehicle's).
+  PathTrackingOptions tracking;
+  // A covered lens: frames [blackout_start, blackout_start + blackout_frames) are replaced by a black image (the
+  // car must stop and resume; 0 frames = none).
+  int blackout_start = 0;
+  int blackout_frames = 0;
+  // The drive gives up after this many frames in a row standing still.
+  int max_stopped_frames = 50;
   // The drive stops after this many frames ...
   int max_frames = 2000;
   // ... or when the car is farther than this (metres) from the taught path (needs the taught poses).
@@ -39,10 +55,23 @@ struct ClosedLoopStep {
   const SimFrame* view = nullptr;    // what the camera saw and where it was (ground truth)
   const FrameResult* result = nullptr;
   double wheels = 0.0;               // steering applied after this frame (radians, positive left)
+  PathTrackingCommand command;       // the path tracker's command after this frame
+  // The true lateral offset (positive right) and heading error against the taught path; NaN without taught poses.
+  double true_lateral = std::numeric_limits<double>::quiet_NaN();
+  double true_heading_error = std::numeric_limits<double>::quiet_NaN();
   // Distance (metres) on the ground plane from the taught camera path and the position along it (taught frames,
   // fractional); NaN without taught poses.
   double deviation = std::numeric_limits<double>::quiet_NaN();
   double along = std::numeric_limits<double>::quiet_NaN();
+};
+
+// Path-tracking figures of a drive: the camera's distance from the taught path over the frames after the first
+// `skip_m` metres driven.
+struct PathTrackingFigures {
+  int frames = 0;
+  double rms = std::numeric_limits<double>::quiet_NaN();
+  double p95 = std::numeric_limits<double>::quiet_NaN();
+  double max = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct ClosedLoopSummary {
@@ -52,9 +81,14 @@ struct ClosedLoopSummary {
   bool left_path = false;    // stopped farther than max_deviation from the taught path
   bool left_route = false;   // stopped where the simulated world ends (Simulator::OffRoute: past the scenario
                              // route's end or far off it), e.g. lost without taught poses to measure the deviation
+  bool stalled = false;      // stood still for max_stopped_frames frames (lost and not relocalized)
+  int stopped_frames = 0;    // frames with a zero speed command
+  int path_frames = 0;       // frames steered by the metric law
   std::vector<double> deviations;  // per frame, when taught poses were given
+  std::vector<double> driven;      // per frame, metres the camera has driven
 
   double MedianDeviation() const;
+  PathTrackingFigures Figures(double skip_m) const;
   double MaxDeviation() const;
 };
 

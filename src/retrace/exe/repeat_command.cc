@@ -4,14 +4,19 @@
 //   frame,image,timestamp,state,arc,node_from,node_to,tracked,tracked_previous,tracked_current,tracked_next,
 //   resumed,rejected,dropped,drifted,redefined,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,steering,ms,
 //   position_via_from,position_via_to,position_via_pose,sigma_p_pose,pose_inliers,key_images_matched,confidence,
-//   evidence,belief_arc
+//   evidence,belief_arc,lateral_m,lateral_sigma_m,heading_error_rad,along_m,to_next_m,curvature_ahead
 // frame = 0-based index in the input sequence (after --every/--offset), state = tracking | lost | relocalizing,
 // node ids and arc -1 when not tracking, σ_p columns -1 when not estimated, ms = processing time of the frame,
 // position_on_arc the belief's position along the arc (0 at node_from, 1 at node_to), the position_via_* columns
 // this frame's placements (W_t:a, W_t:b, the absolute pose in the arc's reconstruction; empty when that estimate
 // gave none), key_images_matched the key-images verified by wide-baseline matching in a bootstrap or relocalization
 // frame (0 otherwise), confidence the belief's probability that the camera is on the reported arc (in lost frames:
-// on the arc it finds most likely, belief_arc), evidence 1 when this frame gave the belief a placement it accepts.
+// on the arc it finds most likely, belief_arc), evidence 1 when this frame gave the belief a placement it accepts;
+// the last six (repeat/taught_path.h; empty unless the camera's height is known and the frame's absolute pose is
+// usable): the camera's signed distance from the taught path in metres (positive to the right in the direction of
+// travel) and its standard deviation, the optical axis against the path's tangent (radians, positive to the right),
+// the distance along the path from node_from and left to node_to (m), the sharpest curvature ahead (1/m, positive
+// to the left).
 
 #include <algorithm>
 #include <chrono>
@@ -312,7 +317,8 @@ void RunRepeat(const RepeatArguments& args) {
   csv << "frame,image,timestamp,state,arc,node_from,node_to,tracked,tracked_previous,tracked_current,tracked_next,"
          "resumed,rejected,dropped,drifted,redefined,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,"
          "steering,ms,position_via_from,position_via_to,position_via_pose,sigma_p_pose,pose_inliers,"
-         "key_images_matched,confidence,evidence,belief_arc\n";
+         "key_images_matched,confidence,evidence,belief_arc,lateral_m,lateral_sigma_m,heading_error_rad,along_m,"
+         "to_next_m,curvature_ahead\n";
   csv.flush();
   if (!args.overlay.empty()) std::filesystem::create_directories(args.overlay);
 
@@ -334,9 +340,15 @@ void RunRepeat(const RepeatArguments& args) {
                          r.tracked_by_role[2], r.resumed, r.rejected, r.dropped, r.drifted, r.redefined, r.sigma_p,
                          r.sigma_p_from, r.sigma_p_to, r.position_valid ? r.position_on_arc : 0.0, r.transition,
                          r.steering_valid ? r.steering : 0.0, 1000.0 * r.seconds)
-          << fmt::format(",{},{},{},{:.3f},{},{},{:.5f},{},{}\n", OptionalNumber(r.position_via_from),
+          << fmt::format(",{},{},{},{:.3f},{},{},{:.5f},{},{}", OptionalNumber(r.position_via_from),
                          OptionalNumber(r.position_via_to), OptionalNumber(r.position_via_pose), r.sigma_p_pose,
                          r.pose_inliers, r.key_images_matched, r.confidence, r.evidence ? 1 : 0, r.belief_arc);
+      if (r.path.valid) {
+        csv << fmt::format(",{:.4f},{:.4f},{:.5f},{:.3f},{:.3f},{:.5f}\n", r.path.lateral_m, r.path.lateral_sigma_m,
+                           r.path.heading_error_rad, r.path.along_m, r.path.to_next_m, r.path.curvature_ahead);
+      } else {
+        csv << ",,,,,,\n";
+      }
       csv.flush();
       if (!csv) throw InputError(args.output.string(), "write failed");
       if (!args.overlay.empty()) {
@@ -394,20 +406,53 @@ void RunRepeat(const RepeatArguments& args) {
     if (!key_truth_file || key_truth_file->filename() != "poses.txt") {
       throw InputError(*source, "--evaluate needs KITTI ground-truth poses (poses.txt) of the teach sequence");
     }
-    const TopologicalEvaluation evaluation =
-        EvaluateTopological(map, ReadKittiPoses(*key_truth_file), ReadKittiPoses(*repeat_truth_file), records);
+    const std::vector<TimedPose> key_truth = ReadKittiPoses(*key_truth_file);
+    const std::vector<TimedPose> repeat_truth = ReadKittiPoses(*repeat_truth_file);
+    const TopologicalEvaluation evaluation = EvaluateTopological(map, key_truth, repeat_truth, records);
     std::cout << "topological ground truth: " << evaluation.Summary() << "\n";
     // Per frame, next to the run: which arc was true, which was reported (indices along the route).
     std::filesystem::path truth_path = args.output;
     truth_path.replace_extension(".truth.csv");
     std::ofstream truth(truth_path);
     truth << "frame,true_arc_index,tolerated_arc_index,estimated_arc_index,correct,lost,error,true_position_on_arc,"
-             "tolerated_after_arc_index\n";
+             "tolerated_after_arc_index,true_lateral_m,true_heading_error_rad\n";
+    // The metric path against the truth: the frame's true pose against the taught camera path around its arc.
+    std::vector<double> lateral_errors, heading_errors;
     for (size_t i = 0; i < results.size(); ++i) {
       const FrameTruth& t = evaluation.per_frame[i];
-      truth << fmt::format("{},{},{},{},{},{},{},{},{}\n", results[i].frame_index, t.true_arc_index,
+      PathTruth path_truth;
+      const FrameResult& r = results[i];
+      if (r.state == LocalizerState::kTracking && records[i].source_index < repeat_truth.size()) {
+        const MapArc* arc = map.FindArc(r.arc);
+        const auto previous = map.ArcsTo(arc->from);
+        const auto next = map.ArcsFrom(arc->to);
+        const node_t first = previous.empty() ? arc->from : previous.front()->from;
+        const node_t last = next.empty() ? arc->to : next.front()->to;
+        const int64_t first_frame = map.FindNode(first)->source_frame, last_frame = map.FindNode(last)->source_frame;
+        if (first_frame >= 0 && last_frame > first_frame) {
+          path_truth = TruthAgainstTaughtPath(repeat_truth[records[i].source_index].world_from_cam, key_truth,
+                                              static_cast<size_t>(first_frame), static_cast<size_t>(last_frame));
+        }
+      }
+      if (path_truth.valid && r.path.valid) {
+        lateral_errors.push_back(std::abs(r.path.lateral_m - path_truth.lateral_m));
+        heading_errors.push_back(std::abs(r.path.heading_error_rad - path_truth.heading_error_rad));
+      }
+      truth << fmt::format("{},{},{},{},{},{},{},{},{},{},{}\n", results[i].frame_index, t.true_arc_index,
                            t.tolerated_arc_index, t.estimated_arc_index, t.correct ? 1 : 0, t.lost ? 1 : 0, t.error,
-                           OptionalNumber(t.true_position_on_arc), t.tolerated_after_arc_index);
+                           OptionalNumber(t.true_position_on_arc), t.tolerated_after_arc_index,
+                           path_truth.valid ? OptionalNumber(path_truth.lateral_m) : "",
+                           path_truth.valid ? OptionalNumber(path_truth.heading_error_rad) : "");
+    }
+    if (!lateral_errors.empty()) {
+      const auto quantile = [](std::vector<double> v, double q) {
+        std::sort(v.begin(), v.end());
+        return v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
+      };
+      std::cout << fmt::format("metric path against ground truth: {} frames, |lateral_m error| median {:.3f} m, 95th "
+                               "percentile {:.3f} m; |heading error| median {:.2f} deg, 95th percentile {:.2f} deg\n",
+                               lateral_errors.size(), quantile(lateral_errors, 0.5), quantile(lateral_errors, 0.95),
+                               quantile(heading_errors, 0.5) * 180 / M_PI, quantile(heading_errors, 0.95) * 180 / M_PI);
     }
     if (!truth) throw InputError(truth_path.string(), "cannot be written");
     std::cout << "per-frame ground truth: " << truth_path.string() << "\n";
@@ -443,6 +488,10 @@ void RegisterRepeatCommand(CLI::App& app) {
   cmd->add_option("--max-bad-frames", args->options.max_bad_frames,
                   "Frames in a row without usable tracks before they are given up and the frame relocalized")
       ->capture_default_str();
+  cmd->add_option("--camera-height", args->options.path.camera_height,
+                  "Height of the camera above the ground (m) for the metric offset from the taught path (default: "
+                  "the one given to teach, stored in the map; without one the lateral_m columns stay empty)")
+      ->check(CLI::Range(0.0, 100.0));
   cmd->add_option("--min-confidence", args->options.belief.min_confidence,
                   "Belief confidence needed to report tracking (probability that the arc is right)")
       ->capture_default_str();

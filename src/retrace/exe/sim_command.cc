@@ -118,6 +118,9 @@ struct DriveArguments {
   int height = 0;
   int64_t seed = -1;
   bool quiet = false;
+  std::string control = "path";
+  double camera_height = -1;  // default: the scenario's vehicle
+  double camera_forward = -1;
   ClosedLoopOptions drive;
 };
 
@@ -129,12 +132,18 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   if (given("--height")) overrides.height = args.height;
   if (given("--seed")) overrides.seed = args.seed;
   const Scenario scenario = ReadScenarioWithOverrides(args.scenario, overrides);
+  // The robot's geometry, as a user would measure it: the simulated car's unless given.
+  ClosedLoopOptions drive = args.drive;
+  drive.control = args.control == "eq10" ? ClosedLoopControl::kImage : ClosedLoopControl::kPath;
+  drive.tracking.camera_forward = args.camera_forward > 0 ? args.camera_forward : scenario.vehicle.camera_forward;
   std::string error;
-  if (!args.drive.Check(&error)) throw InputError("sim drive options", error);
+  if (!drive.Check(&error)) throw InputError("sim drive options", error);
   const std::vector<TimedPose> taught =
       args.taught_poses.empty() ? std::vector<TimedPose>() : ReadKittiPoses(args.taught_poses);
 
-  MapForLocalizer loaded = LoadMapForLocalizer(args.map, LocalizerOptions());
+  LocalizerOptions base;
+  base.path.camera_height = args.camera_height > 0 ? args.camera_height : scenario.vehicle.camera_height;
+  MapForLocalizer loaded = LoadMapForLocalizer(args.map, base);
   Simulator simulator(ApplyVariant(scenario, ScenarioVariant::kRepeat));
   const CameraModel& camera = simulator.camera();
   const cv::Mat& key_image = loaded.map.nodes().front().image;
@@ -149,7 +158,8 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   const std::filesystem::path csv_path = std::filesystem::path(args.out) / "drive.csv";
   std::ofstream csv(csv_path);
   if (!csv) throw InputError(csv_path.string(), "cannot be written");
-  csv << "frame,timestamp,x,z,heading,state,arc,tracked,steering,wheels,deviation,along,ms\n";
+  csv << "frame,timestamp,x,z,heading,state,arc,tracked,steering,wheels,deviation,along,ms,mode,curvature,speed,"
+         "lateral_m,heading_error_rad,true_lateral_m,true_heading_error_rad\n";
   PlotSeries driven, lost, path;
   driven.label = "driven (tracking)";
   driven.style = PlotSeries::Style::kPoints;
@@ -170,15 +180,19 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   ClosedLoopSummary summary;
   {
     ProgressBar progress("drive", 0, !args.quiet);
-    summary = DriveClosedLoop(&simulator, &localizer, loaded.map, taught, args.drive, [&](const ClosedLoopStep& step) {
+    summary = DriveClosedLoop(&simulator, &localizer, loaded.map, taught, drive, [&](const ClosedLoopStep& step) {
       const FrameResult& r = *step.result;
       const Vector3d& c = step.view->world_from_cam.translation;
       const Vector3d forward = step.view->world_from_cam.rotation.col(2);
       const auto number = [](double v) { return std::isfinite(v) ? fmt::format("{:.3f}", v) : std::string(); };
-      csv << fmt::format("{},{:.3f},{:.3f},{:.3f},{:.4f},{},{},{},{:.5f},{:.5f},{},{},{:.2f}\n", r.frame_index,
+      csv << fmt::format("{},{:.3f},{:.3f},{:.3f},{:.4f},{},{},{},{:.5f},{:.5f},{},{},{:.2f}", r.frame_index,
                          step.view->timestamp, c.x(), c.z(), std::atan2(forward.x(), forward.z()),
                          LocalizerStateName(r.state), r.arc, r.tracked, r.steering_valid ? r.steering : 0.0,
-                         step.wheels, number(step.deviation), number(step.along), 1000.0 * r.seconds);
+                         step.wheels, number(step.deviation), number(step.along), 1000.0 * r.seconds)
+          << fmt::format(",{},{:.5f},{:.3f},{},{},{},{}\n", SteeringModeName(step.command.mode),
+                         step.command.curvature, step.command.speed, r.path.valid ? number(r.path.lateral_m) : "",
+                         r.path.valid ? number(r.path.heading_error_rad) : "", number(step.true_lateral),
+                         number(step.true_heading_error));
       PlotSeries& where = r.state == LocalizerState::kTracking ? driven : lost;
       where.x.push_back(c.x());
       where.y.push_back(c.z());
@@ -207,9 +221,12 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   if (!cv::imwrite(top_path.string(), RenderPlot(top_view, top))) {
     throw InputError(top_path.string(), "cannot be written");
   }
-  std::cout << fmt::format("drive: {} frames, {} tracking; {}\n", summary.frames, summary.tracking,
+  std::cout << fmt::format("drive ({}): {} frames, {} tracking, {} steered by the metric path, {} standing still; {}\n",
+                           args.control, summary.frames, summary.tracking, summary.path_frames,
+                           summary.stopped_frames,
                            summary.reached_end ? "reached the end of the taught route"
-                           : summary.left_path ? fmt::format("left the taught path (> {} m)", args.drive.max_deviation)
+                           : summary.stalled   ? "stood still too long (lost)"
+                           : summary.left_path ? fmt::format("left the taught path (> {} m)", drive.max_deviation)
                            : summary.left_route
                                ? fmt::format("left the simulated route (past its end or > {} m off it)",
                                              Simulator::kMaxDistanceFromRoute)
@@ -226,6 +243,12 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
     }
     std::cout << fmt::format("distance from the taught path: median {:.2f} m, max {:.2f} m\n",
                              summary.MedianDeviation(), summary.MaxDeviation());
+    const PathTrackingFigures figures = summary.Figures(10.0);
+    if (figures.frames > 0) {
+      std::cout << fmt::format("after the first 10 m: {} frames, lateral deviation RMS {:.3f} m, 95th percentile {:.3f} "
+                               "m, max {:.3f} m\n",
+                               figures.frames, figures.rms, figures.p95, figures.max);
+    }
   }
   std::cout << "wrote " << csv_path.string() << ", " << top_path.string()
             << (deviation.x.empty() ? "" : ", deviation.png") << "\n";
@@ -307,8 +330,26 @@ void RegisterSimCommand(CLI::App& app) {
   drive->add_option("--height", args->height,
                     "Image height, " + RangeOf("camera.height") + "; overrides the scenario");
   drive->add_option("--seed", args->seed, "Seed of the drive and the town; overrides the scenario");
-  drive->add_option("--speed", args->drive.speed, "Constant speed, (0, 50] m/s")->capture_default_str();
-  drive->add_option("--steering-gain", args->drive.steering_gain, "Front wheels = -gain * w of eq. (10), [-100, 100]")
+  drive->add_option("--control", args->control,
+                    "Steering law: path (the camera-point law on the metric offset from the taught path, eq. (10) "
+                    "where there is none) or eq10 (Segvic 2009 eq. (10) alone)")
+      ->check(CLI::IsMember({"path", "eq10"}))
+      ->capture_default_str();
+  drive->add_option("--speed", args->drive.speed, "Top speed, (0, 50] m/s (slower in turns, 0 when lost)")
+      ->capture_default_str();
+  drive->add_option("--camera-height", args->camera_height,
+                    "Camera height above the ground (m) for the metric path; default: the scenario's vehicle");
+  drive->add_option("--camera-forward", args->camera_forward,
+                    "Camera distance ahead of the rear axle (m); default: the scenario's vehicle");
+  drive->add_option("--approach-distance", args->drive.tracking.approach_distance,
+                    "Distance over which the path law closes a lateral offset (m)")
+      ->capture_default_str();
+  drive->add_option("--image-gain", args->drive.tracking.image_gain,
+                    "eq. (10) law: curvature = -gain * w (1/m), [-100, 100]")
+      ->capture_default_str();
+  drive->add_option("--blackout", args->drive.blackout_start, "First frame of a covered lens (with --blackout-frames)");
+  drive->add_option("--blackout-frames", args->drive.blackout_frames,
+                    "Frames replaced by a black image: the car must stop and resume")
       ->capture_default_str();
   drive->add_option("--max-frames", args->drive.max_frames,
                     "Stop after this many frames, 1..1000000 (the drive also stops where the simulated route "

@@ -34,6 +34,7 @@ struct TeachArguments {
   size_t offset = 0;
   bool overwrite = false;
   bool no_progress = false;
+  double camera_height = 0.0;  // metres above the ground, stored for repeat's metric path (0 = not given)
   TeachOptions options;
   MapDatabaseOptions storage;
 };
@@ -80,7 +81,7 @@ void RunTeach(const TeachArguments& args) {
   database->SetMetadata("frames_offset", std::to_string(args.offset));
   Teacher teacher(*camera, args.options, database);
   // The camera and what repeat must apply as teach did (teach_settings.h).
-  WriteTeachSettings(*camera, args.options, teacher, database);
+  WriteTeachSettings(*camera, args.options, teacher, database, args.camera_height);
 
   const auto start = std::chrono::steady_clock::now();
   double seconds_reading = 0.0;
@@ -168,6 +169,10 @@ void RegisterTeachCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--width", args->width, "Work on images resized to this width (default: native)")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--camera-height", args->camera_height,
+                  "Height of the camera above the ground (m), stored in the map: repeat then measures the camera's "
+                  "offset from the taught path in metres")
+      ->check(CLI::Range(0.0, 100.0));
   cmd->add_option("--every", args->every, "Use every k-th frame (e.g. 2 = even frames)")->check(CLI::PositiveNumber);
   cmd->add_option("--offset", args->offset, "First frame used with --every (1 = odd frames)");
   cmd->add_flag("--overwrite", args->overwrite,

@@ -372,4 +372,33 @@ TopologicalEvaluation EvaluateTopological(const Map& map, const std::vector<Time
   return evaluation;
 }
 
+PathTruth TruthAgainstTaughtPath(const Rigid3d& world_from_cam, const std::vector<TimedPose>& taught, size_t first,
+                                 size_t last) {
+  PathTruth truth;
+  last = std::min(last, taught.size() - 1);
+  if (taught.size() < 2 || first >= last) return truth;
+  const auto flat = [](const Vector3d& x) { return Vector2d(x.x(), x.z()); };
+  const Vector2d c = flat(world_from_cam.translation);
+  double best = std::numeric_limits<double>::infinity();
+  Vector2d tangent = Vector2d::UnitY();
+  for (size_t i = first; i < last; ++i) {
+    const Vector2d a = flat(taught[i].world_from_cam.translation);
+    const Vector2d ab = flat(taught[i + 1].world_from_cam.translation) - a;
+    if (!(ab.squaredNorm() > 0)) continue;
+    const double t = std::clamp((c - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+    const Vector2d offset = c - (a + t * ab);
+    if (offset.norm() < best) {
+      best = offset.norm();
+      tangent = ab.normalized();
+      truth.along_index = static_cast<double>(i) + t;
+      truth.lateral_m = offset.dot(Vector2d(tangent.y(), -tangent.x()));
+    }
+  }
+  if (!std::isfinite(best)) return truth;
+  const Vector2d look = flat(world_from_cam.rotation * Vector3d::UnitZ());
+  truth.heading_error_rad = std::atan2(tangent.y() * look.x() - tangent.x() * look.y(), tangent.dot(look));
+  truth.valid = look.norm() > 1e-9;
+  return truth;
+}
+
 }  // namespace retrace

@@ -157,4 +157,18 @@ TopologicalEvaluation EvaluateTopological(const Map& map, const std::vector<Time
                                           const std::vector<RepeatRecord>& records,
                                           const TopologicalTruthOptions& options = {});
 
+// The true pose of a camera relative to the taught camera path (path tracking, taught_path.h): the taught camera
+// centres `taught[first..last]` as a polyline on the ground plane of the world frame — x-z, y pointing down, as the
+// simulator's world and (nearly) KITTI's first camera — and the camera at `world_from_cam`. Restricting the polyline
+// to the taught frames around the arc at hand keeps a route that crosses itself from being measured against the
+// wrong pass.
+struct PathTruth {
+  bool valid = false;
+  double lateral_m = 0.0;          // signed distance from the path, positive to the right in the direction of travel
+  double heading_error_rad = 0.0;  // optical axis against the path's tangent, positive looking right of the path
+  double along_index = 0.0;        // where the nearest point lies (taught frame index, fractional)
+};
+PathTruth TruthAgainstTaughtPath(const Rigid3d& world_from_cam, const std::vector<TimedPose>& taught, size_t first,
+                                 size_t last);
+
 }  // namespace retrace

@@ -54,6 +54,8 @@ bool LocalizerOptions::Check(std::string* error) const {
   if (!belief.Check(&belief_error)) return fail("belief: " + belief_error);
   std::string placement_error;
   if (!placement.Check(&placement_error)) return fail("placement: " + placement_error);
+  std::string path_error;
+  if (!path.Check(&path_error)) return fail("path: " + path_error);
   if (retry_interval < 1) return fail("retry_interval must be >= 1");
   if (min_features < 8) return fail("min_features must be >= 8");
   if (max_bad_frames < 1) return fail("max_bad_frames must be >= 1");
@@ -100,6 +102,7 @@ Localizer::Localizer(const Map& map, const CameraModel& camera, const LocalizerO
   refine_options_.alignment.scale_prior_sigma = 0.0;
   refine_options_.max_distance = options_.prediction_radius_px * pixel_scale_;
   refine_options_.max_scale_ratio = options_.prediction_scale_ratio;
+  if (options_.path.camera_height > 0) path_ = std::make_unique<TaughtPath>(map_, camera, options_.path);
 
   for (const MapNode& node : map_.nodes()) {
     if (node.image.empty()) throw InputError("map", "key-image " + std::to_string(node.id) + " is not loaded");
@@ -267,6 +270,12 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
     }
   } else {
     result.state = state_;
+  }
+  // The camera relative to the taught path in metres, from this frame's usable absolute pose.
+  if (result.state == LocalizerState::kTracking && path_ != nullptr && last_pose_ && last_pose_->usable &&
+      last_pose_->frame == frame_counter_) {
+    result.path = path_->Locate(last_pose_->arc, last_pose_->current_from_from,
+                                last_pose_->centre_covariance ? &*last_pose_->centre_covariance : nullptr, arc_);
   }
   if (result.state != LocalizerState::kTracking) {
     result.position_valid = false;
@@ -514,7 +523,8 @@ void Localizer::Localize(FrameResult* result) {
     const AbsolutePose pose = EstimatePoseInArc(*arc);
     last_pose_.reset();
     if (pose.success) {
-      last_pose_ = LastPose{arc_, pose.cam_from_world};
+      last_pose_ = LastPose{arc_, pose.cam_from_world, frame_counter_, pose.sigma_p < max_sigma_p_px_,
+                            pose.covariance_valid ? std::optional<Matrix3d>(pose.centre_covariance) : std::nullopt};
       result->sigma_p_pose = pose.sigma_p;
       result->pose_inliers = pose.num_inliers;
       const ArcPosition position_pose = LocateOnArc(pose.cam_from_world, arc->arc->to_from_from);

@@ -99,6 +99,7 @@
 #include "retrace/map/map.h"
 #include "retrace/repeat/belief.h"
 #include "retrace/repeat/placement.h"
+#include "retrace/repeat/taught_path.h"
 
 namespace retrace {
 
@@ -210,6 +211,9 @@ struct LocalizerOptions {
   // its measurement (placement.h).
   PlaceBeliefOptions belief;
   PlacementModel placement;
+  // Where the camera is relative to the taught path in metres (taught_path.h), reported in FrameResult::path when
+  // path.camera_height is set (the camera's height above the ground; 0 = unknown, no metric path).
+  TaughtPathOptions path;
   // The absolute pose: P3P samples, MSAC with the inlier threshold `inlier_threshold_px` (set by the Localizer).
   AbsolutePoseOptions pose;
 
@@ -286,6 +290,9 @@ struct FrameResult {
   // positive = left, i.e. -w.
   double steering = 0.0;
   bool steering_valid = false;
+  // The camera relative to the taught path in metres (taught_path.h): in `tracking` frames whose absolute pose in
+  // the arc's reconstruction is usable, when LocalizerOptions::path.camera_height is set; along_m refers to `arc`.
+  PathPose path;
   int transition = 0;         // arcs moved in this frame: +1 forward, -1 backward, +2 two arcs forward, ...
   bool bootstrapped = false;  // (re)initialised by wide-baseline matching in this frame
   int key_images_matched =
@@ -433,8 +440,13 @@ class Localizer {
   struct LastPose {
     arc_t arc = kInvalidArcId;
     Rigid3d current_from_from;  // in the arc's frame and unit
+    size_t frame = 0;           // frame counter of the estimate
+    bool usable = false;        // σ_p below the gate
+    std::optional<Matrix3d> centre_covariance;
   };
   std::optional<LastPose> last_pose_;
+  // The taught path in metres (after map_: it refers to it).
+  std::unique_ptr<TaughtPath> path_;
   // Current bearings of the tracked features (this frame).
   std::unordered_map<feature_t, Vector3d> bearings_;
 };

@@ -49,6 +49,10 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
   if (const auto value = database->Metadata("reference_width")) {
     loaded.options.reference_width = static_cast<int>(ParseMetadataNumber(*value, "reference_width", path));
   }
+  // The camera's height above the ground given to teach (unless repeat is given one): the metric path.
+  if (const auto value = database->Metadata("camera_height"); value && !(base.path.camera_height > 0)) {
+    loaded.options.path.camera_height = ParseMetadataNumber(*value, "camera_height", path);
+  }
   std::string error;
   if (!loaded.options.Check(&error)) throw InputError(path.string(), "tracking settings stored in the map: " + error);
   return loaded;

@@ -17,7 +17,7 @@
 namespace retrace {
 
 // A map for localizing in: its key-images loaded, the camera it stores (null when none), the teach sequence it
-// names, and `base` with the tracking settings teach stored in the map.
+// names, and `base` with the tracking settings teach stored in the map (and its camera height, unless `base` has one).
 struct MapForLocalizer {
   Map map;
   std::unique_ptr<CameraModel> camera;

@@ -1,0 +1,102 @@
+#include "retrace/control/path_tracking.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include <fmt/format.h>
+
+namespace retrace {
+
+const char* SteeringModeName(SteeringMode mode) {
+  switch (mode) {
+    case SteeringMode::kStop:
+      return "stop";
+    case SteeringMode::kPath:
+      return "path";
+    case SteeringMode::kImage:
+      return "image";
+  }
+  return "unknown";
+}
+
+bool PathTrackingOptions::Check(std::string* error) const {
+  const auto fail = [error](const std::string& message) {
+    if (error != nullptr) *error = message;
+    return false;
+  };
+  if (!(camera_forward > 0 && camera_forward <= 20)) {
+    return fail(fmt::format("camera_forward must be in (0, 20] m, got {}", camera_forward));
+  }
+  if (!(approach_distance > 0 && approach_distance <= 1000)) {
+    return fail(fmt::format("approach_distance must be in (0, 1000] m, got {}", approach_distance));
+  }
+  if (!(max_curvature > 0 && max_curvature <= 10)) {
+    return fail(fmt::format("max_curvature must be in (0, 10] 1/m, got {}", max_curvature));
+  }
+  if (!(max_curvature_rate > 0)) return fail(fmt::format("max_curvature_rate must be > 0, got {}", max_curvature_rate));
+  if (!(std::abs(image_gain) <= 100)) return fail(fmt::format("image_gain must be in [-100, 100], got {}", image_gain));
+  if (!(max_speed > 0 && max_speed <= 50)) return fail(fmt::format("max_speed must be in (0, 50] m/s, got {}", max_speed));
+  if (!(max_lateral_acceleration > 0)) {
+    return fail(fmt::format("max_lateral_acceleration must be > 0, got {}", max_lateral_acceleration));
+  }
+  if (!(max_acceleration > 0)) return fail(fmt::format("max_acceleration must be > 0, got {}", max_acceleration));
+  if (!(confident >= 0 && confident <= 1)) return fail(fmt::format("confident must be in [0, 1], got {}", confident));
+  if (!(uncertain_speed_fraction > 0 && uncertain_speed_fraction <= 1)) {
+    return fail(fmt::format("uncertain_speed_fraction must be in (0, 1], got {}", uncertain_speed_fraction));
+  }
+  return true;
+}
+
+double CameraPointCurvature(double lateral_m, double heading_error_rad, const PathTrackingOptions& options) {
+  // The camera's wanted direction of motion against its heading; kept short of ±90 degrees.
+  const double limit = 0.5 * M_PI - 1e-3;
+  const double turn = std::clamp(heading_error_rad + std::atan(lateral_m / options.approach_distance), -limit, limit);
+  return std::tan(turn) / options.camera_forward;
+}
+
+PathTracker::PathTracker(const PathTrackingOptions& options) : options_(options) {
+  std::string error;
+  if (!options_.Check(&error)) throw std::invalid_argument("PathTrackingOptions: " + error);
+}
+
+PathTrackingCommand PathTracker::Update(const PathTrackingInput& input, bool prefer_image) {
+  PathTrackingCommand command;
+  const double dt = std::max(0.0, input.dt);
+  if (!input.tracking) {
+    // Lost: stop now; the wheels keep their angle (nothing to steer by).
+    speed_ = 0.0;
+    command.mode = SteeringMode::kStop;
+    command.curvature = curvature_;
+    command.speed = 0.0;
+    return command;
+  }
+  double wanted = curvature_;
+  if (input.metric && !prefer_image) {
+    command.mode = SteeringMode::kPath;
+    wanted = CameraPointCurvature(input.lateral_m, input.heading_error_rad, options_);
+  } else if (input.image_steering_valid) {
+    command.mode = SteeringMode::kImage;
+    wanted = -options_.image_gain * input.image_steering;
+  } else {
+    command.mode = SteeringMode::kImage;  // nothing new to steer by: hold the wheels
+  }
+  wanted = std::clamp(wanted, -options_.max_curvature, options_.max_curvature);
+  const double step = options_.max_curvature_rate * dt;
+  curvature_ = dt > 0 ? std::clamp(wanted, curvature_ - step, curvature_ + step) : wanted;
+
+  double speed = options_.max_speed;
+  if (std::abs(input.curvature_ahead) > 1e-9) {
+    speed = std::min(speed, std::sqrt(options_.max_lateral_acceleration / std::abs(input.curvature_ahead)));
+  }
+  if (input.confidence < options_.confident || (!prefer_image && command.mode != SteeringMode::kPath)) {
+    speed *= options_.uncertain_speed_fraction;
+  }
+  // Slowing down is immediate; speeding up is limited.
+  speed_ = std::min(speed, speed_ + options_.max_acceleration * dt);
+  command.curvature = curvature_;
+  command.speed = speed_;
+  return command;
+}
+
+}  // namespace retrace

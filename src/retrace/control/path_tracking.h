@@ -1,0 +1,96 @@
+#pragma once
+
+// Path tracking: the steering and speed commands of a car-like robot repeating a taught path.
+//
+// Steering law ("camera point" law, kinematic, derived here for retrace): the camera rides `camera_forward` metres
+// ahead of the vehicle's reference point (the rear axle, about which a car turns with curvature κ). When the vehicle
+// drives with curvature κ, the camera moves in a direction turned atan(d κ) to the left of the vehicle's heading
+// (d = camera_forward). With e the camera's lateral offset from the taught path and ψ its heading error (both
+// positive to the right, repeat/taught_path.h), the camera's direction of motion relative to the path is
+// φ = ψ − atan(d κ), and de/ds = sin φ. The law asks the camera to head back to the path along
+//   φ* = −atan(e / D)     (D = approach_distance: an offset closes like exp(−s / D) over the distance driven s),
+// which gives
+//   κ = tan(ψ + atan(e / D)) / d.
+// On a turn of the taught path with curvature κ_p the camera's heading is ψ = atan(d κ_p) to the right of the path
+// when it follows it exactly, and the law then commands κ = κ_p: no offset in steady turns, without feed-forward,
+// at any speed (the gains are per metre driven, not per second). The heading ψ has the zero dynamics
+// dψ/ds ≈ −ψ / d (stable when driving forward; sampled every v·Δt metres, stable while v·Δt < 2 d).
+//
+// Without a metric offset (no camera height, or no usable absolute pose in this frame) the law falls back to the
+// image steering of Segvic 2009, eq. (10) (control/steering.h): κ = −image_gain · w. Curvature is limited in value
+// and rate; a car takes it as the front-wheel angle atan(L κ) (wheelbase L).
+//
+// Speed: at most `max_speed`; in turns at most sqrt(a_lat / |κ_ahead|) (the sharpest curvature of the taught path
+// ahead); scaled by `uncertain_speed_fraction` when the place belief's confidence is below `confident` or the frame
+// gave no metric offset; zero at once when the localizer is not tracking (a robot must not drive blind), and ramped
+// up at `max_acceleration` when it tracks again.
+
+#include <string>
+
+namespace retrace {
+
+struct PathTrackingOptions {
+  // Distance of the camera ahead of the point the vehicle turns about (a car's rear axle), metres. The simulator's
+  // car: 1.8 m (sim/vehicle.h). Must be > 0: a camera on the turning point cannot steer its own position.
+  double camera_forward = 1.8;
+  // D: distance driven over which a lateral offset closes by a factor e (m). Smaller is stiffer; it must stay well
+  // above the distance driven between two frames.
+  double approach_distance = 4.0;
+  // Limits of the curvature command (1/m; a car with a 2.7 m wheelbase and 35° wheels: 0.26) and of its rate of
+  // change (1/m per second).
+  double max_curvature = 0.25;
+  double max_curvature_rate = 2.0;
+  // Fallback law, Segvic 2009 eq. (10): κ = −image_gain · w (1/m per unit of w; with the simulator's 2.7 m
+  // wheelbase 0.37 reproduces its front wheels at −w).
+  double image_gain = 0.37;
+  // Speed: top speed (m/s), lateral acceleration allowed in turns (m/s²), acceleration when speeding up (m/s²).
+  double max_speed = 8.0;
+  double max_lateral_acceleration = 1.5;
+  double max_acceleration = 2.0;
+  // Below this belief confidence, or without a metric offset, the speed is scaled by `uncertain_speed_fraction`.
+  double confident = 0.99;
+  double uncertain_speed_fraction = 0.5;
+
+  bool Check(std::string* error = nullptr) const;
+};
+
+// What the localizer says of one frame, as the law needs it.
+struct PathTrackingInput {
+  bool tracking = false;         // localized on an arc (state tracking)
+  double confidence = 0.0;       // the belief's confidence in that arc
+  bool metric = false;           // lateral_m and heading_error_rad are valid
+  double lateral_m = 0.0;        // positive right of the path
+  double heading_error_rad = 0.0;  // positive looking right of the path
+  double curvature_ahead = 0.0;  // 1/m, the sharpest of the taught path ahead (0 when unknown)
+  bool image_steering_valid = false;
+  double image_steering = 0.0;   // w of eq. (10)
+  double dt = 0.1;               // seconds since the previous command
+};
+
+enum class SteeringMode { kStop, kPath, kImage };
+const char* SteeringModeName(SteeringMode mode);
+
+struct PathTrackingCommand {
+  SteeringMode mode = SteeringMode::kStop;
+  double curvature = 0.0;  // 1/m, positive turning left
+  double speed = 0.0;      // m/s
+};
+
+// The camera-point law alone (no limits): κ = tan(ψ + atan(e / D)) / d.
+double CameraPointCurvature(double lateral_m, double heading_error_rad, const PathTrackingOptions& options);
+
+class PathTracker {
+ public:
+  explicit PathTracker(const PathTrackingOptions& options = {});  // throws std::invalid_argument for bad options
+  // The command after one frame. `prefer_image` steers by eq. (10) even when a metric offset is available (for
+  // comparison).
+  PathTrackingCommand Update(const PathTrackingInput& input, bool prefer_image = false);
+  const PathTrackingOptions& options() const { return options_; }
+
+ private:
+  PathTrackingOptions options_;
+  double curvature_ = 0.0;
+  double speed_ = 0.0;
+};
+
+}  // namespace retrace

@@ -1,0 +1,237 @@
+#include "retrace/control/path_tracking.h"
+
+#include <cmath>
+#include <functional>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "retrace/util/types.h"
+
+namespace retrace {
+namespace {
+
+// A path on the ground as a dense polyline (x east, y north), and a kinematic car (bicycle model, rear axle)
+// whose camera rides `camera_forward` ahead of the rear axle. The law sees the camera's true lateral offset and
+// heading error (positive right), as the metric path would give them.
+struct TestPath {
+  std::vector<Vector2d> points;
+
+  // Signed offset of `c` (positive right of the direction of travel), the heading error of `direction`, and the
+  // path's position (index) of the nearest point.
+  void Locate(const Vector2d& c, double heading, double* lateral, double* heading_error, double* index) const {
+    double best = std::numeric_limits<double>::infinity();
+    for (size_t i = 0; i + 1 < points.size(); ++i) {
+      const Vector2d ab = points[i + 1] - points[i];
+      const double t = std::clamp((c - points[i]).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+      const Vector2d offset = c - (points[i] + t * ab);
+      if (offset.norm() < best) {
+        best = offset.norm();
+        const Vector2d tangent = ab.normalized();
+        *lateral = offset.dot(Vector2d(tangent.y(), -tangent.x()));
+        const Vector2d look(std::cos(heading), std::sin(heading));
+        *heading_error = std::atan2(tangent.y() * look.x() - tangent.x() * look.y(), tangent.dot(look));
+        *index = static_cast<double>(i) + t;
+      }
+    }
+  }
+};
+
+// A path from a curvature profile kappa(s) (1/m, positive left), starting at the origin heading +x.
+TestPath MakePath(double length, const std::function<double(double)>& kappa) {
+  TestPath path;
+  Vector2d p = Vector2d::Zero();
+  double heading = 0.0;
+  const double ds = 0.05;
+  for (double s = 0; s <= length; s += ds) {
+    path.points.push_back(p);
+    heading += kappa(s) * ds;
+    p += ds * Vector2d(std::cos(heading), std::sin(heading));
+  }
+  return path;
+}
+
+struct DriveResult {
+  std::vector<double> lateral;  // per frame, after the start
+  std::vector<double> driven;   // metres
+  bool reached_end = false;
+};
+
+// Drives the car at `speed` with one command per `dt`, the camera starting `start_offset` right of the path's
+// start, heading along it.
+DriveResult Drive(const TestPath& path, double speed, double dt, double start_offset, const PathTrackingOptions& options,
+                  double wheelbase = 2.7) {
+  PathTracker tracker(options);
+  // Rear axle such that the camera is start_offset to the right (-y) of the start, heading +x.
+  Vector2d rear(-options.camera_forward, -start_offset);
+  double heading = 0.0;
+  DriveResult result;
+  double driven = 0.0;
+  for (int frame = 0; frame < 5000; ++frame) {
+    const Vector2d camera = rear + options.camera_forward * Vector2d(std::cos(heading), std::sin(heading));
+    PathTrackingInput input;
+    input.tracking = true;
+    input.confidence = 1.0;
+    input.metric = true;
+    double index = 0;
+    path.Locate(camera, heading, &input.lateral_m, &input.heading_error_rad, &index);
+    input.dt = dt;
+    result.lateral.push_back(input.lateral_m);
+    result.driven.push_back(driven);
+    if (index >= path.points.size() - 2) {
+      result.reached_end = true;
+      break;
+    }
+    const PathTrackingCommand command = tracker.Update(input);
+    // The simulator's car takes the front-wheel angle atan(L kappa), limited to 35 degrees.
+    const double wheels = std::clamp(std::atan(wheelbase * command.curvature), -0.61, 0.61);
+    const double kappa = std::tan(wheels) / wheelbase;
+    const double v = std::min(speed, command.speed);
+    const int steps = 10;
+    for (int k = 0; k < steps; ++k) {
+      const double step = v * dt / steps;
+      rear += step * Vector2d(std::cos(heading), std::sin(heading));
+      heading += kappa * step;
+      driven += step;
+    }
+  }
+  return result;
+}
+
+double MaxAbsAfter(const DriveResult& drive, double skip_m) {
+  double worst = 0.0;
+  for (size_t i = 0; i < drive.lateral.size(); ++i) {
+    if (drive.driven[i] >= skip_m) worst = std::max(worst, std::abs(drive.lateral[i]));
+  }
+  return worst;
+}
+
+PathTrackingOptions FastOptions() {
+  PathTrackingOptions options;
+  options.max_speed = 8.0;
+  options.max_acceleration = 100.0;  // start at speed
+  return options;
+}
+
+TEST(CameraPointCurvature, SteersTowardsThePathAndMatchesASteadyTurn) {
+  PathTrackingOptions options;
+  // Right of the path, heading along it: turn left (positive curvature); left of it: turn right.
+  EXPECT_GT(CameraPointCurvature(0.5, 0.0, options), 0.0);
+  EXPECT_LT(CameraPointCurvature(-0.5, 0.0, options), 0.0);
+  // On the path, looking right of it: turn left.
+  EXPECT_GT(CameraPointCurvature(0.0, 0.1, options), 0.0);
+  // On a turn of curvature k the camera followed exactly looks atan(d k) to the right of the path: the law asks
+  // for exactly k.
+  const double k = 1.0 / 7.0;
+  EXPECT_NEAR(CameraPointCurvature(0.0, std::atan(options.camera_forward * k), options), k, 1e-12);
+  EXPECT_NEAR(CameraPointCurvature(0.0, -std::atan(options.camera_forward * k), options), -k, 1e-12);
+}
+
+TEST(PathTracker, StraightPathConvergesFromAnOffset) {
+  const TestPath path = MakePath(80.0, [](double) { return 0.0; });
+  for (double speed : {2.0, 8.0}) {
+    const DriveResult drive = Drive(path, speed, 0.1, 1.5, FastOptions());
+    ASSERT_TRUE(drive.reached_end);
+    // Within 0.2 m after at most 15 m, within 2 cm later on, no overshoot beyond 0.2 m.
+    EXPECT_LT(MaxAbsAfter(drive, 15.0), 0.2) << speed << " m/s";
+    EXPECT_LT(MaxAbsAfter(drive, 40.0), 0.02) << speed << " m/s";
+    double most_left = 0.0;
+    for (double e : drive.lateral) most_left = std::min(most_left, e);
+    EXPECT_GT(most_left, -0.2) << "overshoot at " << speed << " m/s";
+  }
+}
+
+TEST(PathTracker, ConstantCurvatureTurnHasNoSteadyOffset) {
+  // A 20 m straight, then a left turn of radius 7 m (the simulated town's corners) through 360 degrees.
+  const double radius = 7.0;
+  const double turn_end = 20.0 + 2 * M_PI * radius;
+  const TestPath path = MakePath(turn_end + 20.0, [&](double s) { return s > 20.0 && s < turn_end ? 1.0 / radius : 0.0; });
+  PathTrackingOptions options = FastOptions();
+  const DriveResult drive = Drive(path, 3.0, 0.1, 0.0, options);
+  ASSERT_TRUE(drive.reached_end);
+  // The entry and exit of the turn (curvature steps) cost a few centimetres; once the entry has died out (it decays
+  // like exp(-s / D)), nothing is left in the turn.
+  EXPECT_LT(MaxAbsAfter(drive, 0.0), 0.10);
+  double late_turn = 0.0;
+  for (size_t i = 0; i < drive.lateral.size(); ++i) {
+    if (drive.driven[i] > turn_end - 10.0 && drive.driven[i] < turn_end - 1.0) {
+      late_turn = std::max(late_turn, std::abs(drive.lateral[i]));
+    }
+  }
+  EXPECT_LT(late_turn, 0.005);
+}
+
+TEST(PathTracker, SBendAtSpeedStaysWithinTenCentimetres) {
+  // Curvature varying smoothly left and right (period 40 m, radius 25 m at the peaks), at 8 m/s.
+  const TestPath path = MakePath(160.0, [](double s) { return std::sin(2 * M_PI * s / 40.0) / 25.0; });
+  const DriveResult drive = Drive(path, 8.0, 0.1, 0.0, FastOptions());
+  ASSERT_TRUE(drive.reached_end);
+  EXPECT_LT(MaxAbsAfter(drive, 0.0), 0.10);
+}
+
+TEST(PathTracker, StopsAtOnceWhenLostAndRampsUpWhenTrackingAgain) {
+  PathTrackingOptions options;
+  options.max_speed = 6.0;
+  options.max_acceleration = 2.0;
+  PathTracker tracker(options);
+  PathTrackingInput input;
+  input.tracking = true;
+  input.confidence = 1.0;
+  input.metric = true;
+  input.dt = 0.1;
+  double speed = 0.0;
+  for (int i = 0; i < 50; ++i) speed = tracker.Update(input).speed;
+  EXPECT_DOUBLE_EQ(speed, 6.0);
+  input.tracking = false;
+  const PathTrackingCommand lost = tracker.Update(input);
+  EXPECT_EQ(lost.mode, SteeringMode::kStop);
+  EXPECT_EQ(lost.speed, 0.0);
+  input.tracking = true;
+  EXPECT_NEAR(tracker.Update(input).speed, 0.2, 1e-12);  // 2 m/s² for 0.1 s
+  // Unsure (confidence below `confident`) or without a metric offset: slower.
+  for (int i = 0; i < 50; ++i) speed = tracker.Update(input).speed;
+  input.confidence = 0.9;
+  EXPECT_DOUBLE_EQ(tracker.Update(input).speed, 3.0);
+  input.confidence = 1.0;
+  input.metric = false;
+  input.image_steering_valid = true;
+  input.image_steering = 0.2;
+  const PathTrackingCommand image = tracker.Update(input);
+  EXPECT_EQ(image.mode, SteeringMode::kImage);
+  EXPECT_DOUBLE_EQ(image.speed, 3.0);
+}
+
+TEST(PathTracker, SlowsDownForTheCurvatureAheadAndLimitsTheCommand) {
+  PathTrackingOptions options;
+  options.max_speed = 8.0;
+  options.max_acceleration = 100.0;
+  options.max_curvature = 0.2;
+  options.max_curvature_rate = 1.0;
+  PathTracker tracker(options);
+  PathTrackingInput input;
+  input.tracking = true;
+  input.confidence = 1.0;
+  input.metric = true;
+  input.curvature_ahead = 1.0 / 6.0;
+  input.lateral_m = 5.0;  // far right: the law wants a sharp left turn
+  input.dt = 0.1;
+  const PathTrackingCommand first = tracker.Update(input);
+  EXPECT_NEAR(first.speed, std::sqrt(1.5 * 6.0), 1e-9);
+  EXPECT_NEAR(first.curvature, 0.1, 1e-12);  // rate limit: 1 /m/s for 0.1 s
+  PathTrackingCommand later;
+  for (int i = 0; i < 10; ++i) later = tracker.Update(input);
+  EXPECT_NEAR(later.curvature, 0.2, 1e-12);  // value limit
+}
+
+TEST(PathTrackingOptions, RejectsImplausibleValues) {
+  PathTrackingOptions options;
+  EXPECT_TRUE(options.Check());
+  options.camera_forward = 0.0;
+  std::string error;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("camera_forward"), std::string::npos);
+  EXPECT_THROW(PathTracker{options}, std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace retrace

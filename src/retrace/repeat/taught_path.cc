@@ -1,0 +1,321 @@
+#include "retrace/repeat/taught_path.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+#include <fmt/format.h>
+
+namespace retrace {
+namespace {
+
+// A cubic Hermite segment on the ground plane, coordinates (right, forward) of the current arc's key-image a.
+struct Segment {
+  arc_t arc = kInvalidArcId;
+  Vector2d p0, p1, t0, t1;  // end points and tangents (scaled by the chord's length)
+
+  Vector2d At(double u) const {
+    const double u2 = u * u, u3 = u2 * u;
+    return (2 * u3 - 3 * u2 + 1) * p0 + (u3 - 2 * u2 + u) * t0 + (-2 * u3 + 3 * u2) * p1 + (u3 - u2) * t1;
+  }
+  Vector2d Derivative(double u) const {
+    const double u2 = u * u;
+    return (6 * u2 - 6 * u) * p0 + (3 * u2 - 4 * u + 1) * t0 + (-6 * u2 + 6 * u) * p1 + (3 * u2 - 2 * u) * t1;
+  }
+  Vector2d SecondDerivative(double u) const {
+    return (12 * u - 6) * p0 + (6 * u - 4) * t0 + (-12 * u + 6) * p1 + (6 * u - 2) * t1;
+  }
+  // Signed curvature, positive turning left (counter-clockwise in (right, forward) coordinates).
+  double Curvature(double u) const {
+    const Vector2d d = Derivative(u), dd = SecondDerivative(u);
+    const double speed = d.norm();
+    return speed > 1e-12 ? (d.x() * dd.y() - d.y() * dd.x()) / (speed * speed * speed) : 0.0;
+  }
+  // Length from u0 to u1 (Simpson's rule).
+  double Length(double u0 = 0.0, double u1 = 1.0) const {
+    constexpr int kSteps = 16;
+    const double h = (u1 - u0) / kSteps;
+    double sum = 0.0;
+    for (int i = 0; i <= kSteps; ++i) {
+      const double w = (i == 0 || i == kSteps) ? 1 : (i % 2 == 1 ? 4 : 2);
+      sum += w * Derivative(u0 + i * h).norm();
+    }
+    return sum * h / 3;
+  }
+  // The parameter of the nearest point to `c` (a coarse scan, then a ternary search around the best sample).
+  double Nearest(const Vector2d& c) const {
+    constexpr int kSamples = 32;
+    int best = 0;
+    double best_distance = std::numeric_limits<double>::infinity();
+    for (int i = 0; i <= kSamples; ++i) {
+      const double d = (At(double(i) / kSamples) - c).squaredNorm();
+      if (d < best_distance) {
+        best_distance = d;
+        best = i;
+      }
+    }
+    double lo = std::max(0, best - 1) / double(kSamples), hi = std::min(kSamples, best + 1) / double(kSamples);
+    for (int i = 0; i < 40; ++i) {
+      const double m1 = lo + (hi - lo) / 3, m2 = hi - (hi - lo) / 3;
+      if ((At(m1) - c).squaredNorm() < (At(m2) - c).squaredNorm()) {
+        hi = m2;
+      } else {
+        lo = m1;
+      }
+    }
+    return 0.5 * (lo + hi);
+  }
+};
+
+double MedianOf(std::vector<double> values) {
+  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+  return values[values.size() / 2];
+}
+
+}  // namespace
+
+struct TaughtPath::ArcGround {
+  GroundPlane plane;
+  double metres_per_unit = 0.0;  // h / d_b of this arc alone; 0 when its plane is invalid
+  // The median over the window (computed on first use) and its relative spread.
+  bool window_done = false;
+  std::optional<double> window_scale;
+  double window_sigma = 0.0;
+};
+
+bool TaughtPathOptions::Check(std::string* error) const {
+  const auto fail = [error](const std::string& message) {
+    if (error != nullptr) *error = message;
+    return false;
+  };
+  if (!(camera_height >= 0 && camera_height <= 100)) {
+    return fail(fmt::format("camera_height must be in [0, 100] m, got {}", camera_height));
+  }
+  if (normal_arcs < 1 || normal_arcs > 1000) return fail(fmt::format("normal_arcs must be in 1..1000, got {}", normal_arcs));
+  if (scale_window < 0 || scale_window > 100) {
+    return fail(fmt::format("scale_window must be in 0..100, got {}", scale_window));
+  }
+  return ground.Check(error);
+}
+
+TaughtPath::TaughtPath(const Map& map, const CameraModel& camera, const TaughtPathOptions& options)
+    : map_(map), camera_(camera.Clone()), options_(options) {
+  std::string error;
+  if (!options_.Check(&error)) throw std::invalid_argument("TaughtPathOptions: " + error);
+}
+
+TaughtPath::~TaughtPath() = default;
+
+const MapArc* TaughtPath::Next(const MapArc& arc) const {
+  const auto arcs = map_.ArcsFrom(arc.to);
+  return arcs.empty() ? nullptr : arcs.front();
+}
+
+const MapArc* TaughtPath::Previous(const MapArc& arc) const {
+  const auto arcs = map_.ArcsTo(arc.from);
+  return arcs.empty() ? nullptr : arcs.front();
+}
+
+const std::optional<Vector3d>& TaughtPath::GroundNormal() {
+  if (normal_estimated_ || !enabled()) return normal_;
+  normal_estimated_ = true;
+  if (options_.ground.normal_in_camera) {
+    normal_ = options_.ground.normal_in_camera->normalized();
+    return normal_;
+  }
+  // Free planes (three unknowns each) of arcs spread evenly over the map.
+  const auto& arcs = map_.arcs();
+  const int count = std::min<int>(options_.normal_arcs, static_cast<int>(arcs.size()));
+  std::vector<GroundPlane> planes;
+  for (int i = 0; i < count; ++i) {
+    const MapArc& arc = arcs[static_cast<size_t>((i + 0.5) * arcs.size() / count)];
+    const MapNode* a = map_.FindNode(arc.from);
+    const MapNode* b = map_.FindNode(arc.to);
+    if (a == nullptr || b == nullptr) continue;
+    planes.push_back(EstimateGroundPlane(a->image, b->image, *camera_, arc.to_from_from, options_.ground));
+  }
+  normal_ = CommonGroundNormal(planes, std::min(3, count));
+  return normal_;
+}
+
+const TaughtPath::ArcGround& TaughtPath::Ground(arc_t arc_id) {
+  auto it = grounds_.find(arc_id);
+  if (it != grounds_.end()) return *it->second;
+  auto ground = std::make_unique<ArcGround>();
+  const MapArc* arc = map_.FindArc(arc_id);
+  if (arc != nullptr && GroundNormal()) {
+    GroundPlaneOptions options = options_.ground;
+    options.normal_in_camera = *normal_;
+    const MapNode* a = map_.FindNode(arc->from);
+    const MapNode* b = map_.FindNode(arc->to);
+    if (a != nullptr && b != nullptr) {
+      ground->plane = EstimateGroundPlane(a->image, b->image, *camera_, arc->to_from_from, options);
+      if (ground->plane.valid) ground->metres_per_unit = options_.camera_height / ground->plane.distance_b;
+    }
+  }
+  return *grounds_.emplace(arc_id, std::move(ground)).first->second;
+}
+
+std::optional<double> TaughtPath::MetresPerUnit(arc_t arc_id) {
+  if (!enabled()) return std::nullopt;
+  Ground(arc_id);
+  ArcGround& ground = *grounds_.at(arc_id);
+  if (ground.window_done) return ground.window_scale;
+  ground.window_done = true;
+  const MapArc* arc = map_.FindArc(arc_id);
+  if (arc == nullptr) return std::nullopt;
+  // This arc's own scale and its neighbours' carried into its unit through the relative scales stored at the
+  // nodes (design §1: a length in units of the arc leaving a node times the scale is that length in units of the
+  // arc entering it).
+  std::vector<double> scales;
+  if (ground.metres_per_unit > 0) scales.push_back(ground.metres_per_unit);
+  for (const int direction : {+1, -1}) {
+    const MapArc* current = arc;
+    double unit_ratio = 1.0;  // a length in units of `arc` times this = the same length in units of `current`
+    for (int step = 0; step < options_.scale_window; ++step) {
+      const MapArc* neighbour = direction > 0 ? Next(*current) : Previous(*current);
+      if (neighbour == nullptr) break;
+      const std::optional<double> scale = direction > 0 ? map_.ScaleAt(current->to, current->id, neighbour->id)
+                                                        : map_.ScaleAt(current->from, neighbour->id, current->id);
+      if (!scale || !(*scale > 0)) break;
+      unit_ratio *= direction > 0 ? 1.0 / *scale : *scale;
+      const double metres_per_unit = Ground(neighbour->id).metres_per_unit;
+      if (metres_per_unit > 0) scales.push_back(metres_per_unit * unit_ratio);
+      current = neighbour;
+    }
+  }
+  if (scales.empty()) return std::nullopt;
+  const double median = MedianOf(scales);
+  // Relative spread: the median absolute deviation of the log-scales (robust), at least the own fit's.
+  std::vector<double> deviations;
+  for (double s : scales) deviations.push_back(std::abs(std::log(s / median)));
+  double sigma = scales.size() >= 3 ? 1.4826 * MedianOf(deviations) : 0.0;
+  if (ground.plane.valid && ground.plane.distance_b > 0) {
+    sigma = std::max(sigma, ground.plane.distance_sigma / ground.plane.distance_b);
+  }
+  ground.window_scale = median;
+  ground.window_sigma = sigma;
+  return ground.window_scale;
+}
+
+PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const Matrix3d* centre_covariance,
+                            arc_t reported_arc) {
+  PathPose pose;
+  const MapArc* arc = map_.FindArc(pose_arc);
+  if (!enabled() || arc == nullptr || !GroundNormal()) return pose;
+  const std::optional<double> scale = MetresPerUnit(pose_arc);
+  if (!scale) return pose;
+  const double arc_sigma = grounds_.at(pose_arc)->window_sigma;
+
+  // Key-image centres in the frame of the arc's key-image a, in metres: [previous arc's a], a, b, [next arc's b].
+  const Vector3d centre_b = -(arc->to_from_from.rotation.transpose() * arc->to_from_from.translation) * *scale;
+  std::vector<Vector3d> centres;
+  std::vector<arc_t> segment_arcs;
+  const MapArc* previous = Previous(*arc);
+  const MapArc* next = Next(*arc);
+  if (previous != nullptr) {
+    if (const auto previous_scale = MetresPerUnit(previous->id)) {
+      // Key-image a of the previous arc is the origin of its frame: at t (its unit) in the frame of its b = our a.
+      centres.push_back(previous->to_from_from.translation * *previous_scale);
+      segment_arcs.push_back(previous->id);
+    }
+  }
+  centres.push_back(Vector3d::Zero());
+  segment_arcs.push_back(arc->id);
+  centres.push_back(centre_b);
+  if (next != nullptr) {
+    if (const auto next_scale = MetresPerUnit(next->id)) {
+      const Vector3d next_b_in_b =
+          -(next->to_from_from.rotation.transpose() * next->to_from_from.translation) * *next_scale;
+      centres.push_back(arc->to_from_from.rotation.transpose() * next_b_in_b + centre_b);
+      segment_arcs.push_back(next->id);
+    }
+  }
+  const size_t index_a = previous != nullptr && segment_arcs.front() == previous->id ? 1 : 0;
+
+  // The ground plane's frame: normal n (down), forward along the arc's chord, right = n × forward.
+  const Vector3d& n = *normal_;
+  const Vector3d chord = centre_b - n.dot(centre_b) * n;
+  if (!(chord.norm() > 1e-9)) return pose;
+  const Vector3d forward = chord.normalized();
+  const Vector3d right = n.cross(forward);
+  const auto flat = [&](const Vector3d& x) { return Vector2d(right.dot(x), forward.dot(x)); };
+
+  std::vector<Vector2d> points;
+  for (const Vector3d& c : centres) points.push_back(flat(c));
+  std::vector<Segment> segments;
+  for (size_t i = 0; i + 1 < points.size(); ++i) {
+    Segment s;
+    s.arc = segment_arcs[i];
+    s.p0 = points[i];
+    s.p1 = points[i + 1];
+    const double length = (s.p1 - s.p0).norm();
+    const Vector2d before = i > 0 ? points[i - 1] : points[i];
+    const Vector2d after = i + 2 < points.size() ? points[i + 2] : points[i + 1];
+    s.t0 = (s.p1 - before).normalized() * length;
+    s.t1 = (after - s.p0).normalized() * length;
+    segments.push_back(s);
+  }
+
+  // The camera's centre and optical axis in the arc's frame and metres.
+  const Vector3d centre = -(current_from_a.rotation.transpose() * current_from_a.translation) * *scale;
+  const Vector3d axis = current_from_a.rotation.transpose() * Vector3d::UnitZ();
+  const Vector2d c = flat(centre);
+  size_t best_segment = 0;
+  double best_u = 0.0, best_distance = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < segments.size(); ++i) {
+    const double u = segments[i].Nearest(c);
+    const double d = (segments[i].At(u) - c).norm();
+    if (d < best_distance) {
+      best_distance = d;
+      best_segment = i;
+      best_u = u;
+    }
+  }
+  const Segment& segment = segments[best_segment];
+  const Vector2d tangent = segment.Derivative(best_u).normalized();
+  const Vector2d right_of_path(tangent.y(), -tangent.x());
+  pose.lateral_m = (c - segment.At(best_u)).dot(right_of_path);
+  const Vector2d look = flat(axis);
+  if (!(look.norm() > 1e-9)) return pose;
+  pose.heading_error_rad = std::atan2(tangent.y() * look.x() - tangent.x() * look.y(), tangent.dot(look));
+  pose.curvature = segment.Curvature(best_u);
+
+  // Distance along the path from the reported arc's key-image a.
+  double along = segment.Length(0.0, best_u);
+  for (size_t i = index_a; i < best_segment; ++i) along += segments[i].Length();
+  for (size_t i = best_segment; i < index_a; ++i) along -= segments[i].Length();
+  size_t reported = index_a;
+  for (size_t i = 0; i < segments.size(); ++i) {
+    if (segments[i].arc == reported_arc) reported = i;
+  }
+  for (size_t i = index_a; i < reported; ++i) along -= segments[i].Length();
+  for (size_t i = reported; i < index_a; ++i) along += segments[i].Length();
+  pose.along_m = along;
+  pose.arc_length_m = segments[reported].Length();
+  pose.to_next_m = pose.arc_length_m - along;
+
+  // The sharpest curvature from here to the end of the path known ahead.
+  double ahead = pose.curvature;
+  for (size_t i = best_segment; i < segments.size(); ++i) {
+    for (int k = 0; k <= 8; ++k) {
+      const double u = i == best_segment ? best_u + (1 - best_u) * k / 8.0 : k / 8.0;
+      const double kappa = segments[i].Curvature(u);
+      if (std::abs(kappa) > std::abs(ahead)) ahead = kappa;
+    }
+  }
+  pose.curvature_ahead = ahead;
+
+  // First-order uncertainty of the lateral offset: the centre's covariance across the path, and the scale's.
+  const Vector3d across = right_of_path.x() * right + right_of_path.y() * forward;
+  double variance = std::pow(pose.lateral_m * arc_sigma, 2);
+  if (centre_covariance != nullptr) variance += *scale * *scale * across.dot(*centre_covariance * across);
+  pose.lateral_sigma_m = std::sqrt(variance);
+  pose.scale_sigma = arc_sigma;
+  pose.valid = std::isfinite(pose.lateral_m) && std::isfinite(pose.heading_error_rad) && std::isfinite(pose.along_m);
+  return pose;
+}
+
+}  // namespace retrace

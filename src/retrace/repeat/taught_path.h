@@ -1,0 +1,100 @@
+#pragma once
+
+// Where the camera is relative to the taught path, in metres (path tracking; Segvic 2009 §6.3 steers by the image
+// alone, this gives a path-tracking law what it needs).
+//
+// The taught path is the camera's path during teach. Locally it passes through the centres of the key-images of the
+// current arc (a, b), of the previous arc's first key-image and of the next arc's last one, all expressed in the
+// current arc's frame (key-image a's camera). Each arc has its own unit; the metric scale of an arc comes from the
+// camera's height above the ground, which the user knows: the ground plane between the arc's key-images
+// (geometry/ground_plane.h) puts camera b at distance d (arc units) above the road, so metres per unit = h / d. A
+// camera fixed on a vehicle keeps its attitude to the road under it, so the ground's normal in the camera's frame is
+// estimated once from arcs spread over the map (CommonGroundNormal), and each arc fits only d; each arc's scale is
+// then the median of the scales of the arcs within `scale_window` of it, carried into its unit through the
+// relative scales the map stores at its nodes (a look-alike texture can mislead one arc's alignment).
+//
+// On the ground plane (normal n of the arc's frame, pointing down) the path between a and b is a cubic Hermite
+// curve with Catmull-Rom tangents (the directions from the previous to the next key-image), which follows the
+// curvature of a turn where the chord a-b would cut it (a 4 m chord of a 7 m radius turn lies 0.29 m inside it).
+// The camera centre (its absolute pose in the arc's reconstruction) is projected on the curves of the previous,
+// current and next arcs; the nearest point gives
+//  - lateral offset: signed distance from the path, positive to the right in the direction of travel;
+//  - heading error: the angle from the path's tangent there to the camera's optical axis (both on the ground
+//    plane), positive when the camera looks to the right of the path;
+//  - along: distance along the path from the current arc's key-image a (negative before it, beyond the arc's length
+//    after b), and to_next: distance left to b;
+//  - the path's curvature there and the largest curvature within the next arc (1/m, positive turning left).
+
+#include <memory>
+#include <optional>
+#include <unordered_map>
+
+#include "retrace/camera/camera_model.h"
+#include "retrace/geometry/ground_plane.h"
+#include "retrace/map/map.h"
+#include "retrace/util/types.h"
+
+namespace retrace {
+
+struct TaughtPathOptions {
+  // Height of the camera's centre above the ground (m), as mounted on the robot. 0: unknown, no metric path.
+  double camera_height = 0.0;
+  // The ground plane fits (geometry/ground_plane.h); the normal is estimated here unless set.
+  GroundPlaneOptions ground;
+  // Arcs (spread evenly over the map) whose free ground planes give the common normal.
+  int normal_arcs = 15;
+  // An arc's scale is the median over the arcs up to this many before and after it.
+  int scale_window = 2;
+
+  bool Check(std::string* error = nullptr) const;
+};
+
+// The camera relative to the taught path (see the comment at the top).
+struct PathPose {
+  bool valid = false;
+  double lateral_m = 0.0;
+  double heading_error_rad = 0.0;
+  double along_m = 0.0;
+  double to_next_m = 0.0;
+  double arc_length_m = 0.0;       // the reported arc's length along the path
+  double curvature = 0.0;          // 1/m, positive to the left, at the nearest point of the path
+  double curvature_ahead = 0.0;    // the largest |curvature| (with its sign) from here to the end of the next arc
+  // Standard deviations (first order): the lateral offset's from the camera centre's covariance and the scale's.
+  double lateral_sigma_m = 0.0;
+  double scale_sigma = 0.0;        // relative standard deviation of the arc's metric scale
+};
+
+class TaughtPath {
+ public:
+  // `map` must hold its key-images and outlive this object; `camera` images the key-images. Throws
+  // std::invalid_argument for options that fail Check().
+  TaughtPath(const Map& map, const CameraModel& camera, const TaughtPathOptions& options);
+  ~TaughtPath();
+
+  bool enabled() const { return options_.camera_height > 0; }
+  // The ground's normal in the camera's frame (estimated at the first call); none when too few arcs show a ground.
+  const std::optional<Vector3d>& GroundNormal();
+  // Metres per unit of `arc` (the median over its window); none when no arc of the window has a ground plane.
+  std::optional<double> MetresPerUnit(arc_t arc);
+
+  // The camera placed at `current_from_a` in the reconstruction of `pose_arc` (its frame and unit), with its
+  // centre's covariance there (may be null), relative to the taught path around `reported_arc` (pose_arc or one of
+  // its neighbours). Invalid when disabled or no metric scale is known.
+  PathPose Locate(arc_t pose_arc, const Rigid3d& current_from_a, const Matrix3d* centre_covariance,
+                  arc_t reported_arc);
+
+ private:
+  struct ArcGround;
+  const ArcGround& Ground(arc_t arc);
+  const MapArc* Next(const MapArc& arc) const;
+  const MapArc* Previous(const MapArc& arc) const;
+
+  const Map& map_;
+  std::unique_ptr<CameraModel> camera_;
+  TaughtPathOptions options_;
+  bool normal_estimated_ = false;
+  std::optional<Vector3d> normal_;
+  std::unordered_map<arc_t, std::unique_ptr<ArcGround>> grounds_;
+};
+
+}  // namespace retrace
