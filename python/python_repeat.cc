@@ -110,6 +110,30 @@ const char* RoleName(ArcRole role) {
 }  // namespace
 
 void BindLocalizer(py::module_& module) {
+  py::class_<PathPose>(module, "PathPose",
+                       "Where the camera is relative to the taught path in metres (repeat/taught_path.h): known when\n"
+                       "the camera's height above the ground is (given to teach or to the Localizer) and the frame's\n"
+                       "absolute pose in the arc's reconstruction is usable.")
+      .def_readonly("lateral_m", &PathPose::lateral_m,
+                    "Signed distance from the taught path, m (positive to the right in the direction of travel).")
+      .def_readonly("lateral_sigma_m", &PathPose::lateral_sigma_m, "Its standard deviation, m.")
+      .def_readonly("heading_error_rad", &PathPose::heading_error_rad,
+                    "The optical axis against the path's tangent, radians (positive to the right).")
+      .def_readonly("along_m", &PathPose::along_m, "Distance along the path from node_from, m.")
+      .def_readonly("to_next_m", &PathPose::to_next_m, "Distance along the path left to node_to, m.")
+      .def_readonly("arc_length_m", &PathPose::arc_length_m, "The reported arc's length along the path, m.")
+      .def_readonly("curvature", &PathPose::curvature,
+                    "Curvature of the path at its nearest point, 1/m (positive to the left).")
+      .def_readonly("curvature_ahead", &PathPose::curvature_ahead,
+                    "The sharpest curvature from here to the end of the next arc, 1/m (with its sign).")
+      .def_readonly("scale_sigma", &PathPose::scale_sigma, "Relative standard deviation of the arc's metric scale.")
+      .def("__repr__", [](const PathPose& p) {
+        return fmt::format(
+            "<retrace.PathPose lateral {:+.3f} m (sigma {:.3f}), heading error {:+.4f} rad, {:.2f} m "
+            "along>",
+            p.lateral_m, p.lateral_sigma_m, p.heading_error_rad, p.along_m);
+      });
+
   py::class_<FrameResult>(
       module, "FrameResult",
       "What the Localizer says about one frame (one row of `retrace repeat`'s run.csv). `state` is 'tracking' on\n"
@@ -142,6 +166,10 @@ void BindLocalizer(py::module_& module) {
           "steering",
           [](const FrameResult& r) { return r.steering_valid ? std::optional<double>(r.steering) : std::nullopt; },
           "Steering command w of Segvic 2009 eq. (10), radians (w < 0 turns left), or None when not valid.")
+      .def_property_readonly(
+          "path", [](const FrameResult& r) { return r.path.valid ? std::optional<PathPose>(r.path) : std::nullopt; },
+          "Where the camera is relative to the taught path in metres (retrace.PathPose), or None when unknown\n"
+          "(no camera height, or no usable absolute pose in this frame).")
       .def_readonly("tracked", &FrameResult::tracked, "Features tracked after this frame (all arcs).")
       .def_property_readonly(
           "tracked_previous", [](const FrameResult& r) { return r.tracked_by_role[0]; },
@@ -209,7 +237,7 @@ void BindLocalizer(py::module_& module) {
       .def(py::init([](const py::object& map, std::shared_ptr<CameraModel> camera, std::optional<arc_t> start_arc,
                        double max_residual, double max_sigma_p, double steering_gain, int max_bad_frames,
                        double min_confidence, int max_cached_key_images, int retrieval_shortlist, bool absolute_pose,
-                       bool redefine_references) {
+                       bool redefine_references, double camera_height) {
              // A retrace.Map is localized in through its file: the Localizer reads the settings teach stored there.
              const py::object map_type = py::module_::import("retrace").attr("Map");
              const py::object path = py::isinstance(map, map_type) ? map.attr("path") : map;
@@ -223,6 +251,7 @@ void BindLocalizer(py::module_& module) {
              options.retrieval_shortlist = retrieval_shortlist;
              options.place_by_absolute_pose = absolute_pose;
              options.redefine_references = redefine_references;
+             options.path.camera_height = camera_height;
              return std::make_unique<PythonLocalizer>(PathFromObject(path, "map"), std::move(camera), start_arc,
                                                       options);
            }),
@@ -235,14 +264,15 @@ void BindLocalizer(py::module_& module) {
            py::arg("max_cached_key_images") = LocalizerOptions().max_cached_key_images,
            py::arg("retrieval_shortlist") = LocalizerOptions().retrieval_shortlist,
            py::arg("absolute_pose") = LocalizerOptions().place_by_absolute_pose,
-           py::arg("redefine_references") = LocalizerOptions().redefine_references,
+           py::arg("redefine_references") = LocalizerOptions().redefine_references, py::arg("camera_height") = 0.0,
            "Opens the map (a path or a retrace.Map) for localizing, as `retrace repeat --map` does.\n\n"
            "camera: the frames' calibration (retrace.Camera); default the camera stored in the map. One that images\n"
            "the same rays more than 1 px away from the map's is refused.\n"
            "start_arc: bootstrap the first frame on this arc (--start-arc); default: found by retrieval.\n"
            "The keyword options are those of `retrace repeat` (--max-residual, --max-sigma-p, --steering-gain,\n"
            "--max-bad-frames, --min-confidence, --max-cached-key-images, --retrieval-shortlist; absolute_pose=False\n"
-           "is --no-absolute-pose, redefine_references=False --keep-references).\n"
+           "is --no-absolute-pose, redefine_references=False --keep-references, camera_height --camera-height:\n"
+           "the camera's height above the ground in metres for FrameResult.path; 0 = the one stored in the map).\n"
            "Raises retrace.InputError naming the file for a missing or damaged map, a camera that does not fit, a\n"
            "start arc the map does not have.")
       .def("process", &PythonLocalizer::Process, py::arg("image"), py::arg("timestamp") = py::none(),

@@ -25,7 +25,7 @@ class PythonTeacher {
  public:
   PythonTeacher(const std::filesystem::path& path, const CameraModel& camera, int width,
                 const std::optional<std::string>& source, bool overwrite, const TeachOptions& options,
-                const MapDatabaseOptions& storage, const std::string& method)
+                const MapDatabaseOptions& storage, const std::string& method, double camera_height)
       : camera_(width > 0 && width != camera.width() ? camera.Scaled(static_cast<double>(width) / camera.width())
                                                      : camera.Clone()) {
     std::string error;
@@ -36,7 +36,7 @@ class PythonTeacher {
     if (source) database->SetMetadata("source_sequence", *source);
     database->SetMetadata("method", method);
     teacher_ = std::make_unique<Teacher>(*camera_, options, database);
-    WriteTeachSettings(*camera_, options, *teacher_, database);
+    WriteTeachSettings(*camera_, options, *teacher_, database, camera_height);
   }
 
   void AddFrame(const py::handle& image, std::optional<double> timestamp, std::optional<std::string> name) {
@@ -143,11 +143,15 @@ void BindTeacher(py::module_& module) {
       .def(py::init([](const py::object& path, const CameraModel& camera, int width, std::optional<std::string> source,
                        bool overwrite, const std::string& method, double r_p, int min_features,
                        double min_features_fraction, double max_residual, int max_corners, int matching_interval,
-                       bool loop_closing, bool gap_recovery, const std::string& image_format, int image_quality) {
+                       bool loop_closing, bool gap_recovery, const std::string& image_format, int image_quality,
+                       double camera_height) {
              if (method != "tracking" && method != "matching") {
                throw py::value_error("method: expected 'tracking' or 'matching', got '" + method + "'");
              }
              if (width < 0) throw py::value_error("width: must be positive (0 = the camera's)");
+             if (!(camera_height >= 0.0 && camera_height <= 100.0)) {
+               throw py::value_error("camera_height: must be in [0, 100] m (0 = not given)");
+             }
              TeachOptions options;
              options.method = method == "matching" ? TeachOptions::Method::kMatching : TeachOptions::Method::kTracking;
              options.max_sigma_p_px = r_p;
@@ -162,7 +166,7 @@ void BindTeacher(py::module_& module) {
              storage.image_format = image_format;
              storage.image_quality = image_quality;
              return std::make_unique<PythonTeacher>(PathFromObject(path, "path"), camera, width, source, overwrite,
-                                                    options, storage, method);
+                                                    options, storage, method, camera_height);
            }),
            py::arg("path"), py::arg("camera"), py::kw_only(), py::arg("width") = 0, py::arg("source") = py::none(),
            py::arg("overwrite") = false, py::arg("method") = "tracking", py::arg("r_p") = TeachOptions().max_sigma_p_px,
@@ -171,14 +175,16 @@ void BindTeacher(py::module_& module) {
            py::arg("max_residual") = TeachOptions().max_residual, py::arg("max_corners") = TeachOptions().max_corners,
            py::arg("matching_interval") = TeachOptions().matching_interval, py::arg("loop_closing") = true,
            py::arg("gap_recovery") = true, py::arg("image_format") = MapDatabaseOptions().image_format,
-           py::arg("image_quality") = MapDatabaseOptions().image_quality,
+           py::arg("image_quality") = MapDatabaseOptions().image_quality, py::arg("camera_height") = 0.0,
            "Starts teaching a map into the file `path` with frames of `camera` (retrace.Camera).\n\n"
            "width: work on frames resized to this width (--width; 0 = the camera's).\n"
            "source: recorded in the map as its teach sequence (source_sequence), e.g. the folder of the frames.\n"
            "overwrite: replace an existing retrace map at `path` (only when finish() succeeds).\n"
            "The other keywords are those of `retrace teach` (--method, --r-p, --min-features,\n"
            "--min-features-fraction, --max-residual, --max-corners, --matching-interval; loop_closing=False is\n"
-           "--no-loop-closing, gap_recovery=False --no-gap-recovery, --image-format, --image-quality).\n"
+           "--no-loop-closing, gap_recovery=False --no-gap-recovery, --image-format, --image-quality,\n"
+           "camera_height --camera-height: the camera's height above the ground in metres, stored for repeat's\n"
+           "metric path; 0 = not given).\n"
            "Raises retrace.InputError when `path` exists (without overwrite), is not a retrace map, or is being\n"
            "written by another teach.")
       .def("add_frame", &PythonTeacher::AddFrame, py::arg("image"), py::arg("timestamp") = py::none(),

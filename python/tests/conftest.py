@@ -27,6 +27,9 @@ except ImportError:
 FRAMES = 60
 SIZE = ["--width", "320", "--height", "240"]
 SEED = ["--seed", "3"]
+# The simulated car's camera height above the ground (sim/vehicle.h): teach stores it, repeat then reports the
+# camera's offset from the taught path in metres.
+CAMERA_HEIGHT = 1.5
 
 
 def run_cli(*args, check=True):
@@ -70,6 +73,6 @@ def drives(tmp_path_factory):
     run_cli("sim", "render", "--out", d.teach, "--frames", FRAMES, *SIZE, *SEED, "--quiet")
     run_cli("sim", "render", "--out", d.repeat, "--frames", FRAMES, *SIZE, *SEED, "--variant", "repeat",
             "--lateral-offset", "3", "--quiet")
-    run_cli("teach", "--sequence", d.teach, "--map", d.map, "--no-progress")
+    run_cli("teach", "--sequence", d.teach, "--map", d.map, "--camera-height", CAMERA_HEIGHT, "--no-progress")
     run_cli("repeat", "--map", d.map, "--sequence", d.repeat, "--output", d.run, "--no-progress")
     return d

@@ -29,6 +29,14 @@ def assert_same_as_run_csv(result, row):
     assert f"{position:.4f}" == row["position_on_arc"]
     assert result.key_images_matched == int(row["key_images_matched"])
     assert result.seconds > 0
+    # The metric offset from the taught path (the map stores the camera's height).
+    path_columns = ("lateral_m", "lateral_sigma_m", "heading_error_rad", "along_m", "to_next_m", "curvature_ahead")
+    if row["lateral_m"] == "":
+        assert result.path is None
+    else:
+        p = result.path
+        assert [f"{p.lateral_m:.4f}", f"{p.lateral_sigma_m:.4f}", f"{p.heading_error_rad:.5f}", f"{p.along_m:.3f}",
+                f"{p.to_next_m:.3f}", f"{p.curvature_ahead:.5f}"] == [row[column] for column in path_columns]
 
 
 def test_localizer_gives_the_states_and_arcs_of_repeat(drives):
@@ -38,11 +46,15 @@ def test_localizer_gives_the_states_and_arcs_of_repeat(drives):
     # The drive has every state, so that agreeing is not trivial.
     assert {row["state"] for row in rows} == {"tracking", "lost", "relocalizing"}
     assert len({row["arc"] for row in rows}) >= 5
+    assert sum(row["lateral_m"] != "" for row in rows) >= len(rows) // 2
 
     localizer = retrace.Localizer(drives.map)
-    for frame, row in zip(frames, rows):
-        assert_same_as_run_csv(localizer.process(frame), row)
+    results = [localizer.process(frame) for frame in frames]
+    for result, row in zip(results, rows):
+        assert_same_as_run_csv(result, row)
     assert localizer.state == rows[-1]["state"]
+    # The repeat drive runs 3 m to the right of the taught one (positive lateral_m: to the right).
+    assert 1.5 < np.median([r.path.lateral_m for r in results if r.path is not None]) < 4.5
 
 
 def test_localizer_takes_numpy_images_gray_or_bgr(drives):

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import retrace
 
-from conftest import cli_error, run_cli
+from conftest import CAMERA_HEIGHT, cli_error
 
 
 def assert_same_map(a, b):
@@ -30,7 +30,7 @@ def assert_same_map(a, b):
 def test_teacher_writes_the_map_teach_writes(drives, tmp_path):
     camera = retrace.Camera.read(drives.teach / "camera.yaml")
     path = tmp_path / "python.db"
-    with retrace.Teacher(path, camera, source=str(drives.teach)) as teacher:
+    with retrace.Teacher(path, camera, source=str(drives.teach), camera_height=CAMERA_HEIGHT) as teacher:
         # numpy images with the names and timestamps the command line reads from the folder
         for frame in retrace.Sequence(drives.teach):
             teacher.add_frame(frame.image, timestamp=frame.timestamp, name=frame.name)
@@ -43,7 +43,7 @@ def test_teacher_writes_the_map_teach_writes(drives, tmp_path):
     assert_same_map(ours, theirs)
     # The settings repeat reads from the map, and the camera.
     for key in ("reference_width", "smoothing_sigma_px", "r_p", "min_features", "max_residual", "width", "method",
-                "teach_state", "source_sequence"):
+                "teach_state", "source_sequence", "camera_height"):
         assert ours.metadata[key] == theirs.metadata[key], key
     assert ours.camera.to_yaml() == theirs.camera.to_yaml()
     stats = teacher.statistics
