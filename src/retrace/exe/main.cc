@@ -9,6 +9,7 @@
 
 #include "retrace/exe/commands.h"
 #include "retrace/util/error.h"
+#include "retrace/util/error_message.h"
 #include "retrace/util/version.h"
 
 namespace {
@@ -26,28 +27,6 @@ constexpr void (*kCommands[])(CLI::App&) = {
     &retrace::RegisterSimCommand,
     &retrace::RegisterRepeatCommand,
 };
-
-// An error message fit for one line of a terminal, whatever an input file put into it: line breaks become spaces,
-// other control characters and bytes that are not UTF-8 become '?', and an empty message says so.
-std::string OneLineMessage(const std::string& message) {
-  std::string result;
-  for (size_t i = 0; i < message.size();) {
-    const auto byte = static_cast<unsigned char>(message[i]);
-    size_t length = byte < 0x80 ? 1 : (byte >> 5) == 0x6 ? 2 : (byte >> 4) == 0xE ? 3 : (byte >> 3) == 0x1E ? 4 : 0;
-    for (size_t k = 1; k < length; ++k) {
-      if (i + k >= message.size() || (static_cast<unsigned char>(message[i + k]) & 0xC0) != 0x80) length = 0;
-    }
-    if (byte == '\n' || byte == '\r' || byte == '\t') {
-      result += ' ';
-    } else if (length == 0 || byte < 0x20 || byte == 0x7F) {
-      result += '?';
-    } else {
-      result.append(message, i, length);
-    }
-    i += std::max<size_t>(length, 1);
-  }
-  return result.empty() ? "unknown error (no message)" : result;
-}
 
 }  // namespace
 
@@ -73,7 +52,7 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   } catch (const std::exception& e) {  // retrace::InputError and anything else
-    std::cerr << "retrace: error: " << OneLineMessage(e.what()) << "\n";
+    std::cerr << "retrace: error: " << retrace::OneLineMessage(e.what()) << "\n";
     return 1;
   }
   return 0;

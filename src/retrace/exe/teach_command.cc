@@ -15,6 +15,7 @@
 #include "retrace/image/image_utils.h"
 #include "retrace/map/map_database.h"
 #include "retrace/teach/map_report.h"
+#include "retrace/teach/teach_settings.h"
 #include "retrace/teach/teacher.h"
 #include "retrace/util/error.h"
 #include "retrace/util/progress.h"
@@ -78,18 +79,9 @@ void RunTeach(const TeachArguments& args) {
   database->SetMetadata("method", args.method);
   database->SetMetadata("frames_every", std::to_string(args.every));
   database->SetMetadata("frames_offset", std::to_string(args.offset));
-  database->SetMetadata("width", std::to_string(camera->width()));
-  database->WriteCamera(camera->model_name(), camera->width(), camera->height(), CameraToYaml(*camera));
-
   Teacher teacher(*camera, args.options, database);
-  database->SetMetadata("r_p", fmt::format("{:.3f}", teacher.sigma_p_threshold_px()));
-  database->SetMetadata("min_features", std::to_string(args.options.min_features));
-  database->SetMetadata("min_features_fraction", fmt::format("{:g}", args.options.min_features_fraction));
-  database->SetMetadata("max_residual", fmt::format("{:.2f}", args.options.max_residual));
-  // Repeat must pre-smooth its images exactly as teach did, or R means something else against the key-images.
-  database->SetMetadata("reference_width", std::to_string(args.options.reference_width));
-  if (args.camera_height > 0) database->SetMetadata("camera_height", fmt::format("{:g}", args.camera_height));
-  database->SetMetadata("smoothing_sigma_px", fmt::format("{}", args.options.smoothing_sigma_px));
+  // The camera and what repeat must apply as teach did (teach_settings.h).
+  WriteTeachSettings(*camera, args.options, teacher, database, args.camera_height);
 
   const auto start = std::chrono::steady_clock::now();
   double seconds_reading = 0.0;
