@@ -14,6 +14,7 @@
 #include "retrace/camera/camera_model.h"
 #include "retrace/map/map.h"
 #include "retrace/repeat/localizer.h"
+#include "retrace/repeat/map_loading.h"
 
 namespace retrace {
 
@@ -27,15 +28,5 @@ void RegisterCameraInfoCommand(CLI::App& app);
 void RegisterTwoViewCommand(CLI::App& app);
 void RegisterSimCommand(CLI::App& app);
 void RegisterRepeatCommand(CLI::App& app);
-
-// A map for localizing in (`retrace repeat`, `retrace sim drive`): its key-images loaded, the camera it stores (null
-// when none), the teach sequence it names, and `base` with the tracking settings teach stored in the map.
-struct MapForLocalizer {
-  Map map;
-  std::unique_ptr<CameraModel> camera;
-  std::optional<std::string> source_sequence;
-  LocalizerOptions options;
-};
-MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const LocalizerOptions& base);
 
 }  // namespace retrace

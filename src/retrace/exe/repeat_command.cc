@@ -36,6 +36,7 @@
 #include "retrace/map/map_database.h"
 #include "retrace/repeat/evaluation.h"
 #include "retrace/repeat/localizer.h"
+#include "retrace/repeat/map_loading.h"
 #include "retrace/util/error.h"
 #include "retrace/util/memory_usage.h"
 #include "retrace/util/progress.h"
@@ -43,16 +44,6 @@
 
 namespace retrace {
 namespace {
-
-double ParseMetadataNumber(const std::string& text, const std::string& key, const std::filesystem::path& map) {
-  try {
-    size_t used = 0;
-    const double value = std::stod(text, &used);
-    if (used == text.size() && std::isfinite(value)) return value;
-  } catch (const std::exception&) {
-  }
-  throw InputError(map.string(), "metadata " + key + " is not a number: '" + text + "'");
-}
 
 // A number with 4 decimals, or empty when not a number (an estimate that gave none).
 std::string OptionalNumber(double value) { return std::isfinite(value) ? fmt::format("{:.4f}", value) : ""; }
@@ -247,40 +238,6 @@ void WriteTrackedPlot(const std::vector<FrameResult>& results, const std::filesy
   options.y_min = 0.0;
   cv::imwrite(path.string(), RenderPlot(series, options));
 }
-
-}  // namespace
-
-MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const LocalizerOptions& base) {
-  auto database = MapDatabase::Open(path);
-  MapForLocalizer loaded;
-  loaded.map = database->ReadMap(/*load_images=*/true);
-  if (loaded.map.arcs().empty()) throw InputError(path.string(), "the map has no arcs");
-  if (const auto yaml = database->ReadCameraYaml()) {
-    loaded.camera = ParseCameraText(*yaml, path.string());
-    // The map's camera images its own key-images; when it does not, the map is damaged (not the sequence).
-    const MapNode& key_image = loaded.map.nodes().front();
-    if (loaded.camera->width() != key_image.image.cols || loaded.camera->height() != key_image.image.rows) {
-      throw InputError(path.string(), fmt::format("corrupt map: its camera images {}x{} but its key-images are {}x{}",
-                                                  loaded.camera->width(), loaded.camera->height(),
-                                                  key_image.image.cols, key_image.image.rows));
-    }
-  }
-  loaded.source_sequence = database->Metadata("source_sequence");
-  // The tracker must pre-smooth frames as teach smoothed the key-images (maps written before this was stored
-  // used the current default).
-  loaded.options = base;
-  if (const auto value = database->Metadata("smoothing_sigma_px")) {
-    loaded.options.smoothing_sigma_px = ParseMetadataNumber(*value, "smoothing_sigma_px", path);
-  }
-  if (const auto value = database->Metadata("reference_width")) {
-    loaded.options.reference_width = static_cast<int>(ParseMetadataNumber(*value, "reference_width", path));
-  }
-  std::string error;
-  if (!loaded.options.Check(&error)) throw InputError(path.string(), "tracking settings stored in the map: " + error);
-  return loaded;
-}
-
-namespace {
 
 // Two calibrations that image the same rays within this distance at the key-images' resolution are one camera: a
 // pixel is the order of the tracker's noise, a larger difference moves every predicted feature.

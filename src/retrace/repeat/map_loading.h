@@ -1,0 +1,33 @@
+#pragma once
+
+// Opening a taught map for localization, as every user of the Localizer does (`retrace repeat`, `retrace sim drive`,
+// the Python bindings): the map with its key-images, the camera it stores, and the tracking settings teach stored
+// in its metadata (repeat must pre-smooth its frames exactly as teach smoothed the key-images, or the residual
+// threshold R means something else against them).
+
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "retrace/camera/camera_model.h"
+#include "retrace/map/map.h"
+#include "retrace/repeat/localizer.h"
+
+namespace retrace {
+
+// A map for localizing in: its key-images loaded, the camera it stores (null when none), the teach sequence it
+// names, and `base` with the tracking settings teach stored in the map.
+struct MapForLocalizer {
+  Map map;
+  std::unique_ptr<CameraModel> camera;
+  std::optional<std::string> source_sequence;
+  LocalizerOptions options;
+};
+
+// Opens and checks the map at `path` (MapDatabase::Open) and reads it. Throws InputError naming the file for a map
+// that cannot be used: damaged, without arcs, with a camera that does not image its key-images, or with stored
+// tracking settings that fail LocalizerOptions::Check.
+MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const LocalizerOptions& base);
+
+}  // namespace retrace
