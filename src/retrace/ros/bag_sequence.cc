@@ -240,16 +240,16 @@ RecordSummary RecordBag(Simulator* simulator, const fs::path& path, const Record
   SimFrame frame;
   try {
     while (simulator->NextFrame(&frame)) {
-      const ros::Time stamp = SecondsToRosTime(frame.timestamp);
-      const ros::Time recorded = std::max(stamp, ros::TIME_MIN);
-      bag.write(topics.image, recorded, ImageToMessage(frame.image, stamp, topics.camera_frame));
+      // A zero stamp means "none" in ROS and a bag holds no message at time 0: the first frame is at 1 ns.
+      const ros::Time stamp = std::max(SecondsToRosTime(frame.timestamp), ros::TIME_MIN);
+      bag.write(topics.image, stamp, ImageToMessage(frame.image, stamp, topics.camera_frame));
       info.header.stamp = stamp;
-      bag.write(topics.camera_info, recorded, info);
+      bag.write(topics.camera_info, stamp, info);
       geometry_msgs::PoseStamped pose;
       pose.header.stamp = stamp;
       pose.header.frame_id = topics.world_frame;
       pose.pose = RigidToPose(frame.world_from_cam);
-      bag.write(topics.pose, recorded, pose);
+      bag.write(topics.pose, stamp, pose);
       summary.driven_m = frame.progress;
       ++summary.frames;
       progress.Advance(1);

@@ -18,8 +18,8 @@
 // RecordBag writes a simulated drive as a bag: the frames (mono8, or bgr8 for a colour sensor), the camera as
 // CameraInfo with every frame, and the ground-truth camera pose (world_from_cam in the simulator's world frame,
 // sim/simulator.h: x right, y down, z forward — not REP 103's x forward, z up) as geometry_msgs/PoseStamped. Header
-// stamps are the frame times; each message is recorded at its frame's time (the first frame, at 0, at 1 ns: a
-// bag holds no message at time 0).
+// stamps and record times are the frame times, except the first frame's 0, written as 1 ns (a zero stamp means
+// "none" in ROS, and a bag holds no message at time 0).
 
 #include <filesystem>
 #include <memory>
