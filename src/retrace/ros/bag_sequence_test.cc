@@ -13,6 +13,7 @@
 #include "retrace/camera/camera_checks.h"
 #include "retrace/camera/camera_io.h"
 #include "retrace/camera/perspective_camera.h"
+#include "retrace/camera/unified_camera.h"
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/ros/messages.h"
 #include "retrace/sim/recording.h"
@@ -199,6 +200,44 @@ TEST(BagSequence, EncodingsAndCompressedImages) {
     EXPECT_EQ(perspective->distortion().k2, 0.01);
   }
   fs::remove_all(dir);
+}
+
+TEST(BagSequence, CameraInfoDistortionModels) {
+  sensor_msgs::CameraInfo info = TestCameraInfo();
+  // The round trip of a perspective camera: every number kept.
+  std::unique_ptr<CameraModel> camera = CameraFromCameraInfo(info, "test");
+  const auto* perspective = dynamic_cast<const PerspectiveCamera*>(camera.get());
+  ASSERT_TRUE(perspective);
+  EXPECT_EQ(perspective->fx(), 50.0);
+  EXPECT_EQ(perspective->cy(), 23.5);
+  EXPECT_EQ(perspective->distortion().k2, 0.01);
+  // rational_polynomial with k4..k6 = 0 is plumb_bob; with k4 != 0 it has no retrace model.
+  info.distortion_model = "rational_polynomial";
+  info.D = {-0.1, 0.01, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+  camera = CameraFromCameraInfo(info, "test");
+  EXPECT_EQ(dynamic_cast<const PerspectiveCamera&>(*camera).distortion().k1, -0.1);
+  info.D[5] = 0.2;
+  EXPECT_EQ(ErrorOf([&] { CameraFromCameraInfo(info, "test"); }),
+            "test: D has non-zero rational/thin-prism terms (k4..), which retrace does not support");
+  // No model and no coefficients: a pinhole camera.
+  info.distortion_model = "";
+  info.D.clear();
+  camera = CameraFromCameraInfo(info, "test");
+  EXPECT_TRUE(dynamic_cast<const PerspectiveCamera&>(*camera).distortion().IsZero());
+  // Binning or a region of interest: the images are not the calibrated ones.
+  info.binning_x = 2;
+  EXPECT_EQ(ErrorOf([&] { CameraFromCameraInfo(info, "test"); }),
+            "test: CameraInfo with binning 2x0 is not supported (the images are not the calibrated ones)");
+  info.binning_x = 0;
+  info.roi.width = 32;
+  info.roi.height = 24;
+  EXPECT_EQ(ErrorOf([&] { CameraFromCameraInfo(info, "test"); }),
+            "test: CameraInfo with a region of interest is not supported (the images are not the calibrated ones)");
+  // Only perspective cameras have a CameraInfo.
+  const UnifiedCamera fisheye(64, 48, 0.9, 60.0, 60.0, 31.5, 23.5);
+  EXPECT_EQ(ErrorOf([&] { CameraToCameraInfo(fisheye, ros::Time(), "camera"); }),
+            "a unified camera has no sensor_msgs/CameraInfo distortion model (only perspective cameras can be written "
+            "to a bag)");
 }
 
 TEST(BagSequence, TopicsAreChosenAndNamed) {

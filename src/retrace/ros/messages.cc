@@ -110,9 +110,9 @@ std::unique_ptr<CameraModel> CameraFromCameraInfo(const sensor_msgs::CameraInfo&
   }
   // The camera layer reads the numbers as it reads a `rostopic echo` dump of the message, with every check of a
   // calibration file (image size, focal lengths, distortion model and coefficients).
-  const std::string yaml =
-      fmt::format("width: {}\nheight: {}\ndistortion_model: \"{}\"\nD: {}\nK: {}\n", info.width, info.height,
-                  info.distortion_model, YamlList(info.D), YamlList(info.K));
+  std::string yaml = fmt::format("width: {}\nheight: {}\ndistortion_model: \"{}\"\nK: {}\n", info.width,
+                                 info.height, info.distortion_model, YamlList(info.K));
+  if (!info.D.empty()) yaml += fmt::format("D: {}\n", YamlList(info.D));
   return ParseCameraText(yaml, source);
 }
 
