@@ -41,7 +41,11 @@ def listen(out_path, nodes, frames, last_stamp, timeout):
                                              else int(s.level), "message": s.message,
                                              "values": {v.key: v.value for v in s.values}} for s in m.status),
                                         queue_size=1000))
-    print("listening", flush=True)
+    # Every subscription connected to its publisher before the bag plays (the nodes advertise before "ready").
+    deadline = time.time() + 60
+    while time.time() < deadline and not all(s.get_num_connections() > 0 for s in subscribers):
+        time.sleep(0.1)
+    print("listening" if all(s.get_num_connections() > 0 for s in subscribers) else "not connected", flush=True)
 
     def done(node):
         states = received[node]["states"]

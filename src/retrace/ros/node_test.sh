@@ -75,13 +75,15 @@ export ROS_MASTER_URI="http://127.0.0.1:$port" ROS_HOSTNAME=127.0.0.1 ROS_HOME="
   ROS_LOG_DIR="$tmp/ros_log"
 unset ROS_IP ROS_NAMESPACE
 roscore -p "$port" >"$tmp/roscore.log" 2>&1 &
-pids+=($!)
+core=$!
+pids+=($core)
 master_up() { /usr/bin/python3 -c 'import rosgraph, sys; sys.exit(0 if rosgraph.is_master_online() else 1)' 2>/dev/null; }
 for _ in $(seq 60); do
   master_up && break
   sleep 0.5
 done
-master_up || fail "roscore did not start on port $port"
+# Our master, not another one that took the port meanwhile (roscore exits when a master runs there).
+master_up && kill -0 "$core" 2>/dev/null || fail "roscore did not start on port $port"
 
 # Two nodes on the same camera topic, each with its own cmd_vel.
 for name in every live; do
@@ -103,11 +105,11 @@ done
   >"$tmp/listener.log" 2>&1 &
 listener=$!
 pids+=($listener)
-for _ in $(seq 60); do
+for _ in $(seq 150); do
   grep -q listening "$tmp/listener.log" && break
   sleep 0.5
 done
-sleep 1  # the listener's subscriptions connect
+grep -q listening "$tmp/listener.log" || fail "the listener did not connect to the nodes' topics"
 # 5x the camera's rate: `every` queues what it cannot process at once, `live` drops it. -d: subscribers connect
 # before the first frame.
 rosbag play -q -d 2 -r 5 --queue=1000 "$tmp/repeat.bag" --topics /camera/image_raw >"$tmp/play.log" 2>&1 ||
