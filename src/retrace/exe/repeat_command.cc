@@ -37,6 +37,7 @@
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/dataset/sequence.h"
 #include "retrace/exe/commands.h"
+#include "retrace/exe/sequence_input.h"
 #include "retrace/image/image_utils.h"
 #include "retrace/map/map_database.h"
 #include "retrace/repeat/evaluation.h"
@@ -56,6 +57,7 @@ std::string OptionalNumber(double value) { return std::isfinite(value) ? fmt::fo
 struct RepeatArguments {
   std::filesystem::path map;
   std::filesystem::path sequence;
+  BagInput bag;
   std::filesystem::path camera;
   std::filesystem::path output;
   std::filesystem::path overlay;
@@ -301,7 +303,7 @@ void RunRepeat(const RepeatArguments& args) {
   const Map& map = loaded.map;
   const LocalizerOptions& options = loaded.options;
   const std::optional<std::string>& source = loaded.source_sequence;
-  std::unique_ptr<Sequence> sequence = OpenSequence(args.sequence);
+  std::unique_ptr<Sequence> sequence = OpenInputSequence(args.sequence, args.bag);
 
   const int key_width = map.nodes().front().image.cols;
   std::unique_ptr<CameraModel> camera = RepeatCamera(args, key_width, loaded.camera.get(), *sequence);
@@ -397,7 +399,7 @@ void RunRepeat(const RepeatArguments& args) {
 
   if (args.evaluate) {
     // Pseudo-repeat: key-images are frames of the teach sequence (map metadata), repeat frames of this one.
-    const auto repeat_truth_file = OpenSequence(args.sequence)->ground_truth_file();
+    const auto repeat_truth_file = sequence->ground_truth_file();
     if (!repeat_truth_file || repeat_truth_file->filename() != "poses.txt") {
       throw InputError(args.sequence.string(), "--evaluate needs KITTI ground-truth poses (poses.txt)");
     }
@@ -470,7 +472,9 @@ void RegisterRepeatCommand(CLI::App& app) {
   auto args = std::make_shared<RepeatArguments>();
   CLI::App* cmd = app.add_subcommand("repeat", "Localize a drive in a taught map, frame by frame, and steer");
   cmd->add_option("--map", args->map, "Map file written by `retrace teach`")->required();
-  cmd->add_option("--sequence", args->sequence, "Image folder, video, KITTI or EuRoC layout")->required();
+  cmd->add_option("--sequence", args->sequence, "Image folder, video, KITTI or EuRoC layout, or ROS bag (*.bag)")
+      ->required();
+  AddBagOptions(cmd, &args->bag, /*with_camera_topic=*/false);
   cmd->add_option("--camera", args->camera, "Calibration file (default: the camera stored in the map)");
   cmd->add_option("--start-arc", args->start_arc, "Arc to bootstrap on (default: found by retrieval)");
   cmd->add_option("--output", args->output, "CSV file, one row per frame")->required();

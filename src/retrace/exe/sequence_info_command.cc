@@ -10,6 +10,7 @@
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/dataset/sequence.h"
 #include "retrace/exe/commands.h"
+#include "retrace/exe/sequence_input.h"
 
 namespace retrace {
 namespace {
@@ -17,12 +18,16 @@ namespace {
 struct SequenceInfoArgs {
   std::string path;
   double frame_rate = 1.0;
+  BagInput bag;
 };
 
 void RunSequenceInfo(const SequenceInfoArgs& args) {
   SequenceOptions options;
   options.frame_rate = args.frame_rate;
-  std::unique_ptr<Sequence> sequence = OpenSequence(args.path, options);
+  std::unique_ptr<Sequence> sequence = std::filesystem::path(args.path).extension() == ".bag" || !args.bag.topic.empty() ||
+                                                   !args.bag.camera_topic.empty()
+                                           ? OpenInputSequence(args.path, args.bag)
+                                           : OpenSequence(args.path, options);
 
   // Read every frame: the only honest way to know which ones are readable.
   size_t readable = 0;
@@ -48,7 +53,12 @@ void RunSequenceInfo(const SequenceInfoArgs& args) {
                              last_time - first_time);
   }
   const std::optional<std::filesystem::path> calibration = sequence->calibration_file();
-  std::cout << fmt::format("calibration:   {}\n", calibration ? calibration->string() : "none");
+  if (sequence->layout() == "rosbag") {
+    const std::unique_ptr<CameraModel> camera = SequenceCamera(*sequence);
+    std::cout << fmt::format("calibration:   {}\n", camera ? "CameraInfo, " + camera->model_name() : "none");
+  } else {
+    std::cout << fmt::format("calibration:   {}\n", calibration ? calibration->string() : "none");
+  }
   const std::optional<std::filesystem::path> ground_truth = sequence->ground_truth_file();
   if (!ground_truth) {
     std::cout << "ground truth:  none\n";
@@ -76,7 +86,8 @@ void RegisterSequenceInfoCommand(CLI::App& app) {
   auto args = std::make_shared<SequenceInfoArgs>();
   CLI::App* cmd = app.add_subcommand(
       "sequence-info", "Describe an image sequence (folder, video, KITTI or EuRoC layout) and its ground truth");
-  cmd->add_option("path", args->path, "Sequence folder or video file")->required();
+  cmd->add_option("path", args->path, "Sequence folder, video file or ROS bag (*.bag)")->required();
+  AddBagOptions(cmd, &args->bag, /*with_camera_topic=*/true);
   cmd->add_option("--fps", args->frame_rate, "Frame rate assumed for an image folder without times.txt")
       ->check(CLI::PositiveNumber);
   cmd->callback([args]() { RunSequenceInfo(*args); });

@@ -12,6 +12,7 @@
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/drive/closed_loop.h"
 #include "retrace/exe/commands.h"
+#include "retrace/exe/sequence_input.h"
 #include "retrace/sim/recording.h"
 #include "retrace/sim/scenario_io.h"
 #include "retrace/sim/simulator.h"
@@ -43,6 +44,7 @@ std::string RangeOf(const char* key) { return FindScenarioKeyRange(key)->Text();
 struct RenderArguments {
   std::string scenario;
   std::string out;
+  std::string bag;
   std::string variant = "teach";
   int frames = -1;
   int width = 0;
@@ -96,10 +98,12 @@ void RunRender(const CLI::App& command, const RenderArguments& args) {
   options.progress = !args.quiet;
   options.contact_sheet = args.contact_sheet;
   options.contact_sheet_every = std::max(1, args.sheet_every);
-  const RecordSummary summary = RecordSequence(&simulator, args.out, options);
+  const RecordSummary summary = args.bag.empty() ? RecordSequence(&simulator, args.out, options)
+                                                 : RecordSimulatedBag(&simulator, args.bag, options);
   std::cout << fmt::format("wrote {} frames ({:.0f} m of a {:.0f} m route, {} variant) to {} in {:.1f} s ({:.1f} "
                            "fps)\n",
-                           summary.frames, summary.driven_m, summary.route_length_m, args.variant, args.out,
+                           summary.frames, summary.driven_m, summary.route_length_m, args.variant,
+                           args.bag.empty() ? args.out : args.bag,
                            summary.seconds, summary.frames / std::max(1e-9, summary.seconds));
   if (summary.stopped_at_route_end) {
     std::cout << fmt::format("the route ends after {} frames: {} fewer than the {} asked for (frames 0 drives the "
@@ -264,7 +268,8 @@ void RegisterSimCommand(CLI::App& app) {
   example->callback([]() { std::cout << ScenarioToYaml(Scenario()); });
 
   CLI::App* render = sim->add_subcommand(
-      "render", "Render a drive into a KITTI-layout sequence (image_0/, times.txt, poses.txt, calib.txt)");
+      "render",
+      "Render a drive into a KITTI-layout sequence (image_0/, times.txt, poses.txt, calib.txt) or a ROS bag (--bag)");
   auto render_args = std::make_shared<RenderArguments>();
   const Scenario defaults;
   std::string presets;
@@ -272,7 +277,11 @@ void RegisterSimCommand(CLI::App& app) {
     presets += fmt::format("{}{} ({})", presets.empty() ? "" : ", ", p.name, p.description);
   }
   render->add_option("--scenario", render_args->scenario, "Scenario file (YAML/JSON); default: the built-in scenario");
-  render->add_option("--out", render_args->out, "Output folder of the sequence")->required();
+  CLI::Option* out = render->add_option("--out", render_args->out, "Output folder of the sequence");
+  render->add_option("--bag", render_args->bag,
+                     "Write the drive as a ROS bag instead: /camera/image_raw, /camera/camera_info, "
+                     "/ground_truth/pose (geometry_msgs/PoseStamped, world_from_cam)")
+      ->excludes(out);
   render->add_option("--variant", render_args->variant,
                      "teach, or repeat (other sun and exposure, 1 m lateral offset, wobble)")
       ->check(CLI::IsMember({"teach", "repeat"}));
@@ -315,7 +324,15 @@ void RegisterSimCommand(CLI::App& app) {
   render->add_option("--contact-sheet-every", render_args->sheet_every,
                      fmt::format("N for --contact-sheet, 1..{} (default 10)", MaxFrames()));
   render->add_flag("--quiet", render_args->quiet, "No progress bar");
-  render->callback([render, render_args]() { RunRender(*render, *render_args); });
+  render->callback([render, render_args]() {
+    if (render_args->out.empty() && render_args->bag.empty()) {
+      throw InputError("", "sim render: give --out FOLDER or --bag FILE");
+    }
+    if (!render_args->bag.empty() && !render_args->contact_sheet.empty()) {
+      throw InputError("", "sim render: --contact-sheet is written with --out only");
+    }
+    RunRender(*render, *render_args);
+  });
 
   CLI::App* drive = sim->add_subcommand(
       "drive", "Drive the scenario's repeat variant with retrace's steering in a taught map (closed loop)");

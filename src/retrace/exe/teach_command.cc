@@ -12,6 +12,7 @@
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/dataset/sequence.h"
 #include "retrace/exe/commands.h"
+#include "retrace/exe/sequence_input.h"
 #include "retrace/image/image_utils.h"
 #include "retrace/map/map_database.h"
 #include "retrace/teach/map_report.h"
@@ -26,6 +27,7 @@ namespace {
 
 struct TeachArguments {
   std::filesystem::path sequence;
+  BagInput bag;
   std::filesystem::path camera;
   std::filesystem::path map;
   std::string method = "tracking";
@@ -39,19 +41,21 @@ struct TeachArguments {
   MapDatabaseOptions storage;
 };
 
-// The camera of the sequence: --camera, else the calibration file found in the sequence's layout.
+// The camera of the sequence: --camera, else the calibration file found in the sequence's layout (a bag's
+// CameraInfo).
 std::unique_ptr<CameraModel> LoadCamera(const TeachArguments& args, Sequence& sequence) {
-  std::filesystem::path path = args.camera;
-  if (path.empty()) {
-    const auto found = sequence.calibration_file();
-    if (!found) throw InputError(args.sequence.string(), "no calibration file in the sequence; give --camera FILE");
-    path = *found;
+  if (!args.camera.empty()) return ReadCameraFile(args.camera, sequence.image_size());
+  std::unique_ptr<CameraModel> camera = SequenceCamera(sequence);
+  if (!camera) {
+    throw InputError(args.sequence.string(), sequence.layout() == "rosbag"
+                                                 ? "no CameraInfo in the bag; give --camera FILE or --camera-topic"
+                                                 : "no calibration file in the sequence; give --camera FILE");
   }
-  return ReadCameraFile(path, sequence.image_size());
+  return camera;
 }
 
 void RunTeach(const TeachArguments& args) {
-  std::unique_ptr<Sequence> sequence = OpenSequence(args.sequence);
+  std::unique_ptr<Sequence> sequence = OpenInputSequence(args.sequence, args.bag);
   std::unique_ptr<CameraModel> camera = LoadCamera(args, *sequence);
   if (args.every > 1 || args.offset > 0) {
     sequence = std::make_unique<SubsampledSequence>(std::move(sequence), std::max<size_t>(1, args.every), args.offset);
@@ -107,7 +111,7 @@ void RunTeach(const TeachArguments& args) {
   const TeachStatistics& stats = teacher.statistics();
   const Map& map = teacher.map();
   double route_metres = 0.0;
-  if (const auto truth_file = OpenSequence(args.sequence)->ground_truth_file();
+  if (const auto truth_file = sequence->ground_truth_file();
       truth_file && truth_file->filename() == "poses.txt") {
     route_metres = RouteLengthMetres(map, ReadKittiPoses(*truth_file));
     database->SetMetadata("route_length_m", fmt::format("{:.2f}", route_metres));
@@ -156,7 +160,9 @@ void RunTeach(const TeachArguments& args) {
 void RegisterTeachCommand(CLI::App& app) {
   auto args = std::make_shared<TeachArguments>();
   CLI::App* cmd = app.add_subcommand("teach", "Build a map (key-images linked by two-view geometries) from one drive");
-  cmd->add_option("--sequence", args->sequence, "Image folder, video, KITTI or EuRoC layout")->required();
+  cmd->add_option("--sequence", args->sequence, "Image folder, video, KITTI or EuRoC layout, or ROS bag (*.bag)")
+      ->required();
+  AddBagOptions(cmd, &args->bag, /*with_camera_topic=*/true);
   cmd->add_option("--camera", args->camera, "Calibration file (default: the one found in the sequence)");
   cmd->add_option("--map", args->map, "Map file to write (SQLite)")->required();
   cmd->add_option("--method", args->method,
