@@ -504,9 +504,12 @@ void RegisterRepeatCommand(CLI::App& app) {
                   "released first; bounds memory on long drives)")
       ->capture_default_str();
   cmd->add_option("--retrieval-shortlist", args->options.retrieval_shortlist,
-                  "Key-images verified first when localizing without a start arc, the most similar in appearance "
-                  "(0: all)")
+                  "Verification budget when localizing without a start arc: at most this many key-images verified "
+                  "per frame, the most similar in appearance first, stopping at the first confident one (0: all)")
       ->capture_default_str();
+  cmd->add_flag("!--sift", args->options.binary_relocalization,
+                "Relocalize with SIFT from three detectors extracted at run time (as before issue 16), not with the "
+                "binary key-points the map stores");
   cmd->add_flag("!--no-absolute-pose", args->options.place_by_absolute_pose,
                 "Place the camera on the arc by the current geometries alone (the paper), not by its absolute pose in "
                 "the arc's reconstruction");

@@ -11,6 +11,10 @@
 //   arcs         two-view geometry W_k between two nodes: R (9 doubles, row-major), t (3 doubles), σ_p, |M_k|
 //   arc_points   3D points Q_kj of an arc's features, in the `from` node's camera frame, arc units
 //   node_scales  relative scale between the geometries of two arcs meeting at a node
+//   signatures   what relocalization needs of a key-image (map.h KeyImageSignature): binary key-points and their
+//                descriptors, the quantised appearance thumbnail, and a CRC-32 of the three (schema 3; maps of
+//                schemas 1 and 2 have none: repeat computes them when it loads such a map). Metadata
+//                `signature_features` / `signature_appearance` name the settings that made them.
 // The schema version is in `PRAGMA user_version` and the file is marked as a retrace map by
 // `PRAGMA application_id`, so opening a foreign file or a map of a newer schema gives a clear error.
 //
@@ -47,7 +51,7 @@ struct MapDatabaseOptions {
 
 class MapDatabase {
  public:
-  static constexpr int kSchemaVersion = 2;        // written by this retrace: key-image checksums
+  static constexpr int kSchemaVersion = 3;        // written by this retrace: key-image signatures
   static constexpr int kOldestSchemaVersion = 1;  // oldest schema still read
   static constexpr int kApplicationId = 0x52545243;  // "RTRC"
   // Metadata key of teach's progress: kIncomplete from the start of teach, kComplete when it finished. Maps
@@ -86,6 +90,8 @@ class MapDatabase {
   void WriteNode(const MapNode& node);
   // Adds observations to a node written before (e.g. features found later by wide-baseline matching).
   void WriteObservations(node_t node, const std::vector<FeatureObservation>& features);
+  // Stores a node's relocalization signature (also done by WriteNode when the node has one). Schema >= 3 only.
+  void WriteSignature(node_t node, const KeyImageSignature& signature);
   void WriteArc(const MapArc& arc);
   void WriteScale(const NodeScale& scale);
   std::unique_ptr<SqliteTransaction> BeginTransaction();
@@ -94,6 +100,9 @@ class MapDatabase {
   Map ReadMap(bool load_images = true);
   // Encoded size of every stored key-image, in bytes.
   int64_t ImageBytes();
+  // Stored size of the key-images' relocalization signatures, in bytes (0 for maps of schema < 3).
+  int64_t SignatureBytes();
+  int schema_version() const { return schema_version_; }
   int64_t NumNodes();
   int64_t NumArcs();
 

@@ -2,10 +2,11 @@
 // wide-baseline matching (SIFT, ratio test, cross-check) and a verified relative pose, the arc chosen by which side
 // of the best key-image the camera is on (the sign test of eq. (9)), and the mapped features of that arc and its
 // neighbours located in the frame. Retrieval ranks candidate key-images by whole-image appearance first
-// (GlobalDescriptor) and verifies the most alike.
+// (the quantised thumbnails of AppearanceIndex) and verifies the most alike, in order, within a budget (issue 16).
 
 #include <algorithm>
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include "retrace/geometry/relative_pose.h"
@@ -19,10 +20,14 @@ using internal::Median;
 std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBaselineFeatures& current,
                                                                  const std::vector<node_t>& candidates) {
   std::vector<MatchedKeyImage> verified;
+  const int min_inliers =
+      options_.binary_relocalization ? options_.min_binary_inliers : options_.min_bootstrap_inliers;
   for (const node_t node : candidates) {
     const WideBaselineFeatures& key = NodeWideBaseline(node);
-    const std::vector<cv::DMatch> matches = MatchWideBaseline(key, current, options_.matching);
-    if (static_cast<int>(matches.size()) < options_.min_bootstrap_inliers) continue;
+    const std::vector<cv::DMatch> matches = MatchWideBaseline(key, current, relocalization_matching_);
+    spdlog::debug("repeat: key-image {}: {} matches of {} and {} key-points", node, matches.size(), key.size(),
+                  current.size());
+    if (static_cast<int>(matches.size()) < min_inliers) continue;
     MatchedKeyImage candidate;
     candidate.node = node;
     std::vector<Vector3d> bearings_key, bearings_current;
@@ -40,11 +45,11 @@ std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBase
       used.push_back(&m);
     }
     candidate.geometry =
-        EstimateRelativePose(bearings_key, bearings_current, camera_->FocalLength(), geometry_options_);
+        EstimateRelativePose(bearings_key, bearings_current, camera_->FocalLength(), relocalization_geometry_);
     // A frame taken (almost) where the key-image was shows no parallax: the rotation-only fit still verifies it.
     const bool verified_geometry = candidate.geometry.success ||
                                    candidate.geometry.failure == TwoViewFailure::kInsufficientParallax;
-    if (!verified_geometry || candidate.geometry.num_inliers < options_.min_bootstrap_inliers) continue;
+    if (!verified_geometry || candidate.geometry.num_inliers < min_inliers) continue;
     for (size_t i = 0; i < used.size(); ++i) {
       if (!candidate.geometry.inlier_mask[i]) continue;
       const cv::KeyPoint& kk = key.keypoints[used[i]->queryIdx];
@@ -62,32 +67,29 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
                                                                     const WideBaselineFeatures& current,
                                                                     const std::vector<node_t>& candidates,
                                                                     std::vector<node_t>* tried) {
-  std::vector<node_t> ranked = candidates;
+  // Rank by appearance: an exhaustive scan of the quantised thumbnails (about 0.3 µs per key-image).
+  std::vector<size_t> entries;
+  entries.reserve(candidates.size());
+  for (const node_t id : candidates) entries.push_back(appearance_entry_.at(id));
+  const cv::Mat query = QuantizeGlobalDescriptor(ComputeGlobalDescriptor(image, options_.retrieval));
+  std::vector<node_t> ranked;
+  ranked.reserve(candidates.size());
+  for (const size_t entry : appearance_index_.Rank(query, entries)) ranked.push_back(appearance_nodes_[entry]);
+  // The verification budget: the most alike first, at most retrieval_shortlist of them, stopping at the first
+  // confident one (0: every candidate, none skipped).
   const size_t shortlist = static_cast<size_t>(options_.retrieval_shortlist);
-  if (shortlist > 0 && candidates.size() > shortlist) {
-    std::vector<GlobalDescriptor> database;
-    database.reserve(candidates.size());
-    for (const node_t id : candidates) {
-      NodeData& node = Node(id);
-      if (!node.appearance) node.appearance = ComputeGlobalDescriptor(node.node->image, options_.retrieval);
-      database.push_back(*node.appearance);
-    }
-    const std::vector<size_t> order =
-        RankByGlobalDescriptor(ComputeGlobalDescriptor(image, options_.retrieval), database, options_.retrieval);
-    for (size_t i = 0; i < order.size(); ++i) ranked[i] = candidates[order[i]];
+  const size_t budget = shortlist > 0 ? std::min(shortlist, ranked.size()) : ranked.size();
+  std::vector<MatchedKeyImage> verified;
+  for (size_t i = 0; i < budget; ++i) {
+    tried->push_back(ranked[i]);
+    std::vector<MatchedKeyImage> one = MatchKeyImages(current, {ranked[i]});
+    spdlog::debug("repeat: retrieval candidate {} (rank {} of {}): {}", ranked[i], i, ranked.size(),
+                  one.empty() ? std::string("not verified") : fmt::format("{} inliers", one.front().geometry.num_inliers));
+    if (one.empty()) continue;
+    const bool confident = one.front().geometry.num_inliers >= options_.retrieval_confident_inliers;
+    verified.push_back(std::move(one.front()));
+    if (confident && shortlist > 0) break;
   }
-  const size_t first = shortlist > 0 ? std::min(shortlist, ranked.size()) : ranked.size();
-  std::vector<MatchedKeyImage> verified = MatchKeyImages(current, {ranked.begin(), ranked.begin() + first});
-  int best_inliers = 0;
-  for (const MatchedKeyImage& m : verified) best_inliers = std::max(best_inliers, m.geometry.num_inliers);
-  size_t matched = first;
-  if (best_inliers < options_.retrieval_confident_inliers && first < ranked.size()) {
-    // Not convincing (or nothing verified): the remaining candidates may hold the right key-image.
-    std::vector<MatchedKeyImage> rest = MatchKeyImages(current, {ranked.begin() + first, ranked.end()});
-    verified.insert(verified.end(), std::make_move_iterator(rest.begin()), std::make_move_iterator(rest.end()));
-    matched = ranked.size();
-  }
-  tried->insert(tried->end(), ranked.begin(), ranked.begin() + matched);
   return verified;
 }
 
@@ -116,7 +118,9 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   ClearTracks();
   arc_ = kInvalidArcId;
 
-  const WideBaselineFeatures current = ExtractWideBaselineFeatures(frame.image, options_.matching);
+  const WideBaselineFeatures current = options_.binary_relocalization
+                                          ? ExtractBinaryFeatures(frame.image, frame_features_)
+                                          : ExtractWideBaselineFeatures(frame.image, options_.matching);
   std::vector<MatchedKeyImage> verified;
   std::vector<node_t> tried;
   size_t candidate_count = 2;
