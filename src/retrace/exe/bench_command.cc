@@ -50,6 +50,7 @@ struct KidnapArguments {
   int frames = 3;
   int lost_frames = 60;
   unsigned seed = 1;
+  std::vector<size_t> at;  // explicit start frames instead of random ones
   LocalizerOptions options;
 };
 
@@ -116,8 +117,10 @@ void RunKidnap(const KidnapArguments& args) {
   }
   int at_first = 0, within = 0, wrong_frames = 0, wrong_starts = 0;
   std::vector<double> first_ms, first_cpu_ms, unlocalized_ms;
-  for (int s = 0; s < args.starts; ++s) {
-    const size_t start = pick(rng);
+  const int starts = args.at.empty() ? args.starts : static_cast<int>(args.at.size());
+  for (int s = 0; s < starts; ++s) {
+    const size_t start = args.at.empty() ? pick(rng) : args.at[s];
+    if (start + args.frames > n) throw InputError(args.sequence.string(), fmt::format("no frames {}+", start));
     Localizer localizer(loaded.map, *loaded.camera, loaded.options);
     std::vector<RepeatRecord> records;
     std::vector<FrameResult> results;
@@ -153,8 +156,8 @@ void RunKidnap(const KidnapArguments& args) {
   std::cout << fmt::format(
       "kidnap: {} starts on a map of {} key-images ({} arcs), {} frames each: localized at the first frame {} "
       "({:.1f} %), within {} frames {} ({:.1f} %); {} wrong frames in {} starts\n",
-      args.starts, loaded.map.nodes().size(), loaded.map.arcs().size(), args.frames, at_first,
-      100.0 * at_first / args.starts, args.frames, within, 100.0 * within / args.starts, wrong_frames, wrong_starts);
+      starts, loaded.map.nodes().size(), loaded.map.arcs().size(), args.frames, at_first,
+      100.0 * at_first / starts, args.frames, within, 100.0 * within / starts, wrong_frames, wrong_starts);
   std::cout << fmt::format("kidnap: first frame {:.1f} ms median, {:.1f} ms 95th percentile, {:.1f} ms max (wall); "
                            "CPU {:.1f} ms median, {:.1f} ms 95th percentile; frames not localized: {} ({:.1f} ms "
                            "median)\n",
@@ -268,6 +271,7 @@ void RegisterBenchCommand(CLI::App& app) {
   cmd->add_option("--frames", args->frames, "Frames run from each start")->check(CLI::Range(1, 1000))
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "Seed of the random start frames")->capture_default_str();
+  cmd->add_option("--at", args->at, "Start at these frames instead of random ones");
   cmd->add_option("--output", args->output, "CSV file, one row per frame run");
   cmd->add_option("--lost-sequence", args->lost_sequence,
                   "A drive of a place not in the map: the time of relocalizing frames while lost");
@@ -289,6 +293,12 @@ void RegisterBenchCommand(CLI::App& app) {
   cmd->add_option("--ratio", args->options.relocalization_features.ratio, "Ratio test of binary matches")
       ->capture_default_str();
   cmd->add_option("--min-inliers", args->options.min_binary_inliers, "Fewest verified inliers (binary)")
+      ->capture_default_str();
+  cmd->add_option("--ambiguity-ratio", args->options.retrieval_ambiguity_ratio,
+                  "A look-alike elsewhere verified with this fraction of the best's inliers: not localized")
+      ->capture_default_str();
+  cmd->add_option("--min-global-features", args->options.min_global_bootstrap_features,
+                  "Fewest mapped features located by a relocalization over the whole map")
       ->capture_default_str();
   cmd->add_option("--confident-inliers", args->options.retrieval_confident_inliers,
                   "Verification stops at the first key-image with this many inliers")->capture_default_str();

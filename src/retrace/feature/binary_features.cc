@@ -24,7 +24,8 @@ bool BinaryFeatureOptions::Check(std::string* error) const {
 }
 
 std::string BinaryFeatureOptions::Name() const {
-  return fmt::format("orb-upright n{} a{} f{} l{} t{} p{}", max_keypoints, reference_area, scale_factor, levels,
+  return fmt::format("orb-upright n{}{} f{} l{} t{} p{}", max_keypoints,
+                     scale_with_area ? fmt::format(" a{}", reference_area) : std::string(), scale_factor, levels,
                      fast_threshold, patch_size);
 }
 
@@ -32,7 +33,8 @@ WideBaselineFeatures ExtractBinaryFeatures(const cv::Mat& image, const BinaryFea
   CV_Assert(image.type() == CV_8UC1);
   std::string error;
   if (!options.Check(&error)) throw std::invalid_argument("BinaryFeatureOptions: " + error);
-  const double area_ratio = static_cast<double>(image.total()) / options.reference_area;
+  const double area_ratio =
+      options.scale_with_area ? static_cast<double>(image.total()) / options.reference_area : 1.0;
   const int n = std::max(8, static_cast<int>(std::lround(options.max_keypoints * std::sqrt(area_ratio))));
   const cv::Ptr<cv::ORB> orb =
       cv::ORB::create(n, static_cast<float>(options.scale_factor), options.levels, options.patch_size,

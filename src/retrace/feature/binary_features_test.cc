@@ -69,11 +69,15 @@ TEST(BinaryFeatures, OtherPlacesGiveFewMatches) {
   EXPECT_LT(MatchBinary(fa, fb, options).size(), 0.1 * fa.size());
 }
 
-TEST(BinaryFeatures, KeyPointsScaleWithTheImageAndBlankImagesHaveNone) {
-  const BinaryFeatureOptions options;
+TEST(BinaryFeatures, KeyPointsScaleWithTheImageOnlyWhenAskedAndBlankImagesHaveNone) {
+  BinaryFeatureOptions options;
+  const cv::Mat large_image = ClutteredTexture(1280, 960, 3);
+  EXPECT_EQ(ExtractBinaryFeatures(large_image, options).size(), 1000u);  // a stored key-image: max_keypoints
+  options.scale_with_area = true;
   const WideBaselineFeatures small = ExtractBinaryFeatures(ClutteredTexture(320, 240, 3), options);
-  const WideBaselineFeatures large = ExtractBinaryFeatures(ClutteredTexture(1280, 960, 3), options);
+  const WideBaselineFeatures large = ExtractBinaryFeatures(large_image, options);
   EXPECT_GT(large.size(), 1.5 * small.size());
+  EXPECT_GT(large.size(), 1000u);
   EXPECT_LE(large.size(), 4000u);  // 1000 * sqrt(area ratio 16) at most
   const WideBaselineFeatures blank = ExtractBinaryFeatures(cv::Mat(240, 320, CV_8U, cv::Scalar(90)), options);
   EXPECT_EQ(blank.size(), 0u);

@@ -81,6 +81,9 @@ bool LocalizerOptions::Check(std::string* error) const {
   std::string matching_error;
   if (!matching.Check(&matching_error)) return fail("matching: " + matching_error);
   if (!relocalization_features.Check(&matching_error)) return fail("relocalization_features: " + matching_error);
+  if (!(retrieval_ambiguity_ratio >= 0.0 && retrieval_ambiguity_ratio <= 1.0)) {
+    return fail("retrieval_ambiguity_ratio must be in [0, 1]");
+  }
   if (relocalization_frame_keypoints < 8) return fail("relocalization_frame_keypoints must be >= 8");
   if (relocalization_max_samples < 1) return fail("relocalization_max_samples must be >= 1");
   return true;
@@ -116,6 +119,7 @@ Localizer::Localizer(const Map& map, const CameraModel& camera, const LocalizerO
   relocalization_geometry_ = geometry_options_;
   frame_features_ = options_.relocalization_features;
   frame_features_.max_keypoints = options_.relocalization_frame_keypoints;
+  frame_features_.scale_with_area = true;
   if (options_.binary_relocalization) {
     relocalization_matching_.ratio = options_.relocalization_features.ratio;
     relocalization_matching_.cross_check = options_.relocalization_features.cross_check;

@@ -173,13 +173,25 @@ struct LocalizerOptions {
   int min_bootstrap_inliers = 30;
   // ... and with binary key-points, which find fewer matches under another sun (the right key-image in the simulated
   // town: 25-80 inliers of 1000 key-points; key-images of other places: fewer than 20 matches before verification).
-  int min_binary_inliers = 20;
+  // On a map of 747 key-images (3 km in the simulated town), 20 let look-alike places elsewhere verify with 22-28
+  // inliers (4 of 100 kidnapped starts reported a place 100-500 m away); 30 none.
+  int min_binary_inliers = 30;
+  // Without a start arc, a verification is ambiguous, and the frame is not localized, when a key-image more than
+  // two arcs from the best one verified with at least this fraction of its inliers (a look-alike street: the
+  // ratio test of Segvic 2009 §4.1 at the level of places). 0 disables the test.
+  double retrieval_ambiguity_ratio = 0.8;
   // ... and fewest mapped features located in the frame for the bootstrap to succeed (enough for the current
   // geometries; the arc itself is already decided by the verified key-image). Under another sun many mapped
   // features (tree canopies, shadowed facades) no longer align within R: in the simulated town's crossings the
   // bootstrap located 8-19 of them for 15 frames in a row, and 20 kept the drive relocalizing there (demo drive
   // 92.7 % correct with 12, 94.3 % with 8; kitti07 100 % either way).
   int min_bootstrap_features = 8;
+  // ... and at least this many when the candidates were the whole map (no start arc, or lost for long): on a map of
+  // 1264 key-images of rows of equal blocks (out-and-back streets 58 m apart), look-alike places 150-870 m away
+  // verified with 32-70 inliers, and only 4-20 of the mapped features were located through them (4 of 100
+  // kidnapped starts wrong with 8); the right places mostly locate 40-130. 25 (none wrong there) localized 91 % of
+  // the kidnapped starts of the default town at the first frame, 30 86 %, 22 93 %.
+  int min_global_bootstrap_features = 25;
   // Relocalization after a loss matches the key-images of the arcs up to this many arcs around the arc where it
   // was lost, ...
   int relocalization_neighbourhood = 3;
@@ -204,8 +216,9 @@ struct LocalizerOptions {
   // The key-images' key-points must be made with the same settings as teach's (TeachOptions::signature_features,
   // stored in the map's metadata), or they are computed again when the map is loaded.
   BinaryFeatureOptions relocalization_features;
-  // Binary key-points of the frame (per 320x240 image, scaled as BinaryFeatureOptions::max_keypoints): more than a
-  // key-image stores, so that the stored ones find their partners among them (the frame's cost, not the map's size).
+  // Binary key-points of the frame, per 320x240 image and scaled by the square root of the image area
+  // (BinaryFeatureOptions::scale_with_area): as many as a key-image stores at 320x240, more than it stores at higher
+  // resolutions, so that the stored ones find their partners among them (the frame's cost, not the map's size).
   int relocalization_frame_keypoints = 1000;
   // Samples of the robust relative pose that verifies a candidate key-image at most. A key-image of the place gives
   // matches with half or more inliers, found with 99.9 % confidence within 220 samples of the 5-point solver; a

@@ -124,6 +124,7 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   std::vector<MatchedKeyImage> verified;
   std::vector<node_t> tried;
   size_t candidate_count = 2;
+  bool global = false;  // retrieval over the whole map (a start without a start arc, or lost for long)
   if (use_start_arc) {
     const MapArc* arc = Arc(start_arc_)->arc;
     tried = {arc->from, arc->to};
@@ -140,6 +141,7 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
                                            static_cast<int>(frames_lost) * options_.relocalization_widening);
     } else {
       for (const MapNode& node : map_.nodes()) candidates.push_back(node.id);
+      global = true;
     }
     verified = RetrieveKeyImages(frame.image, current, candidates, &tried);
     candidate_count = candidates.size();
@@ -152,6 +154,24 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
                                                    });
   const node_t best_node = best->node;
   const int best_inliers = best->geometry.num_inliers;
+  if (!use_start_arc && options_.retrieval_ambiguity_ratio > 0.0 && verified.size() > 1) {
+    // A look-alike place elsewhere verified almost as well: which one is right is not decided by this frame.
+    arc_t near_arc = kInvalidArcId;
+    for (const auto& [id, data] : arcs_) {
+      if ((data->arc->from == best_node || data->arc->to == best_node) && (near_arc == kInvalidArcId || id < near_arc)) {
+        near_arc = id;
+      }
+    }
+    const std::vector<node_t> near = NodesNear(near_arc, 2);
+    for (const MatchedKeyImage& other : verified) {
+      if (std::find(near.begin(), near.end(), other.node) != near.end()) continue;
+      if (other.geometry.num_inliers >= options_.retrieval_ambiguity_ratio * best_inliers) {
+        spdlog::debug("repeat: bootstrap at frame {} ambiguous: key-image {} ({} inliers) and key-image {} ({})",
+                      frame.index, best_node, best_inliers, other.node, other.geometry.num_inliers);
+        return false;
+      }
+    }
+  }
 
   // The arc: the given one, or the one on the side of the best key-image where the camera is (eq. (9)'s sign).
   arc_t chosen = start_arc_;
@@ -247,7 +267,9 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
       }
     }
   }
-  if (tracker_.NumFeatures() < options_.min_bootstrap_features) {
+  const int min_features = global ? std::max(options_.min_bootstrap_features, options_.min_global_bootstrap_features)
+                                  : options_.min_bootstrap_features;
+  if (tracker_.NumFeatures() < min_features) {
     spdlog::debug("repeat: bootstrap at frame {} failed: {} features located around arc {} (key-image {}, {} inliers)",
                   frame.index, tracker_.NumFeatures(), chosen, best_node, best_inliers);
     ClearTracks();
