@@ -8,10 +8,12 @@
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/exe/commands.h"
 #include "retrace/map/map_database.h"
+#include "retrace/nav/graph_drawing.h"
 #include "retrace/teach/map_report.h"
 #include "retrace/util/error.h"
 
@@ -127,6 +129,14 @@ void RunInspect(const InspectArguments& args) {
     for (const auto& path : WriteMapReport(map, args.report_dir, options)) {
       std::cerr << "wrote " << path.string() << "\n";
     }
+    // The graph from above, arcs shaded by similarity (Booij 2007 Fig. B.5; nav/graph_drawing.h).
+    const std::filesystem::path graph = args.report_dir / "graph.png";
+    GraphDrawingOptions drawing;
+    drawing.title = "graph of " + args.map_path.filename().string();
+    if (!cv::imwrite(graph.string(), DrawPlanningGraph(map, PlannedPath(), drawing))) {
+      throw InputError(graph.string(), "cannot write the graph drawing");
+    }
+    std::cerr << "wrote " << graph.string() << "\n";
   }
 }
 
@@ -137,7 +147,7 @@ void RegisterInspectCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("inspect", "Summarize a map; --json prints the graph, --report DIR draws plots");
   cmd->add_option("--map", args->map_path, "Map file written by retrace teach")->required();
   cmd->add_flag("--json", args->json, "Print nodes and arcs as one JSON object");
-  cmd->add_option("--report", args->report_dir, "Write plots (features and sigma_p per arc, spacing, key-images, poses)");
+  cmd->add_option("--report", args->report_dir, "Write plots (features and sigma_p per arc, spacing, key-images, poses, the graph with its similarities)");
   cmd->add_option("--ground-truth", args->ground_truth,
                   "KITTI poses.txt of the teach sequence: aligns the pose plot to ground truth");
   cmd->callback([args]() { RunInspect(*args); });

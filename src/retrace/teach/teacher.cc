@@ -1059,10 +1059,15 @@ void Teacher::JoinRoutes() {
     if (node.image.empty()) throw std::invalid_argument("Teacher::AppendTo: the existing map needs its key-images");
     descriptors.push_back(ComputeGlobalDescriptor(node.image));
   }
+  // Key-images of both maps prepared for matching, each once (node ids of the two maps are distinct).
   std::unordered_map<node_t, MatchableImage> prepared;
   const auto existing_image = [&](node_t id) -> const MatchableImage& {
     auto it = prepared.find(id);
-    if (it == prepared.end()) it = prepared.emplace(id, PrepareForMatching(existing_->FindNode(id)->image)).first;
+    if (it == prepared.end()) {
+      const MapNode* node = existing_->FindNode(id);
+      if (node == nullptr) node = map_.FindNode(id);
+      it = prepared.emplace(id, PrepareForMatching(node->image)).first;
+    }
     return it->second;
   };
   // The arcs of the existing map at a node (its witnesses), in both directions.
@@ -1076,9 +1081,12 @@ void Teacher::JoinRoutes() {
 
   std::vector<node_t> new_nodes;
   for (const MapNode& node : map_.nodes()) new_nodes.push_back(node.id);
-  for (const node_t a_id : new_nodes) {
+  for (size_t k = 0; k < new_nodes.size(); ++k) {
+    const node_t a_id = new_nodes[k];
+    // The drive's key-images are needed as A and as witnesses of their neighbours only.
+    if (k >= 2) prepared.erase(new_nodes[k - 2]);
     const MapNode& a = *map_.FindNode(a_id);
-    const MatchableImage a_image = PrepareForMatching(a.image);
+    const MatchableImage& a_image = existing_image(a_id);
     const std::vector<size_t> ranked = RankByGlobalDescriptor(ComputeGlobalDescriptor(a.image), descriptors);
     struct Candidate {
       const MapNode* node;
@@ -1140,7 +1148,7 @@ void Teacher::JoinRoutes() {
           const node_t other = after ? arc->to : arc->from;
           const Rigid3d a_from_other = after ? arc->to_from_from.Inverse() : arc->to_from_from;
           const WitnessVerdict verdict = WeighWitness(
-              PrepareForMatching(map_.FindNode(other)->image), existing_image(b_id), a_from_other, b_from_a,
+              existing_image(other), existing_image(b_id), a_from_other, b_from_a,
               fmt::format("key-image {} ({} {})", other, after ? "after" : "before", a_id), &description);
           if (verdict == WitnessVerdict::kContradicts) return description;
           confirmed = confirmed || verdict == WitnessVerdict::kConfirms;

@@ -105,3 +105,16 @@ sys.exit(0 if error < 0.05 and abs(truth) > 0.2 else 1)' "$tmp/level/poses.txt" 
 }
 expect two-view-planar-heading-84 0 '^heading -.* error 0\.0[0-4]' -- check_heading 84 92
 expect two-view-planar-heading-90 0 '^heading -.* error 0\.0[0-4]' -- check_heading 90 98
+# sim render --poses: frames at given camera poses (world frame of the scenario), written with those poses.
+printf '1 0 0 0 0 1 0 -1.5 0 0 1 10\n0 0 1 1 0 1 0 -1.5 -1 0 0 11\n' >"$tmp/two_poses.txt"
+expect render-poses 0 'wrote 2 frames at the poses of' -- "$bin" sim render --poses "$tmp/two_poses.txt" \
+  --out "$tmp/at_poses" --width 80 --height 60 --quiet
+expect render-poses-written 0 '' -- bash -c "[[ -f '$tmp/at_poses/image_0/000001.png' ]] && \
+  python3 -c 'import sys; a = [[float(x) for x in l.split()] for l in open(sys.argv[1])]; \
+b = [[float(x) for x in l.split()] for l in open(sys.argv[2])]; \
+sys.exit(0 if len(a) == len(b) == 2 and all(abs(x - y) < 1e-9 for p, q in zip(a, b) for x, y in zip(p, q)) else 1)' \
+  '$tmp/two_poses.txt' '$tmp/at_poses/poses.txt'"
+expect render-poses-missing 1 "^retrace: error: $tmp/no_poses.txt" -- "$bin" sim render --poses "$tmp/no_poses.txt" \
+  --out "$tmp/at_poses2" --quiet
+expect render-poses-bag 1 'give --out FOLDER \(not --bag\)' -- "$bin" sim render --poses "$tmp/two_poses.txt" \
+  --bag "$tmp/x.bag" --quiet
