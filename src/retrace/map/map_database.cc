@@ -867,8 +867,11 @@ std::unique_ptr<StagedMap> StagedMap::BeginAppend(const std::filesystem::path& p
   if (!std::filesystem::exists(path, ec)) throw InputError(source, "no such map to append to");
   std::unique_ptr<StagedMap> staged(new StagedMap(path, /*overwrite=*/true));
   staged->Lock();
-  // Checked (and a log of a killed writer folded in) before it is copied.
-  MapDatabase::Open(path).reset();
+  // Checked (and a log of a killed writer folded in) before it is copied; a map whose teach did not finish is not
+  // built on (the appended map would be marked complete).
+  if (!MapDatabase::Open(path)->complete()) {
+    throw InputError(source, "incomplete map (its teach did not finish); teach it again before appending to it");
+  }
   for (const auto& side : SideFiles(path)) {
     if (std::filesystem::exists(side, ec)) {
       throw InputError(source, "the map has a log beside it (" + side.string() + "); open it once with retrace inspect");

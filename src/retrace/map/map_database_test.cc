@@ -359,6 +359,12 @@ TEST(StagedMap, AppendUpgradesACopyAndReplacesTheMapOnlyOnCommit) {
   EXPECT_DOUBLE_EQ(map.FindArc(1)->similarity.value_or(-1), 0.125);
   // A missing map cannot be appended to.
   ExpectInputError([&] { StagedMap::BeginAppend(dir / "missing.db"); }, dir / "missing.db", "no such map");
+  // Nor an incomplete one.
+  {
+    auto db = MapDatabase::Open(path, /*writable=*/true);
+    db->SetMetadata(MapDatabase::kTeachStateKey, MapDatabase::kIncomplete);
+  }
+  ExpectInputError([&] { StagedMap::BeginAppend(path); }, path, "incomplete map (its teach did not finish)");
 }
 
 TEST(StagedMap, TheOldMapIsReplacedOnlyByACommittedOne) {
