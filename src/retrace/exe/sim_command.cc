@@ -126,6 +126,7 @@ struct RenderArguments {
   std::string contact_sheet;
   int sheet_every = 10;
   bool quiet = false;
+  std::string poses;  // render at these camera poses (KITTI poses.txt) instead of driving
 };
 
 // `sim render`: a teach or repeat drive of the scenario with the command line's overrides.
@@ -151,6 +152,20 @@ void RunRender(const CLI::App& command, const RenderArguments& args) {
   options.progress = !args.quiet;
   options.contact_sheet = args.contact_sheet;
   options.contact_sheet_every = std::max(1, args.sheet_every);
+  if (!args.poses.empty()) {
+    // At given poses: KITTI poses.txt in the simulator's world frame (the camera at the route's start), the frame
+    // rate's clock for the moving occluders.
+    std::vector<TimedPose> poses = ReadKittiPoses(args.poses);
+    if (poses.empty()) throw InputError(args.poses, "no poses");
+    if (poses.size() > static_cast<size_t>(MaxFrames())) {
+      throw InputError(args.poses, fmt::format("{} poses, more than {}", poses.size(), MaxFrames()));
+    }
+    for (size_t i = 0; i < poses.size(); ++i) poses[i].timestamp = scenario.time_offset + i / scenario.frame_rate;
+    const RecordSummary summary = RecordPoses(&simulator, poses, args.out, options);
+    std::cout << fmt::format("wrote {} frames at the poses of {} to {} in {:.1f} s\n", summary.frames, args.poses,
+                             args.out, summary.seconds);
+    return;
+  }
   const RecordSummary summary = args.bag.empty() ? RecordSequence(&simulator, args.out, options)
                                                  : RecordSimulatedBag(&simulator, args.bag, options);
   std::cout << fmt::format("wrote {} frames ({:.0f} m of a {:.0f} m route, {} variant) to {} in {:.1f} s ({:.1f} "
@@ -337,9 +352,15 @@ void RegisterSimCommand(CLI::App& app) {
   render->add_option("--contact-sheet-every", render_args->sheet_every,
                      fmt::format("N for --contact-sheet, 1..{} (default 10)", MaxFrames()));
   render->add_flag("--quiet", render_args->quiet, "No progress bar");
+  render->add_option("--poses", render_args->poses,
+                     "Render at these camera poses instead of driving: KITTI poses.txt (world_from_cam, 3x4 per line) "
+                     "in the simulator's world frame (x right, y down, z forward of the camera at the route's start)");
   render->callback([render, render_args]() {
     if (render_args->out.empty() && render_args->bag.empty()) {
       throw InputError("", "sim render: give --out FOLDER or --bag FILE");
+    }
+    if (!render_args->poses.empty() && (!render_args->bag.empty() || render_args->out.empty())) {
+      throw InputError(render_args->poses, "sim render --poses writes a folder: give --out FOLDER (not --bag)");
     }
     if (!render_args->bag.empty() && !render_args->contact_sheet.empty()) {
       throw InputError("", "sim render: --contact-sheet is written with --out only");
