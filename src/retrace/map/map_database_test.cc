@@ -235,14 +235,17 @@ TEST(MapDatabase, DamagedMapsAreRefusedWithTheFault) {
                           "corrupt map: ");
 }
 
+// A map of two key-images joined by one arc, for the tests that downgrade it to an older schema.
+void WriteTwoNodeMap(const std::filesystem::path& path) {
+  auto db = MapDatabase::Create(path);
+  for (int i = 0; i < 2; ++i) db->WriteNode(MakeNode(i, 10));
+  db->WriteArc(MakeArc(0, 0, 1, 4));
+}
+
 TEST(MapDatabase, MapsOfSchemaOneAreRead) {
   const auto dir = testing::MakeTempDir("map_schema1");
   const auto path = dir / "old.db";
-  {
-    auto db = MapDatabase::Create(path);
-    for (int i = 0; i < 2; ++i) db->WriteNode(MakeNode(i, 10));
-    db->WriteArc(MakeArc(0, 0, 1, 4));
-  }
+  WriteTwoNodeMap(path);
   {
     SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
     raw.Execute("ALTER TABLE nodes DROP COLUMN image_crc32; PRAGMA user_version=1;");
@@ -293,11 +296,7 @@ TEST(MapDatabase, RoutesAndSimilaritiesRoundTrip) {
 TEST(MapDatabase, MapsOfSchemaTwoHaveRouteZeroAndUnknownSimilarity) {
   const auto dir = testing::MakeTempDir("map_schema2");
   const auto path = dir / "old.db";
-  {
-    auto db = MapDatabase::Create(path);
-    for (int i = 0; i < 2; ++i) db->WriteNode(MakeNode(i, 10));
-    db->WriteArc(MakeArc(0, 0, 1, 4));
-  }
+  WriteTwoNodeMap(path);
   {
     SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
     raw.Execute("ALTER TABLE nodes DROP COLUMN route; ALTER TABLE arcs DROP COLUMN similarity; PRAGMA user_version=2;");
@@ -313,11 +312,7 @@ TEST(MapDatabase, MapsOfSchemaTwoHaveRouteZeroAndUnknownSimilarity) {
 TEST(StagedMap, AppendUpgradesACopyAndReplacesTheMapOnlyOnCommit) {
   const auto dir = testing::MakeTempDir("map_append");
   const auto path = dir / "old.db";
-  {
-    auto db = MapDatabase::Create(path);
-    for (int i = 0; i < 2; ++i) db->WriteNode(MakeNode(i, 10));
-    db->WriteArc(MakeArc(0, 0, 1, 4));
-  }
+  WriteTwoNodeMap(path);
   {
     SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
     raw.Execute("ALTER TABLE nodes DROP COLUMN image_crc32; ALTER TABLE nodes DROP COLUMN route; "

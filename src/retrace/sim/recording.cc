@@ -24,6 +24,18 @@ void WriteText(const std::filesystem::path& path, const std::string& text) {
   if (!out) throw InputError(path.string(), "cannot write the file");
 }
 
+// What a recorded sequence holds besides its frames: the scenario, the camera file and (perspective cameras) the
+// KITTI calibration.
+void WriteSequenceHeader(const Simulator& sim, const std::filesystem::path& out_dir, KittiSequenceWriter* writer) {
+  WriteText(out_dir / "scenario.yaml", ScenarioToYaml(sim.scenario()));
+  WriteCameraFile(sim.camera(), out_dir / "camera.yaml");
+  if (const auto* perspective = dynamic_cast<const PerspectiveCamera*>(&sim.camera())) {
+    Matrix34d p0 = Matrix34d::Zero();
+    p0.leftCols<3>() = perspective->K();
+    writer->WriteCalibration(p0);
+  }
+}
+
 }  // namespace
 
 RecordedDrive RecordDrive(const Scenario& scenario) {
@@ -47,13 +59,7 @@ RecordSummary RecordPoses(Simulator* sim, const std::vector<TimedPose>& poses, c
                           const RecordOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   KittiSequenceWriter writer(out_dir);
-  WriteText(out_dir / "scenario.yaml", ScenarioToYaml(sim->scenario()));
-  WriteCameraFile(sim->camera(), out_dir / "camera.yaml");
-  if (const auto* perspective = dynamic_cast<const PerspectiveCamera*>(&sim->camera())) {
-    Matrix34d p0 = Matrix34d::Zero();
-    p0.leftCols<3>() = perspective->K();
-    writer.WriteCalibration(p0);
-  }
+  WriteSequenceHeader(*sim, out_dir, &writer);
   RecordSummary summary;
   summary.route_length_m = sim->route().length();
   ProgressBar progress("render", poses.size(), options.progress);
@@ -75,13 +81,7 @@ RecordSummary RecordPoses(Simulator* sim, const std::vector<TimedPose>& poses, c
 RecordSummary RecordSequence(Simulator* sim, const std::filesystem::path& out_dir, const RecordOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   KittiSequenceWriter writer(out_dir);
-  WriteText(out_dir / "scenario.yaml", ScenarioToYaml(sim->scenario()));
-  WriteCameraFile(sim->camera(), out_dir / "camera.yaml");
-  if (const auto* perspective = dynamic_cast<const PerspectiveCamera*>(&sim->camera())) {
-    Matrix34d p0 = Matrix34d::Zero();
-    p0.leftCols<3>() = perspective->K();
-    writer.WriteCalibration(p0);
-  }
+  WriteSequenceHeader(*sim, out_dir, &writer);
 
   RecordSummary summary;
   summary.route_length_m = sim->route().length();
