@@ -94,6 +94,9 @@ void BindMap(py::module_& module) {
           "Pixel positions (N, 2) of those features in the key-image, in the order of feature_ids.")
       .def_property_readonly(
           "num_features", [](const MapNode& node) { return node.features.size(); }, "Features seen in the key-image.")
+      .def_readonly("route", &MapNode::route,
+                    "The drive that taught the key-image: 0 for the first, 1 for the first appended one (teach\n"
+                    "--append), ...")
       .def("__repr__", [](const MapNode& node) {
         return fmt::format("<retrace.Node {}: frame {} ({}), {} features>", node.id, node.source_frame, node.image_name,
                            node.features.size());
@@ -112,6 +115,12 @@ void BindMap(py::module_& module) {
       .def_readonly("sigma_p", &MapArc::sigma_p,
                     "sigma_p of the geometry, pixels: conservative reprojection error bound (Segvic 2009, eq. (6)).")
       .def_property_readonly("num_features", &MapArc::num_features, "|M_k|: features the arc reconstructs.")
+      .def_property_readonly(
+          "similarity", [](const MapArc& arc) -> py::object {
+            return arc.similarity ? py::object(py::float_(*arc.similarity)) : py::none();
+          },
+          "Appearance similarity S_ij of the two key-images (Booij 2007 §B.2): epipolar-consistent matches over the\n"
+          "fewer features of the two, in [0, 1]; None for maps written before it was stored (schema < 3).")
       .def_property_readonly(
           "feature_ids",
           [](const MapArc& arc) {

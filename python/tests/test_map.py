@@ -22,6 +22,7 @@ def test_map_reads_what_inspect_reports(drives):
         assert node.image_name == expected["image"]
         assert node.timestamp == pytest.approx(expected["timestamp"])
         assert node.num_features == expected["features"]
+        assert node.route == expected["route"] == 0
         assert node.feature_ids.shape == (expected["features"],)
         assert node.feature_positions.shape == (expected["features"], 2)
         # The key-image: 8-bit gray at the map camera's size, and the frame it was taken from (stored as JPEG).
@@ -33,6 +34,7 @@ def test_map_reads_what_inspect_reports(drives):
     for arc, expected in zip(m.arcs, report["arcs"]):
         assert (arc.node_from, arc.node_to, arc.kind) == (expected["from"], expected["to"], expected["kind"])
         assert arc.sigma_p == pytest.approx(expected["sigma_p"], rel=1e-12)
+        assert arc.similarity == pytest.approx(expected["similarity"], rel=1e-12) and 0 < arc.similarity <= 1
         assert arc.num_features == expected["features"] == len(arc.feature_ids) == len(arc.points)
         np.testing.assert_allclose(arc.rotation.ravel(), expected["R"], rtol=0, atol=1e-12)
         np.testing.assert_allclose(arc.translation, expected["t"], rtol=0, atol=1e-12)

@@ -27,16 +27,7 @@ Rigid3d RandomPose(int seed) {
 }
 
 // Runs `f` and returns the InputError message (fails the test if nothing is thrown).
-template <typename F>
-std::string ErrorOf(F f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "no InputError thrown";
-  return "";
-}
+using retrace::testing::ErrorOf;
 
 TEST(GroundTruth, KittiRealSequence07) {
   RETRACE_REQUIRE_SHARED_DATA(dir, "kitti07");

@@ -34,16 +34,7 @@ cv::Mat TestImage(int i, cv::Size size = cv::Size(64, 48), int type = CV_8UC1) {
 // Level of the background (top-right corner, never covered by the square).
 int Level(const cv::Mat& image) { return image.at<uint8_t>(0, image.cols - 1); }
 
-template <typename F>
-std::string ErrorOf(F f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "no InputError thrown";
-  return "";
-}
+using retrace::testing::ErrorOf;
 
 std::vector<Frame> ReadAll(Sequence& sequence) {
   std::vector<Frame> frames;

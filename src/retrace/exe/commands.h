@@ -29,5 +29,6 @@ void RegisterTwoViewCommand(CLI::App& app);
 void RegisterSimCommand(CLI::App& app);
 void RegisterRepeatCommand(CLI::App& app);
 void RegisterBenchCommand(CLI::App& app);
+void RegisterPlanCommand(CLI::App& app);
 
 }  // namespace retrace

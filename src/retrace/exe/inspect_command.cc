@@ -1,5 +1,6 @@
 // retrace inspect: what is in a map — a summary, the whole graph as JSON, or a report of plots.
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -7,10 +8,12 @@
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/exe/commands.h"
 #include "retrace/map/map_database.h"
+#include "retrace/nav/graph_drawing.h"
 #include "retrace/teach/map_report.h"
 #include "retrace/util/error.h"
 
@@ -31,6 +34,7 @@ nlohmann::json MapToJson(const Map& map, const std::map<std::string, std::string
                      {"image", node.image_name},
                      {"source_frame", node.source_frame},
                      {"timestamp", node.timestamp},
+                     {"route", node.route},
                      {"features", node.features.size()}});
   }
   nlohmann::json arcs = nlohmann::json::array();
@@ -41,6 +45,8 @@ nlohmann::json MapToJson(const Map& map, const std::map<std::string, std::string
                     {"from", arc.from},
                     {"to", arc.to},
                     {"kind", arc.kind},
+                    // Booij 2007 §B.2; null for arcs of maps written before it was stored (schema < 3)
+                    {"similarity", arc.similarity ? nlohmann::json(*arc.similarity) : nlohmann::json(nullptr)},
                     {"sigma_p", arc.sigma_p},
                     {"features", arc.num_features()},
                     {"R", {r(0, 0), r(0, 1), r(0, 2), r(1, 0), r(1, 1), r(1, 2), r(2, 0), r(2, 1), r(2, 2)}},
@@ -83,6 +89,22 @@ void RunInspect(const InspectArguments& args) {
                              stats.min_arc_features);
     std::cout << fmt::format("  sigma_p         median {:.2f} px, max {:.2f} px\n", stats.median_sigma_p,
                              stats.max_sigma_p);
+    int routes = 0, joins = 0;
+    std::vector<double> similarities;
+    for (const MapNode& node : map.nodes()) routes = std::max(routes, node.route + 1);
+    for (const MapArc& arc : map.arcs()) {
+      joins += arc.kind == "join";
+      if (arc.similarity) similarities.push_back(*arc.similarity);
+    }
+    std::cout << fmt::format("  routes          {} ({} join arcs between them)\n", routes, joins);
+    if (!similarities.empty()) {
+      std::sort(similarities.begin(), similarities.end());
+      std::cout << fmt::format("  similarity      median {:.3f}, min {:.3f} ({} of {} arcs)\n",
+                               similarities[similarities.size() / 2], similarities.front(), similarities.size(),
+                               map.arcs().size());
+    } else if (!map.arcs().empty()) {
+      std::cout << "  similarity      not stored (map written before schema 3)\n";
+    }
     std::cout << fmt::format("  spacing         median {:.0f} frames between key-images\n",
                              stats.median_frames_between_key_images);
     std::cout << fmt::format("  size            {:.1f} kB ({:.1f} kB of key-images, {:.1f} kB of relocalization "
@@ -108,6 +130,14 @@ void RunInspect(const InspectArguments& args) {
     for (const auto& path : WriteMapReport(map, args.report_dir, options)) {
       std::cerr << "wrote " << path.string() << "\n";
     }
+    // The graph from above, arcs shaded by similarity (Booij 2007 Fig. B.5; nav/graph_drawing.h).
+    const std::filesystem::path graph = args.report_dir / "graph.png";
+    GraphDrawingOptions drawing;
+    drawing.title = "graph of " + args.map_path.filename().string();
+    if (!cv::imwrite(graph.string(), DrawPlanningGraph(map, PlannedPath(), drawing))) {
+      throw InputError(graph.string(), "cannot write the graph drawing");
+    }
+    std::cerr << "wrote " << graph.string() << "\n";
   }
 }
 
@@ -118,7 +148,7 @@ void RegisterInspectCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("inspect", "Summarize a map; --json prints the graph, --report DIR draws plots");
   cmd->add_option("--map", args->map_path, "Map file written by retrace teach")->required();
   cmd->add_flag("--json", args->json, "Print nodes and arcs as one JSON object");
-  cmd->add_option("--report", args->report_dir, "Write plots (features and sigma_p per arc, spacing, key-images, poses)");
+  cmd->add_option("--report", args->report_dir, "Write plots (features and sigma_p per arc, spacing, key-images, poses, the graph with its similarities)");
   cmd->add_option("--ground-truth", args->ground_truth,
                   "KITTI poses.txt of the teach sequence: aligns the pose plot to ground truth");
   cmd->callback([args]() { RunInspect(*args); });

@@ -27,6 +27,7 @@ constexpr void (*kCommands[])(CLI::App&) = {
     &retrace::RegisterSimCommand,
     &retrace::RegisterRepeatCommand,
     &retrace::RegisterBenchCommand,
+    &retrace::RegisterPlanCommand,
 };
 
 }  // namespace

@@ -41,27 +41,92 @@ int MaxFrames() { return static_cast<int>(FindScenarioKeyRange("frames")->max); 
 // The documented range of a scenario key for an option's help ("0..1000").
 std::string RangeOf(const char* key) { return FindScenarioKeyRange(key)->Text(); }
 
-struct RenderArguments {
+// The scenario overrides shared by `sim render` and `sim drive` (ScenarioOverrides; unset unless given).
+struct ScenarioArguments {
   std::string scenario;
-  std::string out;
-  std::string bag;
-  std::string variant = "teach";
-  int frames = -1;
   int width = 0;
   int height = 0;
   int64_t seed = -1;
   std::string route;
   int segments = 0;
-  double speed = 0.0;
   double frame_rate = 0.0;
   int pedestrians = 0;
   std::string lighting;
   std::string repeat_lighting;
   double lateral_offset = 0.0;
   int threads = 0;
+
+  // Registers --scenario, --width ... --threads on `command`.
+  void Register(CLI::App* command);
+  // The overrides of the options given on `command`.
+  ScenarioOverrides Overrides(const CLI::App& command) const;
+};
+
+void ScenarioArguments::Register(CLI::App* command) {
+  const Scenario defaults;
+  std::string presets;
+  for (const LightingPreset& p : LightingPresets()) {
+    presets += fmt::format("{}{} ({})", presets.empty() ? "" : ", ", p.name, p.description);
+  }
+  command->add_option("--scenario", scenario, "Scenario file (YAML/JSON); default: the built-in scenario");
+  command->add_option("--width", width,
+                      "Image width, " + RangeOf("camera.width") + "; overrides the scenario (keeps the field of view)");
+  command->add_option("--height", height, "Image height, " + RangeOf("camera.height") + "; overrides the scenario");
+  command->add_option("--seed", seed, "Seed of the drive and the town; overrides the scenario");
+  command->add_option("--route", route,
+                      fmt::format("Route type: auto (seeded, --segments streets), loop (around blocks) or crossing (a "
+                                  "figure eight that crosses itself); default {}",
+                                  defaults.route.type));
+  command->add_option("--segments", segments,
+                      fmt::format("Streets of an auto route (about 60 m each), {}; default {}",
+                                  RangeOf("route.segments"), defaults.route.segments));
+  command->add_option("--frame-rate", frame_rate,
+                      fmt::format("Frames per second, {}; default {}", RangeOf("frame_rate"), defaults.frame_rate));
+  command->add_option("--pedestrians", pedestrians,
+                      fmt::format("Walking pedestrians in the town, {}; default {}", RangeOf("town.pedestrians"),
+                                  defaults.town.num_pedestrians));
+  command->add_option("--lighting", lighting,
+                      "Light of the teach drive (sun, sky and exposure): " + presets +
+                          "; default the scenario's (sun at 160 deg, 55 deg high)");
+  command->add_option("--repeat-lighting", repeat_lighting,
+                      "Light of the repeat variant, as --lighting; default the scenario's (sun at 250 deg, 25 deg "
+                      "high)");
+  command->add_option("--lateral-offset", lateral_offset,
+                      fmt::format("Repeat variant: distance right of the teach drive, {}; default {}",
+                                  RangeOf("repeat.lateral_offset"), defaults.repeat.lateral_offset));
+  command->add_option("--threads", threads,
+                      fmt::format("Render threads, {}; overrides the scenario (default {})", RangeOf("render.threads"),
+                                  defaults.render.num_threads));
+}
+
+ScenarioOverrides ScenarioArguments::Overrides(const CLI::App& command) const {
+  const auto given = [&](const char* name) { return command.get_option(name)->count() > 0; };
+  ScenarioOverrides overrides;
+  if (given("--width")) overrides.width = width;
+  if (given("--height")) overrides.height = height;
+  if (given("--seed")) overrides.seed = seed;
+  if (given("--route")) overrides.route = route;
+  if (given("--segments")) overrides.segments = segments;
+  if (given("--frame-rate")) overrides.frame_rate = frame_rate;
+  if (given("--pedestrians")) overrides.pedestrians = pedestrians;
+  if (given("--lighting")) overrides.lighting = lighting;
+  if (given("--repeat-lighting")) overrides.repeat_lighting = repeat_lighting;
+  if (given("--lateral-offset")) overrides.lateral_offset = lateral_offset;
+  if (given("--threads")) overrides.threads = threads;
+  return overrides;
+}
+
+struct RenderArguments {
+  ScenarioArguments scenario;
+  std::string out;
+  std::string bag;
+  std::string variant = "teach";
+  int frames = -1;
+  double speed = 0.0;
   std::string contact_sheet;
   int sheet_every = 10;
   bool quiet = false;
+  std::string poses;  // render at these camera poses (KITTI poses.txt) instead of driving
 };
 
 // `sim render`: a teach or repeat drive of the scenario with the command line's overrides.
@@ -70,25 +135,14 @@ void RunRender(const CLI::App& command, const RenderArguments& args) {
   if (given("--contact-sheet-every") && !(args.sheet_every >= 1 && args.sheet_every <= MaxFrames())) {
     throw InputError("", fmt::format("--contact-sheet-every: must be in 1..{}, got {}", MaxFrames(), args.sheet_every));
   }
-  ScenarioOverrides overrides;
+  ScenarioOverrides overrides = args.scenario.Overrides(command);
   if (given("--frames")) overrides.frames = args.frames;
-  if (given("--width")) overrides.width = args.width;
-  if (given("--height")) overrides.height = args.height;
-  if (given("--seed")) overrides.seed = args.seed;
-  if (given("--route")) overrides.route = args.route;
-  if (given("--segments")) overrides.segments = args.segments;
   if (given("--speed")) overrides.max_speed = args.speed;
-  if (given("--frame-rate")) overrides.frame_rate = args.frame_rate;
-  if (given("--pedestrians")) overrides.pedestrians = args.pedestrians;
-  if (given("--lighting")) overrides.lighting = args.lighting;
-  if (given("--repeat-lighting")) overrides.repeat_lighting = args.repeat_lighting;
-  if (given("--lateral-offset")) overrides.lateral_offset = args.lateral_offset;
-  if (given("--threads")) overrides.threads = args.threads;
-  const Scenario scenario = ReadScenarioWithOverrides(args.scenario, overrides);
+  const Scenario scenario = ReadScenarioWithOverrides(args.scenario.scenario, overrides);
   const ScenarioVariant v = args.variant == "repeat" ? ScenarioVariant::kRepeat : ScenarioVariant::kTeach;
   Simulator simulator(ApplyVariant(scenario, v));
   if (simulator.ExpectedFrames() > MaxFrames()) {
-    throw InputError(args.scenario.empty() ? "" : args.scenario,
+    throw InputError(args.scenario.scenario,
                      fmt::format("the route ({:.0f} m) takes about {} frames at {} Hz, more than {}: set frames "
                                  "(--frames) or a shorter route",
                                  simulator.route().length(), simulator.ExpectedFrames(), scenario.frame_rate,
@@ -98,6 +152,20 @@ void RunRender(const CLI::App& command, const RenderArguments& args) {
   options.progress = !args.quiet;
   options.contact_sheet = args.contact_sheet;
   options.contact_sheet_every = std::max(1, args.sheet_every);
+  if (!args.poses.empty()) {
+    // At given poses: KITTI poses.txt in the simulator's world frame (the camera at the route's start), the frame
+    // rate's clock for the moving occluders.
+    std::vector<TimedPose> poses = ReadKittiPoses(args.poses);
+    if (poses.empty()) throw InputError(args.poses, "no poses");
+    if (poses.size() > static_cast<size_t>(MaxFrames())) {
+      throw InputError(args.poses, fmt::format("{} poses, more than {}", poses.size(), MaxFrames()));
+    }
+    for (size_t i = 0; i < poses.size(); ++i) poses[i].timestamp = scenario.time_offset + i / scenario.frame_rate;
+    const RecordSummary summary = RecordPoses(&simulator, poses, args.out, options);
+    std::cout << fmt::format("wrote {} frames at the poses of {} to {} in {:.1f} s\n", summary.frames, args.poses,
+                             args.out, summary.seconds);
+    return;
+  }
   const RecordSummary summary = args.bag.empty() ? RecordSequence(&simulator, args.out, options)
                                                  : RecordSimulatedBag(&simulator, args.bag, options);
   std::cout << fmt::format("wrote {} frames ({:.0f} m of a {:.0f} m route, {} variant) to {} in {:.1f} s ({:.1f} "
@@ -114,13 +182,10 @@ void RunRender(const CLI::App& command, const RenderArguments& args) {
 }
 
 struct DriveArguments {
-  std::string scenario;
+  ScenarioArguments scenario;
   std::string map;
   std::string out;
   std::string taught_poses;
-  int width = 0;
-  int height = 0;
-  int64_t seed = -1;
   bool quiet = false;
   std::string control = "path";
   double camera_height = -1;  // default: the scenario's vehicle
@@ -130,14 +195,10 @@ struct DriveArguments {
 
 // `sim drive`: the repeat variant of the scenario driven by the localizer's steering (closed loop).
 void RunDrive(const CLI::App& command, const DriveArguments& args) {
-  const auto given = [&](const char* name) { return command.get_option(name)->count() > 0; };
-  ScenarioOverrides overrides;
-  if (given("--width")) overrides.width = args.width;
-  if (given("--height")) overrides.height = args.height;
-  if (given("--seed")) overrides.seed = args.seed;
-  const Scenario scenario = ReadScenarioWithOverrides(args.scenario, overrides);
-  // The robot's geometry, as a user would measure it: the simulated car's unless given.
+  const Scenario scenario = ReadScenarioWithOverrides(args.scenario.scenario, args.scenario.Overrides(command));
+  // The robot's geometry, as a user would measure it: the simulated car's unless given; a control step per frame.
   ClosedLoopOptions drive = args.drive;
+  drive.frame_period = 1.0 / scenario.frame_rate;
   drive.control = args.control == "eq10" ? ClosedLoopControl::kImage : ClosedLoopControl::kPath;
   drive.tracking.camera_forward = args.camera_forward > 0 ? args.camera_forward : scenario.vehicle.camera_forward;
   std::string error;
@@ -272,11 +333,7 @@ void RegisterSimCommand(CLI::App& app) {
       "Render a drive into a KITTI-layout sequence (image_0/, times.txt, poses.txt, calib.txt) or a ROS bag (--bag)");
   auto render_args = std::make_shared<RenderArguments>();
   const Scenario defaults;
-  std::string presets;
-  for (const LightingPreset& p : LightingPresets()) {
-    presets += fmt::format("{}{} ({})", presets.empty() ? "" : ", ", p.name, p.description);
-  }
-  render->add_option("--scenario", render_args->scenario, "Scenario file (YAML/JSON); default: the built-in scenario");
+  render_args->scenario.Register(render);
   CLI::Option* out = render->add_option("--out", render_args->out, "Output folder of the sequence");
   render->add_option("--bag", render_args->bag,
                      "Write the drive as a ROS bag instead: /camera/image_raw, /camera/camera_info, "
@@ -288,45 +345,22 @@ void RegisterSimCommand(CLI::App& app) {
   render->add_option("--frames", render_args->frames,
                      "Number of frames, " + RangeOf("frames") + " (0 = the whole route; the drive stops at the "
                          "route's end either way and says so); overrides the scenario");
-  render->add_option("--width", render_args->width,
-                     "Image width, " + RangeOf("camera.width") + "; overrides the scenario (keeps the field of view)");
-  render->add_option("--height", render_args->height,
-                     "Image height, " + RangeOf("camera.height") + "; overrides the scenario");
-  render->add_option("--seed", render_args->seed, "Seed of the drive and the town; overrides the scenario");
-  render->add_option("--route", render_args->route,
-                     fmt::format("Route type: auto (seeded, --segments streets), loop (around blocks) or crossing (a "
-                                 "figure eight that crosses itself); default {}",
-                                 defaults.route.type));
-  render->add_option("--segments", render_args->segments,
-                     fmt::format("Streets of an auto route (about 60 m each), {}; default {}",
-                                 RangeOf("route.segments"), defaults.route.segments));
   render->add_option("--speed", render_args->speed,
                      fmt::format("Top speed on straight streets (slower in turns), {}; default {}",
                                  RangeOf("drive.max_speed"), defaults.drive.max_speed));
-  render->add_option("--frame-rate", render_args->frame_rate,
-                     fmt::format("Frames per second, {}; default {}", RangeOf("frame_rate"), defaults.frame_rate));
-  render->add_option("--pedestrians", render_args->pedestrians,
-                     fmt::format("Walking pedestrians in the town, {}; default {}", RangeOf("town.pedestrians"),
-                                 defaults.town.num_pedestrians));
-  render->add_option("--lighting", render_args->lighting,
-                     "Light of the teach drive (sun, sky and exposure): " + presets +
-                         "; default the scenario's (sun at 160 deg, 55 deg high)");
-  render->add_option("--repeat-lighting", render_args->repeat_lighting,
-                     "Light of the repeat variant, as --lighting; default the scenario's (sun at 250 deg, 25 deg "
-                     "high)");
-  render->add_option("--lateral-offset", render_args->lateral_offset,
-                     fmt::format("Repeat variant: distance right of the teach drive, {}; default {}",
-                                 RangeOf("repeat.lateral_offset"), defaults.repeat.lateral_offset));
-  render->add_option("--threads", render_args->threads,
-                     fmt::format("Render threads, {}; overrides the scenario (default {})", RangeOf("render.threads"),
-                                 defaults.render.num_threads));
   render->add_option("--contact-sheet", render_args->contact_sheet, "Also write a PNG with every Nth frame");
   render->add_option("--contact-sheet-every", render_args->sheet_every,
                      fmt::format("N for --contact-sheet, 1..{} (default 10)", MaxFrames()));
   render->add_flag("--quiet", render_args->quiet, "No progress bar");
+  render->add_option("--poses", render_args->poses,
+                     "Render at these camera poses instead of driving: KITTI poses.txt (world_from_cam, 3x4 per line) "
+                     "in the simulator's world frame (x right, y down, z forward of the camera at the route's start)");
   render->callback([render, render_args]() {
     if (render_args->out.empty() && render_args->bag.empty()) {
       throw InputError("", "sim render: give --out FOLDER or --bag FILE");
+    }
+    if (!render_args->poses.empty() && (!render_args->bag.empty() || render_args->out.empty())) {
+      throw InputError(render_args->poses, "sim render --poses writes a folder: give --out FOLDER (not --bag)");
     }
     if (!render_args->bag.empty() && !render_args->contact_sheet.empty()) {
       throw InputError("", "sim render: --contact-sheet is written with --out only");
@@ -337,16 +371,12 @@ void RegisterSimCommand(CLI::App& app) {
   CLI::App* drive = sim->add_subcommand(
       "drive", "Drive the scenario's repeat variant with retrace's steering in a taught map (closed loop)");
   auto args = std::make_shared<DriveArguments>();
-  drive->add_option("--scenario", args->scenario, "Scenario file (YAML/JSON); default: the built-in scenario");
-  drive->add_option("--map", args->map, "Map taught on the scenario's teach drive (`retrace teach`)")->required();
+  args->scenario.Register(drive);
+  drive->add_option("--map", args->map, "Map taught on the scenario's teach drive (`retrace teach`, the same --width, "
+                    "--height, --seed, --route ...)")->required();
   drive->add_option("--out", args->out, "Output folder: drive.csv, path.png (and deviation.png)")->required();
   drive->add_option("--taught-poses", args->taught_poses,
                     "Ground-truth poses of the teach drive (its poses.txt): distance from the taught path per frame");
-  drive->add_option("--width", args->width,
-                    "Image width, " + RangeOf("camera.width") + "; overrides the scenario (must match the map)");
-  drive->add_option("--height", args->height,
-                    "Image height, " + RangeOf("camera.height") + "; overrides the scenario");
-  drive->add_option("--seed", args->seed, "Seed of the drive and the town; overrides the scenario");
   drive->add_option("--control", args->control,
                     "Steering law: path (the camera-point law on the metric offset from the taught path, eq. (10) "
                     "where there is none) or eq10 (Segvic 2009 eq. (10) alone)")

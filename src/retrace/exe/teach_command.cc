@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "retrace/camera/camera_checks.h"
 #include "retrace/camera/camera_io.h"
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/dataset/sequence.h"
@@ -35,6 +36,7 @@ struct TeachArguments {
   size_t every = 1;
   size_t offset = 0;
   bool overwrite = false;
+  bool append = false;  // add the drive to the existing map as its next route, linked where it sees the same places
   bool no_progress = false;
   double camera_height = 0.0;  // metres above the ground, stored for repeat's metric path (0 = not given)
   TeachOptions options;
@@ -54,21 +56,60 @@ std::unique_ptr<CameraModel> LoadCamera(const TeachArguments& args, Sequence& se
   return camera;
 }
 
+// Two calibrations that image the same rays within this distance at the key-images' resolution are one camera (as
+// in `retrace repeat`).
+constexpr double kSameCameraPx = 1.0;
+
+// --append: the camera the map stores (its key-images' camera). Throws InputError naming the map when there is none.
+std::unique_ptr<CameraModel> MapCamera(const TeachArguments& args) {
+  std::error_code ec;
+  if (!std::filesystem::exists(args.map, ec)) throw InputError(args.map.string(), "no such map to append to");
+  const std::optional<std::string> yaml = MapDatabase::Open(args.map)->ReadCameraYaml();
+  if (!yaml) throw InputError(args.map.string(), "the map stores no camera; cannot append a drive to it");
+  return ParseCameraText(*yaml, args.map.string() + " (camera)");
+}
+
+// --append: the drive must have been recorded with the map's camera (at the map's key-image width unless --width
+// says otherwise). Throws InputError naming the sequence when it was not.
+void CheckAppendCamera(const TeachArguments& args, const CameraModel& camera, const CameraModel* map_camera) {
+  const bool same_size = map_camera->width() == camera.width() && map_camera->height() == camera.height();
+  const double difference = same_size ? CameraProjectionDifferencePx(*map_camera, camera) : 0.0;
+  if (!same_size || !(difference <= kSameCameraPx) || camera.model_name() != map_camera->model_name()) {
+    throw InputError(
+        args.sequence.string(),
+        fmt::format("not recorded with the map's camera: {} {}x{} {} vs the map's {} {}x{} {}{}", camera.model_name(),
+                    camera.width(), camera.height(), DescribeCameraIntrinsics(camera), map_camera->model_name(),
+                    map_camera->width(), map_camera->height(), DescribeCameraIntrinsics(*map_camera),
+                    same_size ? fmt::format(" ({:.1f} px apart)", difference) : ""));
+  }
+}
+
 void RunTeach(const TeachArguments& args) {
   std::unique_ptr<Sequence> sequence = OpenInputSequence(args.sequence, args.bag);
   std::unique_ptr<CameraModel> camera = LoadCamera(args, *sequence);
   if (args.every > 1 || args.offset > 0) {
     sequence = std::make_unique<SubsampledSequence>(std::move(sequence), std::max<size_t>(1, args.every), args.offset);
   }
+
+  // --append: the drive is resized to the map's key-image width (unless --width says otherwise) and must have been
+  // recorded with the map's camera; checked before anything is written.
+  std::unique_ptr<CameraModel> map_camera = args.append ? MapCamera(args) : nullptr;
+  const int width = args.width == 0 && map_camera ? map_camera->width() : args.width;
   double factor = 1.0;
-  if (args.width > 0 && args.width != camera->width()) {
-    factor = static_cast<double>(args.width) / camera->width();
+  if (width > 0 && width != camera->width()) {
+    factor = static_cast<double>(width) / camera->width();
     camera = camera->Scaled(factor);
   }
+  if (map_camera) CheckAppendCamera(args, *camera, map_camera.get());
 
-  // The map is built in <map>.incomplete and moved onto <map> only when teach succeeded (map_database.h).
-  std::unique_ptr<StagedMap> staged = StagedMap::Begin(args.map, args.storage, args.overwrite);
+  // The map is built in <map>.incomplete and moved onto <map> only when teach succeeded (map_database.h); an
+  // appended drive is added to a copy of the map there.
+  std::unique_ptr<StagedMap> staged =
+      args.append ? StagedMap::BeginAppend(args.map) : StagedMap::Begin(args.map, args.storage, args.overwrite);
   MapDatabase* database = staged->database();
+  // The map appended to, with its key-images (the drive is linked to them).
+  std::optional<Map> existing;
+  if (args.append) existing = database->ReadMap(/*load_images=*/true);
   // On an error the map taught so far stays in <map>.incomplete, marked incomplete; <map> is untouched.
   struct KeptOnError {
     StagedMap& staged;
@@ -79,13 +120,23 @@ void RunTeach(const TeachArguments& args) {
       }
     }
   } kept_on_error{*staged};
-  database->SetMetadata("source_sequence", std::filesystem::absolute(args.sequence).string());
-  database->SetMetadata("method", args.method);
-  database->SetMetadata("frames_every", std::to_string(args.every));
-  database->SetMetadata("frames_offset", std::to_string(args.offset));
   Teacher teacher(*camera, args.options, database);
+  // Metadata of an appended drive are kept per route ("route_1_source_sequence", ...); the map's camera and
+  // settings stay those of its first teach.
+  std::string prefix;
+  if (existing) {
+    teacher.AppendTo(*existing);
+    int route = 0;
+    for (const MapNode& node : existing->nodes()) route = std::max(route, node.route + 1);
+    prefix = fmt::format("route_{}_", route);
+    database->SetMetadata("routes", std::to_string(route + 1));
+  }
+  database->SetMetadata(prefix + "source_sequence", std::filesystem::absolute(args.sequence).string());
+  database->SetMetadata(prefix + "method", args.method);
+  database->SetMetadata(prefix + "frames_every", std::to_string(args.every));
+  database->SetMetadata(prefix + "frames_offset", std::to_string(args.offset));
   // The camera and what repeat must apply as teach did (teach_settings.h).
-  WriteTeachSettings(*camera, args.options, teacher, database, args.camera_height);
+  if (!existing) WriteTeachSettings(*camera, args.options, teacher, database, args.camera_height);
 
   const auto start = std::chrono::steady_clock::now();
   double seconds_reading = 0.0;
@@ -114,10 +165,11 @@ void RunTeach(const TeachArguments& args) {
   if (const auto truth_file = sequence->ground_truth_file();
       truth_file && truth_file->filename() == "poses.txt") {
     route_metres = RouteLengthMetres(map, ReadKittiPoses(*truth_file));
-    database->SetMetadata("route_length_m", fmt::format("{:.2f}", route_metres));
+    database->SetMetadata(prefix + "route_length_m", fmt::format("{:.2f}", route_metres));
   }
   database->Checkpoint();
-  const MapStatistics map_stats = ComputeMapStatistics(map);
+  // The whole map's statistics (after --append: the map appended to with the new drive).
+  const MapStatistics map_stats = ComputeMapStatistics(existing ? database->ReadMap(/*load_images=*/false) : map);
   staged->Commit();  // folds the write-ahead log into the map file and moves it into place
   const double map_kb = std::filesystem::file_size(args.map) / 1000.0;
 
@@ -131,11 +183,29 @@ void RunTeach(const TeachArguments& args) {
                            KeyImageReasonName(static_cast<KeyImageReason>(r)));
   }
   std::cout << "  key-images by reason: " << reasons << "\n";
+  if (existing) {
+    std::cout << fmt::format("  appended as route {} ({} key-images): {} join arcs to the map, {} key-images without "
+                             "one\n",
+                             map.nodes().empty() ? 0 : map.nodes().front().route, map.nodes().size(), stats.joins,
+                             stats.key_images_without_join);
+  }
   if (stats.gaps_recovered + stats.gaps_unrecovered > 0) {
     std::cout << fmt::format("  gaps: {} recovered by matching, {} not recovered\n", stats.gaps_recovered,
                              stats.gaps_unrecovered);
   }
+  // Join candidates (--append) are many where the drives overlap: counted, the first few described.
+  constexpr int kJoinRejectionsShown = 3;
+  int join_rejections = 0;
+  for (const RejectedLink& link : stats.rejected_links) join_rejections += link.kind == "join";
+  if (join_rejections > 0) {
+    std::cout << fmt::format("  {} join candidates rejected{}\n", join_rejections,
+                             join_rejections > kJoinRejectionsShown ? fmt::format(" (the first {}:)",
+                                                                                   kJoinRejectionsShown)
+                                                                     : ":");
+  }
+  int joins_shown = 0;
   for (const RejectedLink& link : stats.rejected_links) {
+    if (link.kind == "join" && joins_shown++ >= kJoinRejectionsShown) continue;
     std::cout << fmt::format("  rejected {} link: key-image {} (frame {}) -> {} (frame {}), {} inliers, {} trackable, "
                              "sigma_p {:.2f} px: {}\n",
                              link.kind, link.from, link.from_frame, link.to, link.to_frame, link.inliers,
@@ -184,6 +254,16 @@ void RegisterTeachCommand(CLI::App& app) {
   cmd->add_flag("--overwrite", args->overwrite,
                 "Replace an existing map (only a retrace map, and only when teach succeeds: the map is written to "
                 "MAP.incomplete and moved onto MAP at the end)");
+  cmd->add_flag("--append", args->append,
+                "Add the drive to the existing map MAP as its next route (same camera; at the map's key-image width "
+                "unless --width is given) and link its key-images to the map where wide-baseline matching and a "
+                "verified geometry show the same place (arcs of kind join); MAP is replaced only when teach succeeds");
+  cmd->add_option("--min-join-similarity", args->options.min_join_similarity,
+                  "--append: least appearance similarity S_ij of a join (Booij 2007: 0.05)")
+      ->capture_default_str();
+  cmd->add_option("--join-candidates", args->options.join_candidates,
+                  "--append: existing key-images verified per key-image of the drive, closest in appearance first")
+      ->capture_default_str();
   cmd->add_flag("--no-progress", args->no_progress, "Do not show the progress bar");
   cmd->add_option("--r-p", args->options.max_sigma_p_px, "r_p: sigma_p threshold for a new key-image, px at 320 px width")
       ->capture_default_str();
@@ -208,6 +288,7 @@ void RegisterTeachCommand(CLI::App& app) {
     args->options.method =
         args->method == "matching" ? TeachOptions::Method::kMatching : TeachOptions::Method::kTracking;
     if (!args->options.Check(&error)) throw InputError("teach options", error);
+    if (args->append && args->overwrite) throw InputError("teach options", "--append and --overwrite exclude each other");
     RunTeach(*args);
   });
 }

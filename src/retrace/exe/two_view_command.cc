@@ -74,6 +74,9 @@ void RunTwoView(const TwoViewArgs& args) {
     out["t"] = {t.x(), t.y(), t.z()};
     out["inliers"] = g.num_inliers;
     out["sigma_p"] = g.sigma_p;
+    // Booij 2007 eq. (B.4) in retrace's axes (geometry/planar_pose.h PlanarHeading): the direction of B's centre
+    // seen from A, radians, 0 = straight ahead, positive = to the right, ±π = behind.
+    if (args.planar) out["heading"] = PlanarHeading(g.b_from_a);
     std::cout << out.dump() << "\n";
     return;
   }
@@ -102,7 +105,9 @@ void RegisterTwoViewCommand(CLI::App& app) {
   cmd->add_option("image_b", args->image_b, "Second image (B)")->required();
   cmd->add_option("--camera", args->camera, "Calibration file (ROS/OpenCV YAML, KITTI calib.txt, EuRoC sensor.yaml)")
       ->required();
-  cmd->add_flag("--json", args->json, "Print one JSON object {R: [9, row-major], t: [3], inliers, sigma_p}");
+  cmd->add_flag("--json", args->json, "Print one JSON object {R: [9, row-major], t: [3], inliers, sigma_p}; with --planar also heading: "
+                "the direction of B from A in radians (Booij 2007 eq. B.4 in retrace's axes: atan2(c_x, c_z) of B's "
+                "centre c in A's frame; 0 = ahead, + = right)");
   cmd->add_flag("--planar", args->planar, "Planar-motion model (Booij 2007): rotation about the camera y axis only");
   cmd->add_option("--max-error", args->max_error_px, "Inlier threshold on the Sampson error, pixels")
       ->check(CLI::PositiveNumber);

@@ -35,7 +35,7 @@ struct FeatureObservation {
 
 // What relocalization needs of a key-image, computed once by teach and stored with it (design §6 bootstrap, issue
 // 16): binary key-points for the verification by matching (feature/binary_features.h) and the key-image's quantised
-// appearance thumbnail for retrieval (feature/global_descriptor.h). Empty in maps written before (schema < 3):
+// appearance thumbnail for retrieval (feature/global_descriptor.h). Empty in maps written before (schema < 4):
 // repeat computes it when it loads such a map.
 struct KeyImageSignature {
   std::vector<cv::KeyPoint> keypoints;  // position (pt) and size; stored at 1/8 px
@@ -50,9 +50,11 @@ struct MapNode {
   int64_t source_frame = -1;  // index of the key-image in the teach sequence
   std::string image_name;     // file name of the key-image in the teach sequence
   double timestamp = 0.0;
+  // Which drive taught the key-image: 0 for the first, 1 for the first one appended (`teach --append`), ...
+  int route = 0;
   cv::Mat image;  // the key-image itself (8-bit gray); may be left unloaded
   std::vector<FeatureObservation> features;
-  KeyImageSignature signature;  // may be empty (maps of schema < 3)
+  KeyImageSignature signature;  // may be empty (maps of schema < 4)
 };
 
 // A feature of an arc's set M_k with its 3D reconstruction in the `from` key-image's camera frame.
@@ -69,6 +71,12 @@ struct MapArc {
   double sigma_p = 0.0;  // conservative reprojection error bound σ_p of W_k (Segvic 2009, eq. (6)), pixels
   std::vector<ArcPoint> points;
   std::string kind = "tracking";  // how the arc was made: tracking | matching | gap | loop | join
+  // Appearance similarity of the two key-images (Booij 2007 §B.2): epipolar-consistent correspondences over the
+  // fewer features found in either image, in [0, 1]. For an arc made by tracking, the correspondences are the
+  // tracked inliers of W_k and the features the corners tracked from each key-image; for an arc made by
+  // wide-baseline matching (gap, loop, matching, join), the geometry's inlier matches and the wide-baseline
+  // key-points of each image. Unknown (empty) for arcs of maps written before schema 3.
+  std::optional<double> similarity;
 
   size_t num_features() const { return points.size(); }
 };

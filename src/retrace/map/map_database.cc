@@ -281,6 +281,10 @@ void MapDatabase::CheckSchema() {
       {"node_scales", {"node_id", "arc_in", "arc_out", "scale"}}};
   if (schema_version_ >= 2) tables[2].second.push_back("image_crc32");
   if (schema_version_ >= 3) {
+    tables[2].second.push_back("route");
+    tables[4].second.push_back("similarity");
+  }
+  if (schema_version_ >= 4) {
     tables.push_back({"signatures", {"node_id", "keypoints", "descriptors", "appearance_width", "appearance_height",
                                      "appearance", "crc32"}});
   }
@@ -345,7 +349,7 @@ void MapDatabase::CheckReferences() {
     }
     query.Reset();
   }
-  if (schema_version_ >= 3) {
+  if (schema_version_ >= 4) {
     SqliteStatement& query =
         database_->Prepare("SELECT node_id FROM signatures WHERE node_id NOT IN (SELECT node_id FROM nodes) LIMIT 1;");
     if (query.Step()) {
@@ -391,7 +395,7 @@ void MapDatabase::CheckKeyImages() {
     }
   }
   images.Reset();
-  if (schema_version_ < 3) return;
+  if (schema_version_ < 4) return;
   SqliteStatement& signatures =
       database_->Prepare("SELECT node_id, keypoints, descriptors, appearance, crc32 FROM signatures;");
   while (signatures.Step()) {
@@ -425,7 +429,8 @@ void MapDatabase::CreateTables() {
       width INTEGER NOT NULL,
       height INTEGER NOT NULL,
       image BLOB,
-      image_crc32 INTEGER);
+      image_crc32 INTEGER,
+      route INTEGER NOT NULL DEFAULT 0);
     CREATE TABLE IF NOT EXISTS observations (
       node_id INTEGER NOT NULL REFERENCES nodes(node_id) ON DELETE CASCADE,
       feature_id INTEGER NOT NULL,
@@ -442,7 +447,8 @@ void MapDatabase::CreateTables() {
       rotation BLOB NOT NULL,
       translation BLOB NOT NULL,
       sigma_p REAL NOT NULL,
-      num_features INTEGER NOT NULL);
+      num_features INTEGER NOT NULL,
+      similarity REAL);
     CREATE TABLE IF NOT EXISTS arc_points (
       arc_id INTEGER NOT NULL REFERENCES arcs(arc_id) ON DELETE CASCADE,
       feature_id INTEGER NOT NULL,
@@ -465,6 +471,32 @@ void MapDatabase::CreateTables() {
       appearance BLOB NOT NULL,
       crc32 INTEGER NOT NULL);
   )sql");
+}
+
+void MapDatabase::UpgradeSchema() {
+  if (schema_version_ >= kSchemaVersion) return;
+  InTransaction([&] {
+    if (schema_version_ < 2) {
+      database_->Execute("ALTER TABLE nodes ADD COLUMN image_crc32 INTEGER;");
+      // The checksums of the key-images already stored (CheckIntegrity read them whole before).
+      std::vector<std::pair<int64_t, uint32_t>> checksums;
+      SqliteStatement& images = database_->Prepare("SELECT node_id, image FROM nodes WHERE image IS NOT NULL;");
+      while (images.Step()) {
+        const std::vector<uint8_t> bytes = images.ColumnBlob(1);
+        checksums.emplace_back(images.ColumnInt(0), Crc32(bytes.data(), bytes.size()));
+      }
+      images.Reset();
+      SqliteStatement& update = database_->Prepare("UPDATE nodes SET image_crc32 = ? WHERE node_id = ?;");
+      for (const auto& [node, crc] : checksums) update.Bind(1, int64_t{crc}).Bind(2, node).Run();
+    }
+    if (schema_version_ < 3) {
+      database_->Execute("ALTER TABLE nodes ADD COLUMN route INTEGER NOT NULL DEFAULT 0;");
+      database_->Execute("ALTER TABLE arcs ADD COLUMN similarity REAL;");
+    }
+    if (schema_version_ < 4) CreateTables();  // adds the signatures table; the others exist
+    database_->Execute("PRAGMA user_version=" + std::to_string(kSchemaVersion) + ";");
+  });
+  schema_version_ = kSchemaVersion;
 }
 
 template <typename Writer>
@@ -529,12 +561,16 @@ void MapDatabase::WriteNode(const MapNode& node) {
   const std::vector<uint8_t> image =
       node.image.empty() ? std::vector<uint8_t>() : EncodeImage(node.image, options_, path_.string());
   InTransaction([&] {
-    const bool has_checksums = schema_version_ >= 2;  // a map of schema 1 opened for writing stays schema 1
+    // A map of an older schema opened for writing keeps its schema (UpgradeSchema() brings it up to date).
+    const bool has_checksums = schema_version_ >= 2;
+    const bool has_routes = schema_version_ >= 3;
     SqliteStatement& insert_node = database_->Prepare(
-        has_checksums ? "INSERT INTO nodes (node_id, source_frame, image_name, timestamp, width, height, image, "
-                        "image_crc32) VALUES (?, ?, ?, ?, ?, ?, ?, ?);"
-                      : "INSERT INTO nodes (node_id, source_frame, image_name, timestamp, width, height, image) "
-                        "VALUES (?, ?, ?, ?, ?, ?, ?);");
+        has_routes      ? "INSERT INTO nodes (node_id, source_frame, image_name, timestamp, width, height, image, "
+                          "image_crc32, route) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?);"
+        : has_checksums ? "INSERT INTO nodes (node_id, source_frame, image_name, timestamp, width, height, image, "
+                          "image_crc32) VALUES (?, ?, ?, ?, ?, ?, ?, ?);"
+                        : "INSERT INTO nodes (node_id, source_frame, image_name, timestamp, width, height, image) "
+                          "VALUES (?, ?, ?, ?, ?, ?, ?);");
     insert_node.Bind(1, int64_t{node.id})
         .Bind(2, int64_t{node.source_frame})
         .Bind(3, node.image_name)
@@ -548,14 +584,15 @@ void MapDatabase::WriteNode(const MapNode& node) {
       insert_node.BindBlob(7, image.data(), image.size());
       if (has_checksums) insert_node.Bind(8, int64_t{Crc32(image.data(), image.size())});
     }
+    if (has_routes) insert_node.Bind(9, int64_t{node.route});
     insert_node.Run();
     WriteObservations(node.id, node.features);
-    if (!node.signature.empty() && schema_version_ >= 3) WriteSignature(node.id, node.signature);
+    if (!node.signature.empty() && schema_version_ >= 4) WriteSignature(node.id, node.signature);
   });
 }
 
 void MapDatabase::WriteSignature(node_t node, const KeyImageSignature& signature) {
-  if (schema_version_ < 3) throw InputError(path_.string(), "a map of schema < 3 cannot store signatures");
+  if (schema_version_ < 4) throw InputError(path_.string(), "a map of schema < 4 cannot store signatures");
   const KeyImageSignature& s = signature;
   if (s.descriptors.type() != CV_8UC1 || s.descriptors.cols != kDescriptorBytes ||
       s.descriptors.rows != static_cast<int>(s.keypoints.size()) || s.appearance.type() != CV_8UC1 ||
@@ -610,10 +647,20 @@ void MapDatabase::WriteArc(const MapArc& arc) {
   InTransaction([&] {
     const Eigen::Matrix<double, 3, 3, Eigen::RowMajor> rotation = arc.to_from_from.rotation;
     const Vector3d& t = arc.to_from_from.translation;
-    database_->Prepare(
-                 "INSERT INTO arcs (arc_id, from_node, to_node, kind, rotation, translation, sigma_p, num_features) "
-                 "VALUES (?, ?, ?, ?, ?, ?, ?, ?);")
-        .Bind(1, int64_t{arc.id})
+    const bool has_similarity = schema_version_ >= 3;
+    SqliteStatement& insert_arc = database_->Prepare(
+        has_similarity ? "INSERT INTO arcs (arc_id, from_node, to_node, kind, rotation, translation, sigma_p, "
+                         "num_features, similarity) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?);"
+                       : "INSERT INTO arcs (arc_id, from_node, to_node, kind, rotation, translation, sigma_p, "
+                         "num_features) VALUES (?, ?, ?, ?, ?, ?, ?, ?);");
+    if (has_similarity) {
+      if (arc.similarity) {
+        insert_arc.Bind(9, *arc.similarity);
+      } else {
+        insert_arc.BindNull(9);
+      }
+    }
+    insert_arc.Bind(1, int64_t{arc.id})
         .Bind(2, int64_t{arc.from})
         .Bind(3, int64_t{arc.to})
         .Bind(4, arc.kind)
@@ -660,7 +707,10 @@ Map MapDatabase::ReadMap(bool load_images) {
   Map map;
   std::unordered_map<node_t, std::pair<int64_t, int64_t>> image_sizes;  // node id -> stored width, height
   SqliteStatement& nodes = database_->Prepare(
-      "SELECT node_id, source_frame, image_name, timestamp, width, height, image FROM nodes ORDER BY node_id;");
+      schema_version_ >= 3
+          ? "SELECT node_id, source_frame, image_name, timestamp, width, height, image, route FROM nodes "
+            "ORDER BY node_id;"
+          : "SELECT node_id, source_frame, image_name, timestamp, width, height, image FROM nodes ORDER BY node_id;");
   while (nodes.Step()) {
     MapNode node;
     node.id = nodes.ColumnInt(0);
@@ -675,6 +725,11 @@ Map MapDatabase::ReadMap(bool load_images) {
       fail(nodes, fmt::format("{} has a size of {}x{}", name, width, height));
     }
     if (!finite({node.timestamp})) fail(nodes, fmt::format("node {} has no finite timestamp", node.id));
+    if (schema_version_ >= 3) {
+      const int64_t route = nodes.ColumnInt(7);
+      if (route < 0 || route > 1000000) fail(nodes, fmt::format("node {} has route {}", node.id, route));
+      node.route = static_cast<int>(route);
+    }
     if (load_images) {
       if (nodes.ColumnIsNull(6)) fail(nodes, name + " is missing");
       const std::vector<uint8_t> bytes = nodes.ColumnBlob(6);
@@ -719,7 +774,7 @@ Map MapDatabase::ReadMap(bool load_images) {
   }
   observations.Reset();
 
-  if (schema_version_ >= 3) {
+  if (schema_version_ >= 4) {
     SqliteStatement& signatures = database_->Prepare(
         "SELECT node_id, keypoints, descriptors, appearance_width, appearance_height, appearance FROM signatures;");
     while (signatures.Step()) {
@@ -761,7 +816,10 @@ Map MapDatabase::ReadMap(bool load_images) {
   }
 
   SqliteStatement& arcs = database_->Prepare(
-      "SELECT arc_id, from_node, to_node, kind, rotation, translation, sigma_p FROM arcs ORDER BY arc_id;");
+      schema_version_ >= 3
+          ? "SELECT arc_id, from_node, to_node, kind, rotation, translation, sigma_p, similarity FROM arcs "
+            "ORDER BY arc_id;"
+          : "SELECT arc_id, from_node, to_node, kind, rotation, translation, sigma_p FROM arcs ORDER BY arc_id;");
   while (arcs.Step()) {
     MapArc arc;
     arc.id = arcs.ColumnInt(0);
@@ -793,6 +851,12 @@ Map MapDatabase::ReadMap(bool load_images) {
     }
     if (!std::isfinite(arc.sigma_p) || arc.sigma_p < 0) {
       fail(arcs, fmt::format("sigma_p of {} is {}", name, arc.sigma_p));
+    }
+    if (schema_version_ >= 3 && !arcs.ColumnIsNull(7)) {
+      arc.similarity = arcs.ColumnDouble(7);
+      if (!(*arc.similarity >= 0.0 && *arc.similarity <= 1.0)) {
+        fail(arcs, fmt::format("similarity of {} is {}, not in [0, 1]", name, *arc.similarity));
+      }
     }
     map.AddArc(std::move(arc));
   }
@@ -840,7 +904,7 @@ int64_t MapDatabase::ImageBytes() {
 }
 
 int64_t MapDatabase::SignatureBytes() {
-  if (schema_version_ < 3) return 0;
+  if (schema_version_ < 4) return 0;
   SqliteStatement& s = database_->Prepare(
       "SELECT COALESCE(SUM(LENGTH(keypoints) + LENGTH(descriptors) + LENGTH(appearance)), 0) FROM signatures;");
   s.Step();
@@ -908,39 +972,71 @@ std::unique_ptr<StagedMap> StagedMap::Begin(const std::filesystem::path& path, c
   if (!std::filesystem::is_directory(folder, ec)) throw InputError(source, "no such folder: " + folder.string());
   std::unique_ptr<StagedMap> staged(new StagedMap(path, overwrite));
 
+  staged->Lock();
+  check_destination();  // again, now that no other writer can change it
+
+  // A stale staging map of an interrupted teach is replaced (Create removes it and its side files).
+  if (std::filesystem::exists(staged->staging_path_, ec)) MapDatabase::CheckReplaceable(staged->staging_path_);
+  staged->database_ = MapDatabase::Create(staged->staging_path_, options, /*overwrite=*/true);
+  staged->database_->SetMetadata(MapDatabase::kTeachStateKey, MapDatabase::kIncomplete);
+  return staged;
+}
+
+void StagedMap::Lock() {
+  const std::string source = path_.string();
   // The lock: a writer that finds the file locked fails at once; one that locked a file the holder removed
   // meanwhile (a finished writer removes it before unlocking) tries again with the new file.
-  for (int attempt = 0; attempt < 100 && staged->lock_fd_ < 0; ++attempt) {
-    const int fd = open(staged->lock_path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  for (int attempt = 0; attempt < 100 && lock_fd_ < 0; ++attempt) {
+    const int fd = open(lock_path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (fd < 0) {
-      throw InputError(source, fmt::format("cannot create the lock file {}: {}", staged->lock_path_.string(),
+      throw InputError(source, fmt::format("cannot create the lock file {}: {}", lock_path_.string(),
                                            std::strerror(errno)));
     }
     if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
       const int flock_error = errno;
       close(fd);
       if (flock_error == EWOULDBLOCK) {
-        throw InputError(source, "another retrace teach is writing this map now (" + staged->lock_path_.string() +
+        throw InputError(source, "another retrace teach is writing this map now (" + lock_path_.string() +
                                      " is locked); try again when it has finished");
       }
       throw InputError(source,
-                       fmt::format("cannot lock {}: {}", staged->lock_path_.string(), std::strerror(flock_error)));
+                       fmt::format("cannot lock {}: {}", lock_path_.string(), std::strerror(flock_error)));
     }
     struct stat by_descriptor {};
     struct stat by_path {};
-    if (fstat(fd, &by_descriptor) == 0 && stat(staged->lock_path_.c_str(), &by_path) == 0 &&
+    if (fstat(fd, &by_descriptor) == 0 && stat(lock_path_.c_str(), &by_path) == 0 &&
         by_descriptor.st_dev == by_path.st_dev && by_descriptor.st_ino == by_path.st_ino) {
-      staged->lock_fd_ = fd;
+      lock_fd_ = fd;
     } else {
       close(fd);
     }
   }
-  if (staged->lock_fd_ < 0) throw InputError(source, "cannot lock " + staged->lock_path_.string());
-  check_destination();  // again, now that no other writer can change it
+  if (lock_fd_ < 0) throw InputError(source, "cannot lock " + lock_path_.string());
+}
 
-  // A stale staging map of an interrupted teach is replaced (Create removes it and its side files).
+std::unique_ptr<StagedMap> StagedMap::BeginAppend(const std::filesystem::path& path) {
+  const std::string source = path.string();
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw InputError(source, "no such map to append to");
+  std::unique_ptr<StagedMap> staged(new StagedMap(path, /*overwrite=*/true));
+  staged->Lock();
+  // Checked (and a log of a killed writer folded in) before it is copied; a map whose teach did not finish is not
+  // built on (the appended map would be marked complete).
+  if (!MapDatabase::Open(path)->complete()) {
+    throw InputError(source, "incomplete map (its teach did not finish); teach it again before appending to it");
+  }
+  for (const auto& side : SideFiles(path)) {
+    if (std::filesystem::exists(side, ec)) {
+      throw InputError(source, "the map has a log beside it (" + side.string() + "); open it once with retrace inspect");
+    }
+  }
   if (std::filesystem::exists(staged->staging_path_, ec)) MapDatabase::CheckReplaceable(staged->staging_path_);
-  staged->database_ = MapDatabase::Create(staged->staging_path_, options, /*overwrite=*/true);
+  RemoveSideFiles(staged->staging_path_);
+  std::filesystem::copy_file(path, staged->staging_path_, std::filesystem::copy_options::overwrite_existing, ec);
+  if (ec) throw InputError(source, "cannot copy it to " + staged->staging_path_.string() + ": " + ec.message());
+  staged->database_ = MapDatabase::Open(staged->staging_path_, /*writable=*/true);
+  staged->database_->database_->Execute("PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL;");
+  staged->database_->UpgradeSchema();
   staged->database_->SetMetadata(MapDatabase::kTeachStateKey, MapDatabase::kIncomplete);
   return staged;
 }

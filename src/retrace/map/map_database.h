@@ -5,15 +5,17 @@
 // Tables (plural snake_case, `*_id INTEGER PRIMARY KEY`, foreign keys with ON DELETE CASCADE):
 //   metadata     key/value text: creation options, source sequence, retrace version, teach_state, ...
 //   cameras      the camera model of the key-images, as retrace camera YAML
-//   nodes        key-images with the image itself, compressed, so that a map is self-contained, and the CRC-32 of
-//                the compressed bytes (schema 2; maps of schema 1 have no checksum and are still read)
+//   nodes        key-images with the image itself, compressed, so that a map is self-contained, the CRC-32 of
+//                the compressed bytes (schema 2; maps of schema 1 have no checksum and are still read) and the
+//                route (drive) that taught it (schema 3; 0 in older maps)
 //   observations features seen in a node: position and reference patch (8-bit gray, row-major)
-//   arcs         two-view geometry W_k between two nodes: R (9 doubles, row-major), t (3 doubles), σ_p, |M_k|
+//   arcs         two-view geometry W_k between two nodes: R (9 doubles, row-major), t (3 doubles), σ_p, |M_k|,
+//                kind, and the appearance similarity S_ij (schema 3, Booij 2007 §B.2; NULL = unknown, older maps)
 //   arc_points   3D points Q_kj of an arc's features, in the `from` node's camera frame, arc units
 //   node_scales  relative scale between the geometries of two arcs meeting at a node
 //   signatures   what relocalization needs of a key-image (map.h KeyImageSignature): binary key-points and their
-//                descriptors, the quantised appearance thumbnail, and a CRC-32 of the three (schema 3; maps of
-//                schemas 1 and 2 have none: repeat computes them when it loads such a map). Metadata
+//                descriptors, the quantised appearance thumbnail, and a CRC-32 of the three (schema 4; maps of
+//                schemas 1 to 3 have none: repeat computes them when it loads such a map). Metadata
 //                `signature_features` / `signature_appearance` name the settings that made them.
 // The schema version is in `PRAGMA user_version` and the file is marked as a retrace map by
 // `PRAGMA application_id`, so opening a foreign file or a map of a newer schema gives a clear error.
@@ -51,7 +53,9 @@ struct MapDatabaseOptions {
 
 class MapDatabase {
  public:
-  static constexpr int kSchemaVersion = 3;        // written by this retrace: key-image signatures
+  // Written by this retrace. 2: key-image checksums; 3: arcs.similarity and nodes.route (graphs of several drives);
+  // 4: key-image relocalization signatures.
+  static constexpr int kSchemaVersion = 4;
   static constexpr int kOldestSchemaVersion = 1;  // oldest schema still read
   static constexpr int kApplicationId = 0x52545243;  // "RTRC"
   // Metadata key of teach's progress: kIncomplete from the start of teach, kComplete when it finished. Maps
@@ -73,6 +77,11 @@ class MapDatabase {
   static void CheckReplaceable(const std::filesystem::path& path);
 
   ~MapDatabase();
+
+  // Brings a map of an older schema, opened writable, to kSchemaVersion in one transaction: the columns added since
+  // (similarity unknown, route 0) and the checksums of its key-images. Used before a drive is appended to it.
+  void UpgradeSchema();
+  int schema_version() const { return schema_version_; }
 
   // Whether teach finished this map (metadata kTeachStateKey).
   bool complete();
@@ -100,9 +109,8 @@ class MapDatabase {
   Map ReadMap(bool load_images = true);
   // Encoded size of every stored key-image, in bytes.
   int64_t ImageBytes();
-  // Stored size of the key-images' relocalization signatures, in bytes (0 for maps of schema < 3).
+  // Stored size of the key-images' relocalization signatures, in bytes (0 for maps of schema < 4).
   int64_t SignatureBytes();
-  int schema_version() const { return schema_version_; }
   int64_t NumNodes();
   int64_t NumArcs();
 
@@ -117,6 +125,7 @@ class MapDatabase {
   const std::filesystem::path& path() const { return path_; }
 
  private:
+  friend class StagedMap;  // sets the journal mode of a map it appends to
   MapDatabase(const std::filesystem::path& path, SqliteDatabase::Mode mode, const MapDatabaseOptions& options);
   void CreateTables();
   void CheckIsRetraceMap();
@@ -150,6 +159,10 @@ class StagedMap {
   // lock and creates the staging map. Throws InputError naming `path` otherwise.
   static std::unique_ptr<StagedMap> Begin(const std::filesystem::path& path, const MapDatabaseOptions& options = {},
                                           bool overwrite = false);
+  // The same for adding to the existing map at `path` (`teach --append`): the map is checked (MapDatabase::Open),
+  // copied to `<path>.incomplete`, upgraded to the current schema there (MapDatabase::UpgradeSchema) and marked
+  // incomplete; Commit() moves it back onto `<path>`. A failed append leaves `<path>` byte-identical.
+  static std::unique_ptr<StagedMap> BeginAppend(const std::filesystem::path& path);
   ~StagedMap();
   StagedMap(const StagedMap&) = delete;
   StagedMap& operator=(const StagedMap&) = delete;
@@ -166,6 +179,8 @@ class StagedMap {
 
  private:
   StagedMap(const std::filesystem::path& path, bool overwrite);
+  // Takes `<path>.lock` (see Begin).
+  void Lock();
 
   std::filesystem::path path_;
   std::filesystem::path staging_path_;

@@ -245,6 +245,13 @@ TEST(MapDatabase, DamagedMapsAreRefusedWithTheFault) {
                           "corrupt map: ");
 }
 
+// A map of two key-images joined by one arc, for the tests that downgrade it to an older schema.
+void WriteTwoNodeMap(const std::filesystem::path& path) {
+  auto db = MapDatabase::Create(path);
+  for (int i = 0; i < 2; ++i) db->WriteNode(MakeNode(i, 10));
+  db->WriteArc(MakeArc(0, 0, 1, 4));
+}
+
 TEST(MapDatabase, SignaturesRoundTrip) {
   const auto dir = testing::MakeTempDir("map_signatures");
   const auto path = dir / "route.db";
@@ -287,20 +294,16 @@ TEST(MapDatabase, SignaturesRoundTrip) {
   ExpectInputError([&] { db->WriteNode(far); }, path, "cannot be stored");
 }
 
-TEST(MapDatabase, MapsOfSchemaTwoAreReadWithoutSignatures) {
-  const auto dir = testing::MakeTempDir("map_schema2");
+TEST(MapDatabase, MapsOfSchemaThreeAreReadWithoutSignatures) {
+  const auto dir = testing::MakeTempDir("map_schema3");
   const auto path = dir / "old.db";
-  {
-    auto db = MapDatabase::Create(path);
-    for (int i = 0; i < 2; ++i) db->WriteNode(MakeNode(i, 10));
-    db->WriteArc(MakeArc(0, 0, 1, 4));
-  }
+  WriteTwoNodeMap(path);
   {
     SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
-    raw.Execute("DROP TABLE signatures; PRAGMA user_version=2;");
+    raw.Execute("DROP TABLE signatures; PRAGMA user_version=3;");
   }
   auto db = MapDatabase::Open(path);
-  EXPECT_EQ(db->schema_version(), 2);
+  EXPECT_EQ(db->schema_version(), 3);
   EXPECT_EQ(db->SignatureBytes(), 0);
   const Map map = db->ReadMap();
   ASSERT_EQ(map.nodes().size(), 2u);
@@ -310,14 +313,10 @@ TEST(MapDatabase, MapsOfSchemaTwoAreReadWithoutSignatures) {
 TEST(MapDatabase, MapsOfSchemaOneAreRead) {
   const auto dir = testing::MakeTempDir("map_schema1");
   const auto path = dir / "old.db";
-  {
-    auto db = MapDatabase::Create(path);
-    for (int i = 0; i < 2; ++i) db->WriteNode(MakeNode(i, 10));
-    db->WriteArc(MakeArc(0, 0, 1, 4));
-  }
+  WriteTwoNodeMap(path);
   {
     SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
-    raw.Execute("ALTER TABLE nodes DROP COLUMN image_crc32; PRAGMA user_version=1;");
+    raw.Execute("DROP TABLE signatures; ALTER TABLE nodes DROP COLUMN image_crc32; PRAGMA user_version=1;");
   }
   EXPECT_EQ(MapDatabase::Open(path)->ReadMap().nodes().size(), 2u);
   // Without checksums a truncated JPEG is still found by its missing end.
@@ -326,6 +325,114 @@ TEST(MapDatabase, MapsOfSchemaOneAreRead) {
     raw.Execute("UPDATE nodes SET image = substr(image, 1, length(image) - 10) WHERE node_id = 1;");
   }
   ExpectInputError([&] { MapDatabase::Open(path); }, path, "key-image of node 1 is corrupt (not a whole JPEG");
+}
+
+TEST(MapDatabase, RoutesAndSimilaritiesRoundTrip) {
+  const auto dir = testing::MakeTempDir("map_routes");
+  const auto path = dir / "graph.db";
+  {
+    auto db = MapDatabase::Create(path);
+    for (int i = 0; i < 3; ++i) {
+      MapNode node = MakeNode(i, 4);
+      node.route = i == 2 ? 1 : 0;
+      db->WriteNode(node);
+    }
+    MapArc tracked = MakeArc(0, 0, 1, 4);
+    tracked.similarity = 0.375;
+    MapArc join = MakeArc(1, 2, 1, 2);
+    join.kind = "join";
+    join.similarity = 0.0625;
+    db->WriteArc(tracked);
+    db->WriteArc(join);
+    db->WriteArc(MakeArc(2, 1, 2, 2));  // similarity unknown
+  }
+  const Map map = MapDatabase::Open(path)->ReadMap(false);
+  EXPECT_EQ(map.FindNode(0)->route, 0);
+  EXPECT_EQ(map.FindNode(2)->route, 1);
+  EXPECT_DOUBLE_EQ(map.FindArc(0)->similarity.value_or(-1), 0.375);
+  EXPECT_EQ(map.FindArc(1)->kind, "join");
+  EXPECT_DOUBLE_EQ(map.FindArc(1)->similarity.value_or(-1), 0.0625);
+  EXPECT_FALSE(map.FindArc(2)->similarity.has_value());
+  // A similarity outside [0, 1] is a damaged map.
+  {
+    SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
+    raw.Execute("UPDATE arcs SET similarity = 7 WHERE arc_id = 1;");
+  }
+  ExpectInputError([&] { MapDatabase::Open(path)->ReadMap(false); }, path, "similarity of arc 1 is 7, not in [0, 1]");
+}
+
+TEST(MapDatabase, MapsOfSchemaTwoHaveRouteZeroAndUnknownSimilarity) {
+  const auto dir = testing::MakeTempDir("map_schema2");
+  const auto path = dir / "old.db";
+  WriteTwoNodeMap(path);
+  {
+    SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
+    raw.Execute(
+        "DROP TABLE signatures; ALTER TABLE nodes DROP COLUMN route; ALTER TABLE arcs DROP COLUMN similarity; "
+        "PRAGMA user_version=2;");
+  }
+  const Map map = MapDatabase::Open(path)->ReadMap();
+  ASSERT_EQ(map.nodes().size(), 2u);
+  EXPECT_EQ(map.nodes()[1].route, 0);
+  EXPECT_FALSE(map.arcs()[0].similarity.has_value());
+}
+
+// teach --append on a map of schema 1: the copy is upgraded (checksums, routes, similarities), the map itself stays
+// byte-identical until the append is committed.
+TEST(StagedMap, AppendUpgradesACopyAndReplacesTheMapOnlyOnCommit) {
+  const auto dir = testing::MakeTempDir("map_append");
+  const auto path = dir / "old.db";
+  WriteTwoNodeMap(path);
+  {
+    SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
+    raw.Execute("DROP TABLE signatures; ALTER TABLE nodes DROP COLUMN image_crc32; ALTER TABLE nodes DROP COLUMN "
+                "route; ALTER TABLE arcs DROP COLUMN similarity; PRAGMA user_version=1;");
+  }
+  const auto read_bytes = [](const std::filesystem::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const std::string before = read_bytes(path);
+  {
+    auto staged = StagedMap::BeginAppend(path);
+    EXPECT_EQ(staged->database()->schema_version(), MapDatabase::kSchemaVersion);
+    MapNode node = MakeNode(2, 3);
+    node.route = 1;
+    staged->database()->WriteNode(node);
+    // Not committed: the map is unchanged.
+  }
+  EXPECT_EQ(read_bytes(path), before);
+  {
+    auto staged = StagedMap::BeginAppend(path);
+    MapNode node = MakeNode(2, 3);
+    node.route = 1;
+    staged->database()->WriteNode(node);
+    MapArc join = MakeArc(1, 2, 1, 2);
+    join.kind = "join";
+    join.similarity = 0.125;
+    staged->database()->WriteArc(join);
+    staged->Commit();
+  }
+  EXPECT_FALSE(std::filesystem::exists(StagedMap::StagingPathFor(path)));
+  auto db = MapDatabase::Open(path);  // every key-image checksum verified
+  EXPECT_EQ(db->schema_version(), MapDatabase::kSchemaVersion);
+  const Map map = db->ReadMap();
+  ASSERT_EQ(map.nodes().size(), 3u);
+  EXPECT_EQ(map.FindNode(0)->route, 0);
+  EXPECT_EQ(map.FindNode(2)->route, 1);
+  EXPECT_FALSE(map.FindArc(0)->similarity.has_value());
+  EXPECT_DOUBLE_EQ(map.FindArc(1)->similarity.value_or(-1), 0.125);
+  // The upgrade added the signatures table: the appended key-image keeps its signature, the old ones have none.
+  EXPECT_FALSE(map.FindNode(2)->signature.empty());
+  EXPECT_TRUE(map.FindNode(0)->signature.empty());
+  // A missing map cannot be appended to.
+  ExpectInputError([&] { StagedMap::BeginAppend(dir / "missing.db"); }, dir / "missing.db", "no such map");
+  // Nor an incomplete one.
+  {
+    auto db = MapDatabase::Open(path, /*writable=*/true);
+    db->SetMetadata(MapDatabase::kTeachStateKey, MapDatabase::kIncomplete);
+  }
+  ExpectInputError([&] { StagedMap::BeginAppend(path); }, path, "incomplete map (its teach did not finish)");
 }
 
 TEST(StagedMap, TheOldMapIsReplacedOnlyByACommittedOne) {

@@ -57,7 +57,7 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
   }
   std::string error;
   if (!loaded.options.Check(&error)) throw InputError(path.string(), "tracking settings stored in the map: " + error);
-  // The key-images' relocalization signatures (issue 16): teach stores them; a map written before (schema < 3), or
+  // The key-images' relocalization signatures (issue 16): teach stores them; a map written before (schema < 4), or
   // with other settings than this repeat's, gets them computed now, once, with a note.
   if (loaded.options.binary_relocalization) {
     const std::string features = loaded.options.relocalization_features.Name();

@@ -25,16 +25,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-template <typename F>
-std::string ErrorOf(F f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "no InputError thrown";
-  return "";
-}
+using retrace::testing::ErrorOf;
 
 std::vector<Frame> ReadAll(Sequence& sequence) {
   std::vector<Frame> frames;

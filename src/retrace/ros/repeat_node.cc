@@ -302,10 +302,13 @@ void RepeatNode::PublishDiagnostics(const ros::TimerEvent&) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     const double silent = (ros::WallTime::now() - last_received_).toSec();
+    // Frames received and not yet processed, dropped or refused: queued (process_every_frame) or being localized.
+    // The camera is silent only when none is left; until then the node is busy, not starved.
+    const bool frames_waiting = received_ > processed_ + dropped_ + unusable_;
     if (!last_error_.empty()) {
       status.level = diagnostic_msgs::DiagnosticStatus::ERROR;
       status.message = last_error_;
-    } else if (silent > 2.0 * options_.diagnostics_period) {
+    } else if (silent > 2.0 * options_.diagnostics_period && !frames_waiting) {
       status.level = diagnostic_msgs::DiagnosticStatus::WARN;
       status.message = fmt::format("no frame for {:.1f} s on {}", silent, image_subscriber_.getTopic());
     } else if (!last_result_) {

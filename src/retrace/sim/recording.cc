@@ -24,6 +24,18 @@ void WriteText(const std::filesystem::path& path, const std::string& text) {
   if (!out) throw InputError(path.string(), "cannot write the file");
 }
 
+// What a recorded sequence holds besides its frames: the scenario, the camera file and (perspective cameras) the
+// KITTI calibration.
+void WriteSequenceHeader(const Simulator& sim, const std::filesystem::path& out_dir, KittiSequenceWriter* writer) {
+  WriteText(out_dir / "scenario.yaml", ScenarioToYaml(sim.scenario()));
+  WriteCameraFile(sim.camera(), out_dir / "camera.yaml");
+  if (const auto* perspective = dynamic_cast<const PerspectiveCamera*>(&sim.camera())) {
+    Matrix34d p0 = Matrix34d::Zero();
+    p0.leftCols<3>() = perspective->K();
+    writer->WriteCalibration(p0);
+  }
+}
+
 }  // namespace
 
 RecordedDrive RecordDrive(const Scenario& scenario) {
@@ -43,16 +55,33 @@ RecordedDrive RecordDrive(const Scenario& scenario) {
   return drive;
 }
 
+RecordSummary RecordPoses(Simulator* sim, const std::vector<TimedPose>& poses, const std::filesystem::path& out_dir,
+                          const RecordOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  KittiSequenceWriter writer(out_dir);
+  WriteSequenceHeader(*sim, out_dir, &writer);
+  RecordSummary summary;
+  summary.route_length_m = sim->route().length();
+  ProgressBar progress("render", poses.size(), options.progress);
+  for (size_t i = 0; i < poses.size(); ++i) {
+    const cv::Mat image = sim->RenderAt(poses[i].world_from_cam, poses[i].timestamp, /*noise_seed=*/i + 1);
+    writer.WriteFrame(image, poses[i].timestamp, poses[i].world_from_cam);
+    if (i > 0) {
+      summary.driven_m += (poses[i].world_from_cam.translation - poses[i - 1].world_from_cam.translation).norm();
+    }
+    ++summary.frames;
+    progress.Advance(1);
+  }
+  progress.Finish();
+  summary.frames_requested = static_cast<int>(poses.size());
+  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return summary;
+}
+
 RecordSummary RecordSequence(Simulator* sim, const std::filesystem::path& out_dir, const RecordOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   KittiSequenceWriter writer(out_dir);
-  WriteText(out_dir / "scenario.yaml", ScenarioToYaml(sim->scenario()));
-  WriteCameraFile(sim->camera(), out_dir / "camera.yaml");
-  if (const auto* perspective = dynamic_cast<const PerspectiveCamera*>(&sim->camera())) {
-    Matrix34d p0 = Matrix34d::Zero();
-    p0.leftCols<3>() = perspective->K();
-    writer.WriteCalibration(p0);
-  }
+  WriteSequenceHeader(*sim, out_dir, &writer);
 
   RecordSummary summary;
   summary.route_length_m = sim->route().length();

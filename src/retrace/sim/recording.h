@@ -49,6 +49,13 @@ struct RecordSummary {
 RecordSummary RecordSequence(Simulator* simulator, const std::filesystem::path& out_dir,
                              const RecordOptions& options);
 
+// Renders the world at given camera poses (world_from_cam in the simulator's world frame, simulator.h; the moving
+// occluders at each pose's timestamp) and writes them as a sequence like RecordSequence: for experiments at chosen
+// places, e.g. Booij 2007 §B.5.1's grid of positions and orientations. `driven_m` of the summary is the length of the
+// polyline through the poses. Throws InputError when the folder cannot be written.
+RecordSummary RecordPoses(Simulator* simulator, const std::vector<TimedPose>& poses,
+                          const std::filesystem::path& out_dir, const RecordOptions& options);
+
 // A drive recorded in memory (tests, benchmarks): the frames as a Sequence of the written folder gives them
 // (index = source_index = frame number, name NNNNNN.png) and their ground-truth poses (world_from_cam, as in
 // poses.txt).

@@ -257,8 +257,31 @@ std::optional<ScenarioProblem> Scenario::Check() const {
       return ScenarioProblem{"route.waypoints", fmt::format("the route must be 1..{} m long, got {:.1f} m",
                                                             Number(kMaxRouteLength), length)};
     }
+  } else if (route.type == "junctions") {
+    if (route.junctions.size() < 2 || route.junctions.size() > static_cast<size_t>(kMaxWaypoints)) {
+      return ScenarioProblem{"route.junctions", fmt::format("a junctions route needs 2..{} junctions, got {}",
+                                                            kMaxWaypoints, route.junctions.size())};
+    }
+    for (size_t k = 0; k < route.junctions.size(); ++k) {
+      const auto [i, j] = route.junctions[k];
+      if (!(i >= 0 && j >= 0 && i <= town.blocks_x && j <= town.blocks_y)) {
+        return ScenarioProblem{fmt::format("route.junctions[{}]", k),
+                               fmt::format("[i, j] must have 0 <= i <= town.blocks_x ({}) and 0 <= j <= "
+                                           "town.blocks_y ({}), got [{}, {}]",
+                                           town.blocks_x, town.blocks_y, i, j)};
+      }
+      if (k > 0) {
+        const auto [pi, pj] = route.junctions[k - 1];
+        if ((pi == i) == (pj == j)) {
+          return ScenarioProblem{fmt::format("route.junctions[{}]", k),
+                                 fmt::format("[{}, {}] is not along one street from [{}, {}] (one index must stay)",
+                                             i, j, pi, pj)};
+        }
+      }
+    }
   } else if (route.type != "auto" && route.type != "loop" && route.type != "crossing") {
-    return ScenarioProblem{"route.type", "must be auto, loop, crossing or waypoints, got '" + route.type + "'"};
+    return ScenarioProblem{"route.type",
+                           "must be auto, loop, crossing, junctions or waypoints, got '" + route.type + "'"};
   }
   if (markers.size() > static_cast<size_t>(kMaxMarkers)) {
     return ScenarioProblem{"markers", fmt::format("at most {} markers, got {}", kMaxMarkers, markers.size())};

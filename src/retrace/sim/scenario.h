@@ -17,6 +17,8 @@
 #include "retrace/camera/camera_model.h"
 #include "retrace/camera/perspective_camera.h"
 #include "retrace/sim/renderer.h"
+#include <array>
+
 #include "retrace/sim/town.h"
 #include "retrace/sim/vehicle.h"
 
@@ -43,12 +45,14 @@ struct RouteSpec {
   // "auto": a seeded drive of `segments` junction-to-junction streets with turns; "loop": around the rectangle of
   // blocks [loop_i0, loop_i1] x [loop_j0, loop_j1] (junction indices); "crossing": a figure eight over the 2 x 2
   // blocks from junction (loop_i0, loop_j0) that crosses itself at (loop_i0 + 1, loop_j0 + 1) (town.h,
-  // FigureEightJunctions); "waypoints": the given town-frame points (X east, Y north, metres), driven as given (no
-  // lane offset).
+  // FigureEightJunctions); "junctions": through the listed junctions [i, j] in order (consecutive ones on one
+  // street; straight through or turning, so that routes laid by hand cross or share streets), in the right lane;
+  // "waypoints": the given town-frame points (X east, Y north, metres), driven as given (no lane offset).
   std::string type = "auto";
   int segments = 8;
   int loop_i0 = 0, loop_j0 = 0, loop_i1 = 2, loop_j1 = 1;
   std::vector<Vector2d> waypoints;
+  std::vector<std::array<int, 2>> junctions;  // "junctions": junction indices [i, j] (town.h TownLayout::Junction)
 };
 
 // Overrides for the repeat recording of a route.

@@ -146,11 +146,25 @@ Scenario ParseNode(const YAML::Node& root, const Reader& r) {
     r.Number(n, "vehicle", "camera_tilt_deg", &s.vehicle.camera_tilt_deg);
   }
   if (const YAML::Node n = root["route"]) {
-    r.CheckMap(n, "route", {"type", "segments", "loop", "waypoints"});
+    r.CheckMap(n, "route", {"type", "segments", "loop", "waypoints", "junctions"});
     r.String(n, "route", "type", &s.route.type);
     if (s.route.type != "auto" && s.route.type != "loop" && s.route.type != "crossing" &&
-        s.route.type != "waypoints") {
-      r.Fail(n["type"], "route.type", "expected auto, loop, crossing or waypoints, got '" + s.route.type + "'");
+        s.route.type != "junctions" && s.route.type != "waypoints") {
+      r.Fail(n["type"], "route.type",
+             "expected auto, loop, crossing, junctions or waypoints, got '" + s.route.type + "'");
+    }
+    if (const YAML::Node w = n["junctions"]) {
+      if (!w.IsSequence()) r.Fail(w, "route.junctions", "expected a list of [i, j] junction indices");
+      s.route.junctions.clear();
+      for (size_t k = 0; k < w.size(); ++k) {
+        const YAML::Node p = w[k];
+        if (!p.IsSequence() || p.size() != 2) r.Fail(p, fmt::format("route.junctions[{}]", k), "expected [i, j]");
+        try {
+          s.route.junctions.push_back({p[0].as<int>(), p[1].as<int>()});
+        } catch (const YAML::Exception&) {
+          r.Fail(p, fmt::format("route.junctions[{}]", k), "expected two integers [i, j]");
+        }
+      }
     }
     r.Integer(n, "route", "segments", &s.route.segments);
     if (const YAML::Node l = n["loop"]) {
@@ -360,7 +374,7 @@ std::string ScenarioToYaml(const Scenario& s) {
   line(fmt::format("  camera_tilt_deg: {}      # downward tilt", s.vehicle.camera_tilt_deg));
   line("route:");
   line(fmt::format("  type: {}              # auto (seeded drive with turns), loop (around blocks), crossing "
-                   "(figure eight), waypoints",
+                   "(figure eight), junctions (through listed junctions), waypoints",
                    s.route.type));
   line(fmt::format("  segments: {}            # auto: number of junction-to-junction streets", s.route.segments));
   line(fmt::format("  loop: [{}, {}, {}, {}]      # loop: junction indices [i0, j0, i1, j1] of the rectangle; "
@@ -371,6 +385,11 @@ std::string ScenarioToYaml(const Scenario& s) {
   line(fmt::format("  waypoints: [{}]  # waypoints: town-frame [x, y] points; 2..100000 within +-100 km, at most "
                    "100 km long",
                    points));
+  std::string junctions;
+  for (const auto& [i, j] : s.route.junctions) junctions += fmt::format("{}[{}, {}]", junctions.empty() ? "" : ", ", i, j);
+  line(fmt::format("  junctions: [{}]  # junctions: [i, j] junction indices in order, consecutive ones on one street "
+                   "(0 <= i <= town.blocks_x, 0 <= j <= town.blocks_y)",
+                   junctions));
   line("drive:");
   line(fmt::format("  max_speed: {}            # m/s on straight streets", s.drive.max_speed));
   line(fmt::format("  max_lateral_acceleration: {}  # m/s^2: sets how much the car slows down in turns",

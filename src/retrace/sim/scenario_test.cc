@@ -280,6 +280,19 @@ TEST(ScenarioRangeTest, RulesBetweenKeys) {
             "town.yaml: line 3: route.waypoints[1]: coordinates must be within +-100000 m, got [1000000, 0]");
   EXPECT_EQ(ParseProblem("route:\n  type: waypoints\n  waypoints: [[0, 0], [90000, 0], [0, 0]]\n"),
             "town.yaml: line 3: route.waypoints: the route must be 1..100000 m long, got 180000.0 m");
+  // Routes through listed junctions: inside the grid, consecutive junctions along one street.
+  EXPECT_EQ(ParseProblem("route:\n  type: junctions\n  junctions: [[0, 0], [2, 0], [2, 3]]\n"), "");
+  EXPECT_EQ(ParseProblem("route:\n  type: junctions\n  junctions: [[0, 0]]\n"),
+            "town.yaml: line 3: route.junctions: a junctions route needs 2..100000 junctions, got 1");
+  EXPECT_EQ(ParseProblem("route:\n  type: junctions\n  junctions: [[0, 0], [5, 0]]\n"),
+            "town.yaml: line 3: route.junctions[1]: [i, j] must have 0 <= i <= town.blocks_x (4) and 0 <= j <= "
+            "town.blocks_y (4), got [5, 0]");
+  EXPECT_EQ(ParseProblem("route:\n  type: junctions\n  junctions: [[0, 0], [1, 1]]\n"),
+            "town.yaml: line 3: route.junctions[1]: [1, 1] is not along one street from [0, 0] (one index must stay)");
+  EXPECT_EQ(ParseProblem("route:\n  type: junctions\n  junctions: [[0, 0], [0, 0]]\n"),
+            "town.yaml: line 3: route.junctions[1]: [0, 0] is not along one street from [0, 0] (one index must stay)");
+  EXPECT_EQ(ParseProblem("route:\n  type: junctions\n  junctions: [[0, 0], [1, x]]\n"),
+            "town.yaml: line 3: route.junctions[1]: expected two integers [i, j]");
   std::string many = "markers: [";
   for (int i = 0; i <= kMaxMarkers; ++i) many += i == 0 ? "[0, 0, 1]" : ", [0, 0, 1]";
   EXPECT_EQ(ParseProblem(many + "]\n"), "town.yaml: line 1: markers: at most 1000 markers, got 1001");

@@ -18,6 +18,8 @@ std::vector<Vector2d> ResolveRoute(const Scenario& scenario, const TownLayout& l
     junctions = LoopRouteJunctions(layout, r.loop_i0, r.loop_j0, r.loop_i1, r.loop_j1);
   } else if (r.type == "crossing") {
     junctions = FigureEightJunctions(layout, r.loop_i0, r.loop_j0);
+  } else if (r.type == "junctions") {
+    for (const auto& [i, j] : r.junctions) junctions.push_back(layout.Junction(i, j));
   } else {
     junctions = RandomRouteJunctions(layout, r.segments, scenario.seed);
   }

@@ -359,3 +359,33 @@ TEST(SimulatorTest, RefusesAScenarioOutsideItsRanges) {
 
 }  // namespace
 }  // namespace retrace
+
+namespace retrace {
+namespace {
+
+// route.type junctions: the car drives through the listed junctions in the right lane, straight through (1, 0) and
+// turning left at (2, 0).
+TEST(SimulatorTest, JunctionsRouteDrivesThroughTheListedJunctions) {
+  Scenario scenario;
+  scenario.town.blocks_x = 3;
+  scenario.town.blocks_y = 2;
+  scenario.town.num_pedestrians = 0;
+  scenario.town.num_moving_cars = 0;
+  scenario.route.type = "junctions";
+  scenario.route.junctions = {{{0, 0}}, {{1, 0}}, {{2, 0}}, {{2, 1}}};
+  const Simulator simulator(scenario);
+  const TownLayout& layout = simulator.layout();
+  const std::vector<Vector2d> route = ResolveRoute(scenario, layout);
+  std::vector<Vector2d> centre;
+  for (const auto& [i, j] : scenario.route.junctions) centre.push_back(layout.Junction(i, j));
+  const std::vector<Vector2d> expected = OffsetPolyline(centre, layout.lane_offset());
+  ASSERT_EQ(route.size(), expected.size());
+  for (size_t k = 0; k < route.size(); ++k) EXPECT_LT((route[k] - expected[k]).norm(), 1e-9) << k;
+  // East along the street j = 0 in its right (southern) lane, then north along i = 2 in its right (eastern) lane.
+  EXPECT_NEAR(route.front().y(), layout.street_y[0] - layout.lane_offset(), 1e-9);
+  EXPECT_NEAR(route.back().x(), layout.street_x[2] + layout.lane_offset(), 1e-9);
+  EXPECT_GT(route.back().y(), layout.street_y[1] - 1.0);
+}
+
+}  // namespace
+}  // namespace retrace

@@ -1,5 +1,7 @@
 #include "retrace/teach/matched_geometry.h"
 
+#include <algorithm>
+
 #include "retrace/geometry/relative_pose.h"
 
 namespace retrace {
@@ -49,6 +51,12 @@ MatchedGeometry RelateByMatching(const CameraModel& camera, const MatchableImage
     ++result.num_trackable;
   }
   return result;
+}
+
+double MatchedSimilarity(const MatchedGeometry& matched, const MatchableImage& a, const MatchableImage& b) {
+  const size_t fewer = std::min(a.features.size(), b.features.size());
+  if (!matched.geometry.success || fewer == 0) return 0.0;
+  return std::min(1.0, static_cast<double>(matched.geometry.num_inliers) / static_cast<double>(fewer));
 }
 
 TwoViewGeometry EstimateMatchedGeometryNear(const CameraModel& camera, const MatchedGeometry& matched,

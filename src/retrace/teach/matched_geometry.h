@@ -53,6 +53,10 @@ struct MatchedGeometryOptions {
 MatchedGeometry RelateByMatching(const CameraModel& camera, const MatchableImage& a, const MatchableImage& b,
                                  const MatchedGeometryOptions& options);
 
+// Appearance similarity of A and B (Booij 2007 §B.2): the matches consistent with the epipolar geometry over the
+// fewer wide-baseline key-points of the two images, in [0, 1]; 0 when the geometry failed.
+double MatchedSimilarity(const MatchedGeometry& matched, const MatchableImage& a, const MatchableImage& b);
+
 // The geometry of the matches of `matched` (between A and B) estimated again with `guess` as the first hypothesis:
 // the refined guess is kept unless a sampled motion fits the matches clearly better (TwoViewOptions::
 // guess_preference). A second look at a pair whose matches fit several motions almost equally well.

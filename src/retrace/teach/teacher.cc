@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
+#include "retrace/feature/global_descriptor.h"
 #include "retrace/geometry/relative_pose.h"
 #include "retrace/geometry/scale.h"
 #include "retrace/teach/link_verification.h"
@@ -30,10 +31,12 @@ class ScopedTimer {
   Clock::time_point start_;
 };
 
-// A key-image made of a teach frame, without features yet; with its relocalization signature when the options ask.
-MapNode NodeFromFrame(node_t id, const Frame& frame, const TeachOptions& options) {
+// A key-image of `route` made of a teach frame, without features yet; with its relocalization signature when the
+// options ask.
+MapNode NodeFromFrame(node_t id, const Frame& frame, int route, const TeachOptions& options) {
   MapNode node;
   node.id = id;
+  node.route = route;
   node.source_frame = static_cast<int64_t>(frame.source_index);
   node.image_name = frame.name;
   node.timestamp = frame.timestamp;
@@ -93,6 +96,10 @@ bool TeachOptions::Check(std::string* error) const {
   if (!(inlier_threshold_px > 0)) return fail("inlier_threshold_px must be positive");
   if (!(min_parallax_px >= 0)) return fail("min_parallax_px must not be negative");
   if (matching_interval < 2) return fail("matching_interval must be at least 2");
+  if (join_candidates < 1) return fail("join_candidates must be at least 1");
+  if (!(max_join_length_arcs > 0)) return fail("max_join_length_arcs must be positive");
+  if (!(join_point_radius_px > 0)) return fail("join_point_radius_px must be positive");
+  if (!(min_join_similarity >= 0 && min_join_similarity <= 1)) return fail("min_join_similarity must lie in [0, 1]");
   if (!tracker.Check()) return fail("invalid tracker options");
   if (!geometry.Check()) return fail("invalid geometry options");
   std::string matching_error;
@@ -107,6 +114,8 @@ struct Teacher::FrameState {
   TwoViewGeometry geometry;              // W(K, this frame)
   std::vector<feature_t> geometry_ids;   // feature of each correspondence of `geometry`
   std::vector<Vector3d> bearings_key, bearings_frame;  // the correspondences of `geometry`
+  // Appearance similarity of the key-image and this frame when wide-baseline matching related them (a gap arc).
+  std::optional<double> matched_similarity;
   int survivors = 0;                     // features of the key-image still tracked here
 };
 
@@ -169,6 +178,21 @@ Teacher::Teacher(const CameraModel& camera, const TeachOptions& options, MapData
 }
 
 Teacher::~Teacher() = default;
+
+void Teacher::AppendTo(const Map& existing) {
+  if (statistics_.frames > 0) throw std::logic_error("Teacher::AppendTo after the first frame");
+  existing_ = &existing;
+  route_ = 0;
+  first_node_id_ = 0;
+  first_arc_id_ = 0;
+  for (const MapNode& node : existing.nodes()) {
+    route_ = std::max(route_, node.route + 1);
+    first_node_id_ = std::max(first_node_id_, node.id + 1);
+  }
+  for (const MapArc& arc : existing.arcs()) first_arc_id_ = std::max(first_arc_id_, arc.id + 1);
+  const feature_t max_feature = existing.MaxFeatureId();
+  next_feature_id_ = max_feature == kInvalidFeatureId ? 0 : max_feature + 1;
+}
 
 void Teacher::AddFrame(const Frame& frame) {
   if (finished_) throw std::logic_error("Teacher::AddFrame after Finish");
@@ -348,7 +372,7 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
     if (std::string planar;
         PlanarGeometry(frame->bearings_key, frame->bearings_frame, frame->geometry, &planar, /*tracked=*/true)) {
       statistics_.rejected_links.push_back(
-          {"tracking", subrange_->node, static_cast<node_t>(map_.nodes().size()),
+          {"tracking", subrange_->node, NextNodeId(),
            map_.FindNode(subrange_->node)->source_frame, static_cast<int64_t>(frame->frame.source_index),
            frame->geometry.num_inliers, frame->geometry.num_inliers, frame->geometry.sigma_p, planar});
       spdlog::warn("teach: tracked arc from key-image {} to frame {} rejected ({}); the map is disconnected there",
@@ -361,7 +385,7 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
   // key-image to this one, or by this key-image when a gap arc reaches it from there; without either, rejected.
   std::unique_ptr<PendingGap> earlier_gap = std::move(pending_gap_);
   const node_t from_node = subrange_ ? subrange_->node : kInvalidNodeId;
-  MapNode node = NodeFromFrame(static_cast<node_t>(map_.nodes().size()), frame->frame, options_);
+  MapNode node = NodeFromFrame(NextNodeId(), frame->frame, route_, options_);
   // A gap arc is held back until the drive after it confirms it (TeachOptions::verify_links).
   const bool hold_back = with_arc && reason == KeyImageReason::kGap && options_.verify_links;
 
@@ -376,7 +400,7 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
   if (with_arc) {
     const TwoViewGeometry& w = frame->geometry;
     arc.emplace();
-    arc->id = hold_back ? kInvalidArcId : static_cast<arc_t>(map_.arcs().size());
+    arc->id = hold_back ? kInvalidArcId : NextArcId();
     arc->from = subrange_->node;
     arc->to = node.id;
     arc->to_from_from = w.b_from_a;
@@ -418,8 +442,18 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
     }
   }
 
+  const size_t features_at_from = subrange_ ? subrange_->bearings.size() : 0;
   StartSubrange(frame);
   subrange_->node = node.id;
+  if (arc) {
+    // Booij 2007 §B.2 for a tracked arc: its epipolar-consistent tracked correspondences over the fewer corners
+    // tracked from either key-image (MapArc::similarity).
+    const size_t fewer = std::min(features_at_from, subrange_->bearings.size());
+    arc->similarity = frame->matched_similarity
+                          ? *frame->matched_similarity
+                          : fewer == 0 ? 0.0
+                                       : std::min(1.0, static_cast<double>(frame->geometry.num_inliers) / fewer);
+  }
   for (const feature_t id : arc_features) {
     if (const auto it = subrange_->observations.find(id); it != subrange_->observations.end()) {
       if (gap) {
@@ -483,8 +517,10 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
 void Teacher::Commit(const MapNode* node, const MapArc* arc, const std::vector<NodeScale>& scales,
                      const std::vector<std::pair<node_t, std::vector<FeatureObservation>>>& extra_observations) {
   for (const auto& [node_id, observations] : extra_observations) {
-    MapNode* existing = map_.MutableNode(node_id);
-    existing->features.insert(existing->features.end(), observations.begin(), observations.end());
+    // Nodes of the map appended to (AppendTo) are not in map_: their observations go to the database only.
+    if (MapNode* existing = map_.MutableNode(node_id)) {
+      existing->features.insert(existing->features.end(), observations.begin(), observations.end());
+    }
   }
   if (database_ == nullptr) return;
   ScopedTimer timer(&statistics_.seconds_storage);
@@ -564,7 +600,7 @@ bool Teacher::RecoverGap(FrameState* frame) {
   if (!AcceptableMatchedGeometry(matched, options_.min_matched_inliers)) return false;
   if (std::string planar; PlanarGeometry(matched.bearings_a, matched.bearings_b, matched.geometry, &planar)) {
     // The frame becomes the next node, a disconnected key-image (AddFrame).
-    statistics_.rejected_links.push_back({"gap", subrange_->node, static_cast<node_t>(map_.nodes().size()),
+    statistics_.rejected_links.push_back({"gap", subrange_->node, NextNodeId(),
                                           map_.FindNode(subrange_->node)->source_frame,
                                           static_cast<int64_t>(frame->frame.source_index),
                                           matched.geometry.num_inliers, matched.num_trackable,
@@ -584,7 +620,7 @@ bool Teacher::RecoverGap(FrameState* frame) {
         fmt::format("key-image {} (before {})", previous->from, previous->to), &description);
     if (verdict == WitnessVerdict::kContradicts) {
       // The frame becomes the next node, a disconnected key-image (AddFrame).
-      statistics_.rejected_links.push_back({"gap", subrange_->node, static_cast<node_t>(map_.nodes().size()),
+      statistics_.rejected_links.push_back({"gap", subrange_->node, NextNodeId(),
                                             map_.FindNode(subrange_->node)->source_frame,
                                             static_cast<int64_t>(frame->frame.source_index),
                                             matched.geometry.num_inliers, matched.num_trackable,
@@ -613,6 +649,7 @@ bool Teacher::RecoverGap(FrameState* frame) {
     const Vector2d position_key = matched.PositionInA(subrange_->matchable, i);
     subrange_->observations[id] = {id, position_key, cv::Mat()};
   }
+  frame->matched_similarity = MatchedSimilarity(matched, subrange_->matchable, current);
   frame->geometry = std::move(matched.geometry);
   frame->bearings_key = std::move(matched.bearings_a);
   frame->bearings_frame = std::move(matched.bearings_b);
@@ -662,7 +699,7 @@ void Teacher::ResolvePendingGap(const MapArc* next) {
   }
 
   MapArc& arc = gap->arc;
-  arc.id = static_cast<arc_t>(map_.arcs().size());
+  arc.id = NextArcId();
   std::vector<NodeScale> scales;
   if (gap->scale_at_from) {
     gap->scale_at_from->arc_out = arc.id;
@@ -764,6 +801,7 @@ void Teacher::Finish() {
   // A gap arc still waiting for the key-image after it has none: it cannot be confirmed.
   if (pending_gap_) ResolvePendingGap(nullptr);
   if (options_.close_loop && map_.nodes().size() >= 3) CloseLoop();
+  if (existing_ != nullptr) JoinRoutes();
   if (database_ != nullptr) database_->Checkpoint();
 }
 
@@ -778,7 +816,7 @@ MatchableImage& Teacher::MatchableFrame(size_t index) {
 void Teacher::BuildByMatching() {
   if (frames_.empty()) return;
   const auto register_node = [&](size_t index, KeyImageReason reason) {
-    MapNode node = NodeFromFrame(static_cast<node_t>(map_.nodes().size()), frames_[index], options_);
+    MapNode node = NodeFromFrame(NextNodeId(), frames_[index], route_, options_);
     Commit(&node, nullptr, {}, {});
     node_of_frame_[index] = node.id;
     map_.AddNode(std::move(node));
@@ -824,19 +862,20 @@ void Teacher::RelateFramesByMatching(size_t a, size_t b) {
     ++statistics_.gaps_unrecovered;
   }
 
-  MapNode node = NodeFromFrame(static_cast<node_t>(map_.nodes().size()), frames_[b], options_);
+  MapNode node = NodeFromFrame(NextNodeId(), frames_[b], route_, options_);
   std::optional<MapArc> arc;
   std::optional<NodeScale> scale;
   std::vector<FeatureObservation> from_additions;
   if (acceptable) {
     const node_t from = node_of_frame_.at(a);
     arc.emplace();
-    arc->id = static_cast<arc_t>(map_.arcs().size());
+    arc->id = NextArcId();
     arc->from = from;
     arc->to = node.id;
     arc->to_from_from = matched.geometry.b_from_a;
     arc->sigma_p = matched.geometry.sigma_p;
     arc->kind = "matching";
+    arc->similarity = MatchedSimilarity(matched, MatchableFrame(a), MatchableFrame(b));
     const MapNode* from_node = map_.FindNode(from);
     std::unordered_set<feature_t> stored_at_from;
     for (const FeatureObservation& f : from_node->features) stored_at_from.insert(f.feature_id);
@@ -993,12 +1032,13 @@ void Teacher::CloseLoop() {
   }
   const MatchedGeometry& matched = best->matched;
   MapArc arc;
-  arc.id = static_cast<arc_t>(map_.arcs().size());
+  arc.id = NextArcId();
   arc.from = last.id;
   arc.to = best->node->id;
   arc.to_from_from = matched.geometry.b_from_a;
   arc.sigma_p = matched.geometry.sigma_p;
   arc.kind = "loop";
+  arc.similarity = MatchedSimilarity(matched, last_image, best->image);
   std::vector<FeatureObservation> last_observations, first_observations;
   for (size_t i = 0; i < matched.matches.size(); ++i) {
     if (!matched.trackable[i]) continue;
@@ -1014,6 +1054,225 @@ void Teacher::CloseLoop() {
   statistics_.loop_closed = true;
   spdlog::info("teach: loop closed between key-images {} and {} ({} inliers, {} trackable, sigma_p {:.2f} px)",
                last_id, first_id, matched.geometry.num_inliers, matched.num_trackable, matched.geometry.sigma_p);
+}
+
+}  // namespace retrace
+
+namespace retrace {
+
+void Teacher::JoinRoutes() {
+  ScopedTimer timer(&statistics_.seconds_matching);
+  if (existing_->nodes().empty()) return;
+  // Appearance shortlist over the existing key-images (feature/global_descriptor.h), and their wide-baseline
+  // features, extracted once when a shortlist first needs them.
+  std::vector<GlobalDescriptor> descriptors;
+  for (const MapNode& node : existing_->nodes()) {
+    if (node.image.empty()) throw std::invalid_argument("Teacher::AppendTo: the existing map needs its key-images");
+    descriptors.push_back(ComputeGlobalDescriptor(node.image));
+  }
+  // Key-images of both maps prepared for matching, each once (node ids of the two maps are distinct).
+  std::unordered_map<node_t, MatchableImage> prepared;
+  const auto existing_image = [&](node_t id) -> const MatchableImage& {
+    auto it = prepared.find(id);
+    if (it == prepared.end()) {
+      const MapNode* node = existing_->FindNode(id);
+      if (node == nullptr) node = map_.FindNode(id);
+      it = prepared.emplace(id, PrepareForMatching(node->image)).first;
+    }
+    return it->second;
+  };
+  // The arcs of the existing map at a node (its witnesses), in both directions.
+  const auto existing_arcs = [&](node_t id, bool from) {
+    std::vector<const MapArc*> arcs;
+    for (const MapArc& arc : existing_->arcs()) {
+      if ((from ? arc.from : arc.to) == id && arc.kind != "join") arcs.push_back(&arc);
+    }
+    return arcs;
+  };
+
+  std::vector<node_t> new_nodes;
+  for (const MapNode& node : map_.nodes()) new_nodes.push_back(node.id);
+  for (size_t k = 0; k < new_nodes.size(); ++k) {
+    const node_t a_id = new_nodes[k];
+    // The drive's key-images are needed as A and as witnesses of their neighbours only.
+    if (k >= 2) prepared.erase(new_nodes[k - 2]);
+    const MapNode& a = *map_.FindNode(a_id);
+    const MatchableImage& a_image = existing_image(a_id);
+    const std::vector<size_t> ranked = RankByGlobalDescriptor(ComputeGlobalDescriptor(a.image), descriptors);
+    struct Candidate {
+      const MapNode* node;
+      MatchedGeometry matched;
+      double similarity;
+    };
+    std::vector<Candidate> candidates;
+    for (size_t r = 0; r < ranked.size() && r < static_cast<size_t>(options_.join_candidates); ++r) {
+      const MapNode& b = existing_->nodes()[ranked[r]];
+      MatchedGeometry matched = RelateByMatching(*camera_, a_image, existing_image(b.id), MatchingOptions());
+      const double similarity = MatchedSimilarity(matched, a_image, existing_image(b.id));
+      spdlog::debug("teach: join candidate {} -> {}: {} matches, {} inliers, sigma_p {:.2f} px, similarity {:.3f}",
+                    a.id, b.id, matched.matches.size(), matched.geometry.num_inliers, matched.geometry.sigma_p,
+                    similarity);
+      // As strict as a loop closure (a wrong link is worse than none), and similar enough (Booij 2007 §B.2).
+      if (!AcceptableMatchedGeometry(matched, options_.min_loop_inliers)) continue;
+      if (similarity < options_.min_join_similarity) continue;
+      if (std::string planar; PlanarGeometry(matched.bearings_a, matched.bearings_b, matched.geometry, &planar)) {
+        statistics_.rejected_links.push_back({"join", a.id, b.id, a.source_frame, b.source_frame,
+                                              matched.geometry.num_inliers, matched.num_trackable,
+                                              matched.geometry.sigma_p, planar});
+        continue;
+      }
+      candidates.push_back({&b, std::move(matched), similarity});
+    }
+    std::stable_sort(candidates.begin(), candidates.end(), [](const Candidate& x, const Candidate& y) {
+      return x.matched.geometry.num_inliers > y.matched.geometry.num_inliers;
+    });
+    // link_verification.h, from both ends: A matched with B's neighbours on its route measures the link composed
+    // with their arcs, and A's neighbours on the new drive matched with B measure their arcs composed with the link.
+    // On each side one witness must confirm and none contradict (a loop closure needs one side: a join links two
+    // drives that may look alike everywhere, seed 11 of the simulator).
+    const auto verify = [&](const Candidate& candidate) -> std::string {
+      const node_t b_id = candidate.node->id;
+      const Rigid3d& b_from_a = candidate.matched.geometry.b_from_a;
+      std::string description;
+      bool confirmed = false;
+      for (const bool after : {true, false}) {
+        for (const MapArc* arc : existing_arcs(b_id, /*from=*/after)) {
+          const node_t other = after ? arc->to : arc->from;
+          const Rigid3d other_from_b = after ? arc->to_from_from : arc->to_from_from.Inverse();
+          const WitnessVerdict verdict =
+              WeighWitness(a_image, existing_image(other), b_from_a, other_from_b,
+                           fmt::format("key-image {} ({} {})", other, after ? "after" : "before", b_id), &description);
+          if (verdict == WitnessVerdict::kContradicts) return description;
+          confirmed = confirmed || verdict == WitnessVerdict::kConfirms;
+        }
+      }
+      if (!confirmed) {
+        return description.empty() ? fmt::format("key-image {} has no neighbour to confirm the link", b_id)
+                                   : fmt::format("no neighbour of key-image {} confirms it (last: {})", b_id,
+                                                 description);
+      }
+      confirmed = false;
+      description.clear();
+      for (const bool after : {true, false}) {
+        for (const MapArc* arc : after ? map_.ArcsFrom(a_id) : map_.ArcsTo(a_id)) {
+          if (arc->kind == "loop" || arc->kind == "join") continue;
+          const node_t other = after ? arc->to : arc->from;
+          const Rigid3d a_from_other = after ? arc->to_from_from.Inverse() : arc->to_from_from;
+          const WitnessVerdict verdict = WeighWitness(
+              existing_image(other), existing_image(b_id), a_from_other, b_from_a,
+              fmt::format("key-image {} ({} {})", other, after ? "after" : "before", a_id), &description);
+          if (verdict == WitnessVerdict::kContradicts) return description;
+          confirmed = confirmed || verdict == WitnessVerdict::kConfirms;
+        }
+      }
+      if (!confirmed) {
+        return description.empty() ? fmt::format("key-image {} has no neighbour to confirm the link", a_id)
+                                   : fmt::format("no neighbour of key-image {} confirms it (last: {})", a_id,
+                                                 description);
+      }
+      return "";
+    };
+    // Design §3.3 across the link: the depths at A of physical points that both the join and A's arc on its own
+    // drive reconstruct (the join's inlier key-points within a pixel of the arc's features in A) give the join's
+    // length in units of that arc. One place is at most TeachOptions::max_join_length_arcs such arcs away: two
+    // images of one street 56 m apart relate with a correct geometry, but they do not see the same place. Checked
+    // before the witnesses (it needs no matching); each of the two rejected the false candidates of
+    // teacher_join_test on its own.
+    const auto join_length = [&](const Candidate& candidate, std::optional<NodeScale>* scale) -> std::string {
+      const MatchedGeometry& matched = candidate.matched;
+      const MapNode& a_node = *map_.FindNode(a_id);
+      std::vector<const MapArc*> arcs = map_.ArcsTo(a_id);  // the arc into A first: its scale is stored at A
+      for (const MapArc* arc : map_.ArcsFrom(a_id)) arcs.push_back(arc);
+      const double radius_px = options_.join_point_radius_px * camera_->width() / options_.reference_width;
+      for (const MapArc* arc : arcs) {
+        if (arc->kind == "loop" || arc->kind == "join") continue;
+        const bool into = arc->to == a_id;
+        std::unordered_map<feature_t, double> depth_at_a;
+        for (const ArcPoint& p : arc->points) {
+          depth_at_a[p.feature_id] = into ? (arc->to_from_from * p.point_in_from).norm() : p.point_in_from.norm();
+        }
+        std::vector<double> depth_arc, depth_join;
+        for (size_t i = 0; i < matched.matches.size(); ++i) {
+          if (!matched.geometry.inlier_mask[i]) continue;
+          const Vector2d position = matched.PositionInA(a_image, i);
+          const FeatureObservation* nearest = nullptr;
+          double nearest_px = radius_px;
+          for (const FeatureObservation& f : a_node.features) {
+            const double px = (f.position - position).norm();
+            if (px <= nearest_px && depth_at_a.count(f.feature_id) != 0) {
+              nearest_px = px;
+              nearest = &f;
+            }
+          }
+          if (nearest == nullptr) continue;
+          depth_arc.push_back(depth_at_a.at(nearest->feature_id));
+          depth_join.push_back(matched.geometry.depths_a[i]);
+        }
+        const ScaleEstimate estimate = EstimateScaleFromDistances(depth_arc, depth_join, 5);
+        if (!estimate.success) continue;
+        if (estimate.scale > options_.max_join_length_arcs) {
+          return fmt::format("it is {:.1f} times as long as arc {} of its drive (from {} shared points; at most {:g})",
+                             estimate.scale, arc->id, depth_arc.size(), options_.max_join_length_arcs);
+        }
+        if (into) *scale = NodeScale{a_id, arc->id, kInvalidArcId, estimate.scale};
+        return "";
+      }
+      return "its length cannot be measured against an arc of its drive (fewer than 5 shared points)";
+    };
+    const Candidate* best = nullptr;
+    std::optional<NodeScale> best_scale;
+    for (const Candidate& candidate : candidates) {
+      std::optional<NodeScale> scale;
+      std::string reason = join_length(candidate, &scale);
+      if (reason.empty() && options_.verify_links) reason = verify(candidate);
+      if (reason.empty()) {
+        best = &candidate;
+        best_scale = scale;
+        break;
+      }
+      statistics_.rejected_links.push_back({"join", a.id, candidate.node->id, a.source_frame,
+                                            candidate.node->source_frame, candidate.matched.geometry.num_inliers,
+                                            candidate.matched.num_trackable, candidate.matched.geometry.sigma_p,
+                                            reason});
+      spdlog::info("teach: join candidate from key-image {} to {} ({} inliers, similarity {:.3f}) rejected: {}", a.id,
+                   candidate.node->id, candidate.matched.geometry.num_inliers, candidate.similarity, reason);
+    }
+    if (best == nullptr) {
+      ++statistics_.key_images_without_join;
+      continue;
+    }
+    const MatchedGeometry& matched = best->matched;
+    MapArc arc;
+    arc.id = NextArcId();
+    arc.from = a_id;
+    arc.to = best->node->id;
+    arc.to_from_from = matched.geometry.b_from_a;
+    arc.sigma_p = matched.geometry.sigma_p;
+    arc.kind = "join";
+    arc.similarity = best->similarity;
+    std::vector<FeatureObservation> a_observations, b_observations;
+    for (size_t i = 0; i < matched.matches.size(); ++i) {
+      if (!matched.trackable[i]) continue;
+      const feature_t id = next_feature_id_++;
+      arc.points.push_back({id, matched.geometry.points_in_a[i]});
+      a_observations.push_back({id, matched.PositionInA(a_image, i), cv::Mat()});
+      b_observations.push_back({id, matched.position_in_b[i], cv::Mat()});
+    }
+    const node_t b_id = best->node->id;
+    std::vector<NodeScale> scales;
+    if (best_scale) {
+      best_scale->arc_out = arc.id;
+      scales.push_back(*best_scale);
+    }
+    Commit(nullptr, &arc, scales, {{a_id, std::move(a_observations)}, {b_id, std::move(b_observations)}});
+    for (const NodeScale& scale : scales) map_.AddScale(scale);
+    spdlog::info("teach: joined key-image {} to {} of route {} ({} inliers, {} trackable, sigma_p {:.2f} px, "
+                 "similarity {:.3f})",
+                 a_id, b_id, best->node->route, matched.geometry.num_inliers, matched.num_trackable,
+                 matched.geometry.sigma_p, best->similarity);
+    map_.AddArc(std::move(arc));
+    ++statistics_.joins;
+  }
 }
 
 }  // namespace retrace

@@ -34,6 +34,18 @@
 // witness relates, one disagrees, or the drive ends at G), the map is disconnected at G. Every rejected candidate is
 // reported (TeachStatistics::rejected_links).
 //
+// Several drives in one map (Booij 2007 §B.2, design §7). A teacher given an existing map (AppendTo) numbers its
+// nodes, arcs and features after the map's and marks its key-images with the next route number. After the drive
+// (Finish) every key-image of it is linked to the existing graph where the two see the same place: the existing
+// key-images closest in appearance (global descriptor, a shortlist of TeachOptions::join_candidates) are related by
+// wide-baseline matching; a candidate needs a geometry as good as a loop closure's (min_loop_inliers within r_p,
+// not explained by one plane), a similarity S_ij of at least min_join_similarity (Booij: 0.05), and the witnesses
+// of link_verification.h: the key-images next to B on its route (after and before it), matched with A, must show the
+// link followed by their arc, at least one confirming and none contradicting, and the key-image before A on the new
+// drive, matched with B, must not contradict it. The best confirmed candidate of each key-image becomes an arc of
+// kind "join" A -> B with the geometry of the matching (R, t, the 3D points of its trackable inliers, σ_p) and its
+// similarity; rejected candidates are reported (TeachStatistics::rejected_links, kind "join").
+//
 // The relative scale between consecutive arcs is stored at their common node (median of depth ratios of the
 // features reconstructed in both, design §3.3).
 //
@@ -177,6 +189,20 @@ struct TeachOptions {
     return o;
   }();
 
+  // Linking an appended drive to the map (AppendTo): existing key-images related by matching per key-image of the
+  // drive, the closest in appearance first, and the least similarity S_ij a join keeps (Booij 2007 §B.2: 0.05).
+  int join_candidates = 4;
+  double min_join_similarity = 0.05;
+  // A join links one place: its length, measured in units of an arc of the new drive at A (the depths at A of points
+  // both reconstruct, design §3.3), must not exceed this many such arcs. In the simulated town true joins measure
+  // In the simulated town (teacher_join_test) the true joins measured 0.15-0.63 arcs (0.1-1.7 m apart); two false
+  // candidates (a street seen from 56 m further back, a look-alike street 134 m away) shared fewer than 5 points with
+  // the arc, and a join whose length cannot be measured is not made.
+  double max_join_length_arcs = 3.0;
+  // A join inlier and a feature of A's arc are one physical point within this distance in A (pixels at
+  // reference_width).
+  double join_point_radius_px = 1.0;
+
   bool Check(std::string* error = nullptr) const;
 };
 
@@ -187,7 +213,7 @@ const char* KeyImageReasonName(KeyImageReason reason);
 // A link that wide-baseline matching proposed but verification turned down (TeachOptions::verify_links), or an arc
 // whose geometry one plane explains (TeachOptions::reject_planar_geometry).
 struct RejectedLink {
-  std::string kind;  // "loop", "gap", "tracking" or "matching"
+  std::string kind;  // "loop", "gap", "tracking", "matching" or "join"
   node_t from = kInvalidNodeId;
   node_t to = kInvalidNodeId;
   int64_t from_frame = -1;  // source frames of the two key-images
@@ -205,6 +231,10 @@ struct TeachStatistics {
   int gaps_recovered = 0;
   int gaps_unrecovered = 0;
   bool loop_closed = false;
+  // Appended drives (Teacher::AppendTo): join arcs made to the existing graph, and key-images of the drive with
+  // none.
+  int joins = 0;
+  int key_images_without_join = 0;
   // Link candidates whose own geometry was acceptable but which the drive around them did not confirm.
   std::vector<RejectedLink> rejected_links;
   // Wall time per stage, seconds.
@@ -219,9 +249,15 @@ class Teacher {
   Teacher(const CameraModel& camera, const TeachOptions& options, MapDatabase* database);
   ~Teacher();
 
+  // Makes this drive the next route of `existing` (a map read with its key-images; it must outlive the teacher):
+  // ids after the map's, MapNode::route one more than the map's largest, and Finish() links the drive to it (see
+  // the top of this file). Call before the first frame. The database, when given, must hold `existing` already.
+  void AppendTo(const Map& existing);
+
   // Processes the next frame (8-bit gray, camera-sized). frame.source_index names it in the teach sequence.
   void AddFrame(const Frame& frame);
-  // Registers the last frame as a key-image and closes the loop. Call once, after the last frame.
+  // Registers the last frame as a key-image, closes the loop and, after AppendTo, links the drive to the existing
+  // map. Call once, after the last frame.
   void Finish();
 
   const Map& map() const { return map_; }
@@ -262,6 +298,10 @@ class Teacher {
   // Starts a subrange at `frame`: references redefined there, new corners detected.
   void StartSubrange(FrameState* frame);
   void CloseLoop();
+  // Links the drive's key-images to the existing map (AppendTo): the join arcs.
+  void JoinRoutes();
+  node_t NextNodeId() const { return first_node_id_ + static_cast<node_t>(map_.nodes().size()); }
+  arc_t NextArcId() const { return first_arc_id_ + static_cast<arc_t>(map_.arcs().size()); }
   void BuildByMatching();
   // Mapping by matching: relates frames a < b, inserting key-images between them where needed.
   void RelateFramesByMatching(size_t a, size_t b);
@@ -298,6 +338,11 @@ class Teacher {
   std::unordered_map<feature_t, double> last_arc_depth_at_to_;
   feature_t next_feature_id_ = 0;
   bool finished_ = false;
+  // AppendTo: the map this drive is added to, the drive's route number and the first ids it uses.
+  const Map* existing_ = nullptr;
+  int route_ = 0;
+  node_t first_node_id_ = 0;
+  arc_t first_arc_id_ = 0;
   // The gap arc waiting for the key-image after it (TeachOptions::verify_links).
   std::unique_ptr<PendingGap> pending_gap_;
 

@@ -5,6 +5,10 @@
 #include <filesystem>
 #include <string>
 
+#include <gtest/gtest.h>
+
+#include "retrace/util/error.h"
+
 namespace retrace::testing {
 
 // Folder of the shared real camera data (`RETRACE_DATA` environment variable, else ../shared/data next to the
@@ -16,6 +20,18 @@ std::filesystem::path SharedDataPath(const std::string& relative);
 
 // A fresh empty temporary folder for one test, removed by the caller or left for inspection.
 std::filesystem::path MakeTempDir(const std::string& prefix);
+
+// The message of the InputError that `f()` throws; a test failure (and "") when it throws none.
+template <typename F>
+std::string ErrorOf(F f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "no InputError thrown";
+  return "";
+}
 
 }  // namespace retrace::testing
 

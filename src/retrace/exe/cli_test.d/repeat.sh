@@ -31,15 +31,19 @@ if [[ -d $data/kitti07 && -f $tmp/repeat_route.db ]]; then
 fi
 
 if [[ -d $data/kitti07 && -f $tmp/repeat_route.db ]]; then
-  # Issue 16: a map written before key-images stored their relocalization signatures (schema 2) still localizes,
+  # Issue 16: a map written before key-images stored their relocalization signatures (schema 3) still localizes,
   # with a note that they were computed; every odd frame correct from the first, without a start arc.
-  cp "$tmp/repeat_route.db" "$tmp/repeat_schema2.db"
-  sqlite3 "$tmp/repeat_schema2.db" "DROP TABLE signatures; PRAGMA user_version=2;" 2>/dev/null &&
+  cp "$tmp/repeat_route.db" "$tmp/repeat_schema3.db"
+  python3 -c '
+import sqlite3, sys
+c = sqlite3.connect(sys.argv[1])
+c.executescript("DROP TABLE signatures; PRAGMA user_version=3;")
+c.close()' "$tmp/repeat_schema3.db" &&
     expect repeat-old-map-signatures-computed 0 "have no stored relocalization signature.*teach the map again" -- \
-      "$bin" repeat --map "$tmp/repeat_schema2.db" --sequence "$k" --every 2 --offset 1 --output "$tmp/r3.csv" \
+      "$bin" repeat --map "$tmp/repeat_schema3.db" --sequence "$k" --every 2 --offset 1 --output "$tmp/r3.csv" \
       --evaluate --no-progress &&
     expect repeat-old-map-correct 0 "80 frames: 100\.0% correct, 0 wrong" -- \
-      "$bin" repeat --map "$tmp/repeat_schema2.db" --sequence "$k" --every 2 --offset 1 --output "$tmp/r3.csv" \
+      "$bin" repeat --map "$tmp/repeat_schema3.db" --sequence "$k" --every 2 --offset 1 --output "$tmp/r3.csv" \
       --evaluate --no-progress
   # Kidnapped starts (retrace bench kidnap): fresh localizers at random frames, scored against KITTI's poses.
   expect bench-kidnap-kitti 0 "kidnap: 10 starts on a map of [0-9]+ key-images .* 0 wrong frames in 0 starts" -- \

@@ -31,6 +31,11 @@ expect sim-bad-route 1 "^retrace: error: --route: unknown route 'spiral'" -- \
 expect sim-drive-bad-speed 1 '^retrace: error: sim drive options: tracking: max_speed must be in \(0, 50\] m/s, got 0$' -- \
   "$bin" sim drive --map "$tmp/none.db" --out "$tmp/drive" --speed 0
 expect sim-drive-missing-map 1 '^retrace: error: .*none.db' -- "$bin" sim drive --map "$tmp/none.db" --out "$tmp/drive"
+# The scenario options of sim render, checked the same way (before the map is opened).
+expect sim-drive-bad-frame-rate 1 '^retrace: error: --frame-rate: must be in \[0.1, 1000\] Hz, got 0$' -- \
+  "$bin" sim drive --map "$tmp/none.db" --out "$tmp/drive" --frame-rate 0
+expect sim-drive-bad-route 1 "^retrace: error: --route: unknown route 'spiral'" -- \
+  "$bin" sim drive --map "$tmp/none.db" --out "$tmp/drive" --route spiral
 if [[ -f $tmp/repeat_route.db ]]; then
   expect sim-drive-camera-mismatch 1 "repeat_route.db: key-images are 1226x370 but the scenario's camera is 320x240" -- \
     "$bin" sim drive --map "$tmp/repeat_route.db" --out "$tmp/drive" --width 320 --height 240 --quiet
