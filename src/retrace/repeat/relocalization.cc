@@ -5,6 +5,7 @@
 // (the quantised thumbnails of AppearanceIndex) and verifies the most alike, in order, within a budget (issue 16).
 
 #include <algorithm>
+#include <unordered_set>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -226,6 +227,7 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   RefinePredictionOptions refine = refine_options_;
   refine.max_distance = options_.bootstrap_radius_px * pixel_scale_;
   refine.max_scale_ratio = 1.5;
+  std::unordered_set<feature_t> seen;  // mapped features of the three arcs seen in a verified key-image
   for (const MatchedKeyImage& candidate : verified) {
     const NodeData& node = Node(candidate.node);
     for (const ArcData* located : {arc, Arc(arc->previous), Arc(arc->next)}) {
@@ -236,6 +238,7 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
         if (tracker_.Find(id) != nullptr) continue;
         const auto position = node.positions.find(id);
         if (position == node.positions.end()) continue;
+        seen.insert(id);
         // The matched key-points within the radius (at least 2), else (distant structure, where SIFT finds little)
         // within twice the radius (at least 3) or three times (at least 4).
         std::vector<double> dx, dy, ratios;
@@ -270,8 +273,9 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   const int min_features = global ? std::max(options_.min_bootstrap_features, options_.min_global_bootstrap_features)
                                   : options_.min_bootstrap_features;
   if (tracker_.NumFeatures() < min_features) {
-    spdlog::debug("repeat: bootstrap at frame {} failed: {} features located around arc {} (key-image {}, {} inliers)",
-                  frame.index, tracker_.NumFeatures(), chosen, best_node, best_inliers);
+    spdlog::debug("repeat: bootstrap at frame {} failed: {} of {} features located around arc {} (key-image {}, {} "
+                  "inliers)",
+                  frame.index, tracker_.NumFeatures(), seen.size(), chosen, best_node, best_inliers);
     ClearTracks();
     return false;
   }
@@ -279,8 +283,8 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   start_arc_ = kInvalidArcId;  // the start arc serves the first bootstrap only
   // The key-image is a measurement of the belief (placement.h), picked among the candidates.
   bootstrap_key_image_ = BootstrapKeyImage{chosen, best_node, static_cast<int>(candidate_count)};
-  spdlog::debug("repeat: frame {} localized on arc {} by matching key-image {} ({} inliers), {} features",
-                frame.index, arc_, best_node, best_inliers, tracker_.NumFeatures());
+  spdlog::debug("repeat: frame {} localized on arc {} by matching key-image {} ({} inliers), {} of {} features",
+                frame.index, arc_, best_node, best_inliers, tracker_.NumFeatures(), seen.size());
   return true;
 }
 
