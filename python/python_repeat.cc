@@ -237,7 +237,7 @@ void BindLocalizer(py::module_& module) {
       .def(py::init([](const py::object& map, std::shared_ptr<CameraModel> camera, std::optional<arc_t> start_arc,
                        double max_residual, double max_sigma_p, double steering_gain, int max_bad_frames,
                        double min_confidence, int max_cached_key_images, int retrieval_shortlist, bool absolute_pose,
-                       bool redefine_references, double camera_height) {
+                       bool redefine_references, double camera_height, bool sift_relocalization) {
              // A retrace.Map is localized in through its file: the Localizer reads the settings teach stored there.
              const py::object map_type = py::module_::import("retrace").attr("Map");
              const py::object path = py::isinstance(map, map_type) ? map.attr("path") : map;
@@ -252,6 +252,7 @@ void BindLocalizer(py::module_& module) {
              options.place_by_absolute_pose = absolute_pose;
              options.redefine_references = redefine_references;
              options.path.camera_height = camera_height;
+             options.binary_relocalization = !sift_relocalization;
              return std::make_unique<PythonLocalizer>(PathFromObject(path, "map"), std::move(camera), start_arc,
                                                       options);
            }),
@@ -265,6 +266,7 @@ void BindLocalizer(py::module_& module) {
            py::arg("retrieval_shortlist") = LocalizerOptions().retrieval_shortlist,
            py::arg("absolute_pose") = LocalizerOptions().place_by_absolute_pose,
            py::arg("redefine_references") = LocalizerOptions().redefine_references, py::arg("camera_height") = 0.0,
+           py::arg("sift_relocalization") = !LocalizerOptions().binary_relocalization,
            "Opens the map (a path or a retrace.Map) for localizing, as `retrace repeat --map` does.\n\n"
            "camera: the frames' calibration (retrace.Camera); default the camera stored in the map. One that images\n"
            "the same rays more than 1 px away from the map's is refused.\n"
@@ -272,7 +274,9 @@ void BindLocalizer(py::module_& module) {
            "The keyword options are those of `retrace repeat` (--max-residual, --max-sigma-p, --steering-gain,\n"
            "--max-bad-frames, --min-confidence, --max-cached-key-images, --retrieval-shortlist; absolute_pose=False\n"
            "is --no-absolute-pose, redefine_references=False --keep-references, camera_height --camera-height:\n"
-           "the camera's height above the ground in metres for FrameResult.path; 0 = the one stored in the map).\n"
+           "the camera's height above the ground in metres for FrameResult.path; 0 = the one stored in the map;\n"
+           "sift_relocalization=True is --sift: relocalize with SIFT extracted at run time, not the binary key-points\n"
+           "the map stores).\n"
            "Raises retrace.InputError naming the file for a missing or damaged map, a camera that does not fit, a\n"
            "start arc the map does not have.")
       .def("process", &PythonLocalizer::Process, py::arg("image"), py::arg("timestamp") = py::none(),

@@ -28,6 +28,7 @@ void RegisterCameraInfoCommand(CLI::App& app);
 void RegisterTwoViewCommand(CLI::App& app);
 void RegisterSimCommand(CLI::App& app);
 void RegisterRepeatCommand(CLI::App& app);
+void RegisterBenchCommand(CLI::App& app);
 void RegisterPlanCommand(CLI::App& app);
 
 }  // namespace retrace

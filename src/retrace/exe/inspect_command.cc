@@ -107,8 +107,9 @@ void RunInspect(const InspectArguments& args) {
     }
     std::cout << fmt::format("  spacing         median {:.0f} frames between key-images\n",
                              stats.median_frames_between_key_images);
-    std::cout << fmt::format("  size            {:.1f} kB ({:.1f} kB of key-images)\n", file_bytes / 1000.0,
-                             database->ImageBytes() / 1000.0);
+    std::cout << fmt::format("  size            {:.1f} kB ({:.1f} kB of key-images, {:.1f} kB of relocalization "
+                             "signatures)\n",
+                             file_bytes / 1000.0, database->ImageBytes() / 1000.0, database->SignatureBytes() / 1000.0);
     if (metadata.count("route_length_m") != 0) {
       const double metres = MetadataNumber(metadata, "route_length_m", args.map_path);
       if (metres > 0) {

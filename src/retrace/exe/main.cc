@@ -26,6 +26,7 @@ constexpr void (*kCommands[])(CLI::App&) = {
     &retrace::RegisterTwoViewCommand,
     &retrace::RegisterSimCommand,
     &retrace::RegisterRepeatCommand,
+    &retrace::RegisterBenchCommand,
     &retrace::RegisterPlanCommand,
 };
 

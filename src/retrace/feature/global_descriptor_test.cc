@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <numeric>
 #include <cstdio>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
@@ -75,6 +76,57 @@ TEST(GlobalDescriptor, RejectsBadOptionsAndInput) {
   const GlobalDescriptor wide = ComputeGlobalDescriptor(Texture(320, 100, 1));
   const GlobalDescriptor narrow = ComputeGlobalDescriptor(Texture(320, 240, 1));
   EXPECT_THROW(GlobalDescriptorDistance(wide, narrow), std::invalid_argument);
+}
+
+TEST(AppearanceIndex, QuantisedDistancesAreTheFloatOnes) {
+  const GlobalDescriptor a = ComputeGlobalDescriptor(Texture(320, 240, 21));
+  cv::Mat darker;
+  Texture(320, 240, 21).colRange(8, 320).convertTo(darker, CV_8U, 0.7, 12.0);
+  cv::Mat shifted;
+  cv::resize(darker, shifted, cv::Size(320, 240), 0, 0, cv::INTER_LINEAR);
+  const std::vector<GlobalDescriptor> others = {ComputeGlobalDescriptor(shifted),
+                                                ComputeGlobalDescriptor(Texture(320, 240, 22)), a};
+  AppearanceIndex index;
+  for (const GlobalDescriptor& d : others) index.Add(QuantizeGlobalDescriptor(d));
+  ASSERT_EQ(index.size(), 3u);
+  const cv::Mat query = QuantizeGlobalDescriptor(a);
+  EXPECT_EQ(query.type(), CV_8U);
+  EXPECT_EQ(query.size(), a.thumbnail.size());
+  for (size_t i = 0; i < others.size(); ++i) {
+    // Quantisation steps of 1/32 and clamping at ±4 σ change a mean absolute difference by a few hundredths.
+    EXPECT_NEAR(index.Distance(query, i), GlobalDescriptorDistance(a, others[i]), 0.03) << i;
+  }
+  EXPECT_DOUBLE_EQ(index.Distance(query, 2), 0.0);
+  // Dequantised values are the float ones to within half a step (inside ±4 σ).
+  const GlobalDescriptor back = DequantizeGlobalDescriptor(query);
+  cv::Mat clipped = cv::min(cv::max(a.thumbnail, -4.0), 127.0 / 32.0);
+  EXPECT_LE(cv::norm(back.thumbnail, clipped, cv::NORM_INF), 1.0 / 64.0 + 1e-6);
+}
+
+TEST(AppearanceIndex, RanksASubsetAsRankByGlobalDescriptor) {
+  std::vector<GlobalDescriptor> database;
+  AppearanceIndex index;
+  for (uint64_t seed = 30; seed < 42; ++seed) {
+    database.push_back(ComputeGlobalDescriptor(Texture(320, 240, seed)));
+    index.Add(QuantizeGlobalDescriptor(database.back()));
+  }
+  cv::Mat query_image;
+  Texture(320, 240, 37).convertTo(query_image, CV_8U, 1.2, -5.0);
+  const GlobalDescriptor query = ComputeGlobalDescriptor(query_image);
+  const std::vector<size_t> all = RankByGlobalDescriptor(query, database);
+  std::vector<size_t> every(database.size());
+  std::iota(every.begin(), every.end(), 0);
+  const std::vector<size_t> ranked = index.Rank(QuantizeGlobalDescriptor(query), every);
+  ASSERT_EQ(ranked.size(), all.size());
+  EXPECT_EQ(ranked.front(), 7u);
+  EXPECT_EQ(all.front(), 7u);
+  // A subset is ranked among itself and returned as indices of the index.
+  const std::vector<size_t> subset = index.Rank(QuantizeGlobalDescriptor(query), {2, 7, 9});
+  ASSERT_EQ(subset.size(), 3u);
+  EXPECT_EQ(subset.front(), 7u);
+  EXPECT_THROW(index.Add(QuantizeGlobalDescriptor(ComputeGlobalDescriptor(Texture(320, 100, 1)))),
+               std::invalid_argument);
+  EXPECT_THROW(index.Distance(QuantizeGlobalDescriptor(query), 99), std::out_of_range);
 }
 
 // KITTI 07: key-images every 10 frames of the even frames, queried with the odd frames between them, as the

@@ -103,6 +103,83 @@ void FuseInto(const std::vector<cv::KeyPoint>& candidates, double radius, std::v
   }
 }
 
+// Hamming distances of all pairs of 32-byte descriptors as four 64-bit words each. The POPCNT instruction where the
+// CPU has it (every x86-64 CPU since 2008; chosen at run time, the build targets plain x86-64), else the compiler's
+// portable bit count. OpenCV's batchDistance calls its normHamming once per pair, with tracing overhead per call:
+// 3-4 times slower for 1000 x 1000 descriptors.
+// The table's rows; the body is the same for both builds of it below (with and without the POPCNT instruction).
+#define RETRACE_HAMMING_TABLE_BODY                                                                                 \
+  for (int i = 0; i < query.rows; ++i) {                                                                          \
+    const uint64_t* q = query.ptr<uint64_t>(i);                                                                   \
+    int* row = table->ptr<int>(i);                                                                                \
+    for (int j = 0; j < train.rows; ++j) {                                                                        \
+      const uint64_t* t = train.ptr<uint64_t>(j);                                                                 \
+      row[j] = __builtin_popcountll(q[0] ^ t[0]) + __builtin_popcountll(q[1] ^ t[1]) +                            \
+               __builtin_popcountll(q[2] ^ t[2]) + __builtin_popcountll(q[3] ^ t[3]);                             \
+    }                                                                                                             \
+  }
+
+void HammingTablePortable(const cv::Mat& query, const cv::Mat& train, cv::Mat* table) { RETRACE_HAMMING_TABLE_BODY }
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+__attribute__((target("popcnt"))) void HammingTablePopcnt(const cv::Mat& query, const cv::Mat& train,
+                                                          cv::Mat* table) {
+  RETRACE_HAMMING_TABLE_BODY
+}
+#endif
+#undef RETRACE_HAMMING_TABLE_BODY
+
+cv::Mat HammingTable(const cv::Mat& query_in, const cv::Mat& train_in) {
+  CV_Assert(query_in.cols == 32 && train_in.cols == 32);
+  // Rows of 32 bytes, 8-byte aligned (cv::Mat's data is 16-byte aligned; a continuous matrix keeps every row so).
+  const cv::Mat query = query_in.isContinuous() ? query_in : query_in.clone();
+  const cv::Mat train = train_in.isContinuous() ? train_in : train_in.clone();
+  cv::Mat table(query.rows, train.rows, CV_32S);
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+  if (__builtin_cpu_supports("popcnt")) {
+    HammingTablePopcnt(query, train, &table);
+    return table;
+  }
+#endif
+  HammingTablePortable(query, train, &table);
+  return table;
+}
+
+// Binary descriptors (binary_features.h): the whole table of Hamming distances at once (OpenCV's vectorised
+// batchDistance), then the same ratio test and cross-check as for SIFT.
+std::vector<cv::DMatch> MatchBinaryDescriptors(const cv::Mat& query, const cv::Mat& train,
+                                               const WideBaselineOptions& options) {
+  const cv::Mat distances = HammingTable(query, train);  // CV_32S, query rows x train rows
+  const int n = query.rows, m = train.rows;
+  std::vector<int> best(n, -1), best_d(n, std::numeric_limits<int>::max()), second_d(n, best_d[0]);
+  std::vector<int> best_query_of_train(m, -1), best_query_d(m, std::numeric_limits<int>::max());
+  for (int i = 0; i < n; ++i) {
+    const int* row = distances.ptr<int>(i);
+    for (int j = 0; j < m; ++j) {
+      const int d = row[j];
+      if (d < best_d[i]) {
+        second_d[i] = best_d[i];
+        best_d[i] = d;
+        best[i] = j;
+      } else if (d < second_d[i]) {
+        second_d[i] = d;
+      }
+      if (d < best_query_d[j]) {
+        best_query_d[j] = d;
+        best_query_of_train[j] = i;
+      }
+    }
+  }
+  std::vector<cv::DMatch> matches;
+  for (int i = 0; i < n; ++i) {
+    // Segvic 2009 §4.1 on distances (not squared distances as for SIFT).
+    if (best[i] < 0 || !(best_d[i] < options.ratio * second_d[i])) continue;
+    if (options.cross_check && best_query_of_train[best[i]] != i) continue;
+    matches.emplace_back(i, best[i], static_cast<float>(best_d[i]));
+  }
+  return matches;
+}
+
 }  // namespace
 
 bool WideBaselineOptions::Check(std::string* error) const {
@@ -150,8 +227,10 @@ std::vector<cv::DMatch> MatchWideBaseline(const WideBaselineFeatures& query, con
                                           const WideBaselineOptions& options) {
   std::vector<cv::DMatch> matches;
   if (query.size() < 2 || train.size() < 2) return matches;
-  CV_Assert(query.descriptors.type() == CV_32F && train.descriptors.type() == CV_32F &&
+  CV_Assert(query.descriptors.type() == train.descriptors.type() &&
             query.descriptors.cols == train.descriptors.cols);
+  if (query.descriptors.type() == CV_8U) return MatchBinaryDescriptors(query.descriptors, train.descriptors, options);
+  CV_Assert(query.descriptors.type() == CV_32F);
   // Exhaustive nearest neighbours in both directions from ONE table of squared distances
   // |q - t|^2 = |q|^2 + |t|^2 - 2 q.t, computed blockwise as a matrix product: the same matches as a brute-force
   // matcher run twice (forward for the ratio test, backward for the cross-check) at a fraction of its time

@@ -47,7 +47,9 @@ enum class WideBaselineDetector : int { kDoG = 0, kHarris = 1, kMser = 2 };
 
 struct WideBaselineFeatures {
   std::vector<cv::KeyPoint> keypoints;
-  cv::Mat descriptors;  // CV_32F, one SIFT descriptor (128 values) per key-point, same order
+  // One descriptor per key-point, same order: CV_32F SIFT (128 values), or CV_8U binary (32 bytes,
+  // binary_features.h).
+  cv::Mat descriptors;
 
   size_t size() const { return keypoints.size(); }
 };
@@ -55,7 +57,8 @@ struct WideBaselineFeatures {
 // Detects, fuses and describes key-points of an 8-bit gray image.
 WideBaselineFeatures ExtractWideBaselineFeatures(const cv::Mat& image, const WideBaselineOptions& options = {});
 
-// Ratio-tested (and optionally cross-checked) matches; queryIdx indexes `query`, trainIdx indexes `train`.
+// Ratio-tested (and optionally cross-checked) matches; queryIdx indexes `query`, trainIdx indexes `train`. SIFT
+// descriptors are compared by L2 distance, binary ones by Hamming distance (both sides must be of one kind).
 std::vector<cv::DMatch> MatchWideBaseline(const WideBaselineFeatures& query, const WideBaselineFeatures& train,
                                           const WideBaselineOptions& options = {});
 

@@ -33,6 +33,18 @@ struct FeatureObservation {
   cv::Mat patch;
 };
 
+// What relocalization needs of a key-image, computed once by teach and stored with it (design §6 bootstrap, issue
+// 16): binary key-points for the verification by matching (feature/binary_features.h) and the key-image's quantised
+// appearance thumbnail for retrieval (feature/global_descriptor.h). Empty in maps written before (schema < 4):
+// repeat computes it when it loads such a map.
+struct KeyImageSignature {
+  std::vector<cv::KeyPoint> keypoints;  // position (pt) and size; stored at 1/8 px
+  cv::Mat descriptors;                  // CV_8U, one 32-byte binary descriptor per key-point, same order
+  cv::Mat appearance;                   // CV_8U quantised thumbnail (QuantizeGlobalDescriptor)
+
+  bool empty() const { return descriptors.empty() && appearance.empty(); }
+};
+
 struct MapNode {
   node_t id = kInvalidNodeId;
   int64_t source_frame = -1;  // index of the key-image in the teach sequence
@@ -42,6 +54,7 @@ struct MapNode {
   int route = 0;
   cv::Mat image;  // the key-image itself (8-bit gray); may be left unloaded
   std::vector<FeatureObservation> features;
+  KeyImageSignature signature;  // may be empty (maps of schema < 4)
 };
 
 // A feature of an arc's set M_k with its 3D reconstruction in the `from` key-image's camera frame.

@@ -92,6 +92,41 @@ std::vector<uint8_t> EncodeImage(const cv::Mat& image, const MapDatabaseOptions&
   return bytes;
 }
 
+// A key-image's signature (map.h) as stored in table signatures: key-points as three little-endian uint16 each
+// (x, y and size in 1/8 px), descriptors as 32 bytes each, the appearance thumbnail as its bytes.
+constexpr int kKeypointBytes = 6;
+constexpr int kDescriptorBytes = 32;
+constexpr double kKeypointUnit = 8.0;  // stored units per pixel
+
+std::vector<uint8_t> EncodeKeypoints(const std::vector<cv::KeyPoint>& keypoints, const std::string& source) {
+  std::vector<uint8_t> bytes;
+  bytes.reserve(keypoints.size() * kKeypointBytes);
+  for (const cv::KeyPoint& k : keypoints) {
+    for (const float value : {k.pt.x, k.pt.y, k.size}) {
+      const long units = std::lround(value * kKeypointUnit);
+      if (!(value >= 0.0f) || units > 0xFFFF) {
+        throw InputError(source, fmt::format("key-point coordinate {} cannot be stored (0..8191 px)", value));
+      }
+      bytes.push_back(static_cast<uint8_t>(units & 0xFF));
+      bytes.push_back(static_cast<uint8_t>(units >> 8));
+    }
+  }
+  return bytes;
+}
+
+uint32_t SignatureCrc32(const std::vector<uint8_t>& keypoints, const std::vector<uint8_t>& descriptors,
+                        const std::vector<uint8_t>& appearance) {
+  std::vector<uint8_t> all(keypoints);
+  all.insert(all.end(), descriptors.begin(), descriptors.end());
+  all.insert(all.end(), appearance.begin(), appearance.end());
+  return Crc32(all.data(), all.size());
+}
+
+std::vector<uint8_t> MatBytes(const cv::Mat& mat) {
+  const cv::Mat continuous = mat.isContinuous() ? mat : mat.clone();
+  return std::vector<uint8_t>(continuous.data, continuous.data + continuous.total() * continuous.elemSize());
+}
+
 template <int N>
 std::vector<double> ToDoubles(const Eigen::Matrix<double, N, 1>& v) {
   return std::vector<double>(v.data(), v.data() + N);
@@ -249,6 +284,10 @@ void MapDatabase::CheckSchema() {
     tables[2].second.push_back("route");
     tables[4].second.push_back("similarity");
   }
+  if (schema_version_ >= 4) {
+    tables.push_back({"signatures", {"node_id", "keypoints", "descriptors", "appearance_width", "appearance_height",
+                                     "appearance", "crc32"}});
+  }
   SqliteStatement& columns = database_->Prepare("SELECT name FROM pragma_table_info(?);");
   for (const auto& [table, expected] : tables) {
     columns.Bind(1, table);
@@ -310,6 +349,16 @@ void MapDatabase::CheckReferences() {
     }
     query.Reset();
   }
+  if (schema_version_ >= 4) {
+    SqliteStatement& query =
+        database_->Prepare("SELECT node_id FROM signatures WHERE node_id NOT IN (SELECT node_id FROM nodes) LIMIT 1;");
+    if (query.Step()) {
+      const int64_t node = query.ColumnInt(0);
+      query.Reset();
+      throw InputError(source, kCorrupt + fmt::format("relocalization signature of missing node {}", node));
+    }
+    query.Reset();
+  }
   // Whatever else the schema declares (a catch-all behind the named checks above).
   SqliteStatement& foreign_keys = database_->Prepare("PRAGMA foreign_key_check;");
   if (foreign_keys.Step()) {
@@ -346,6 +395,19 @@ void MapDatabase::CheckKeyImages() {
     }
   }
   images.Reset();
+  if (schema_version_ < 4) return;
+  SqliteStatement& signatures =
+      database_->Prepare("SELECT node_id, keypoints, descriptors, appearance, crc32 FROM signatures;");
+  while (signatures.Step()) {
+    const int64_t node = signatures.ColumnInt(0);
+    if (static_cast<uint32_t>(signatures.ColumnInt(4)) !=
+        SignatureCrc32(signatures.ColumnBlob(1), signatures.ColumnBlob(2), signatures.ColumnBlob(3))) {
+      signatures.Reset();
+      throw InputError(source,
+                       kCorrupt + fmt::format("relocalization signature of node {} is corrupt (checksum mismatch)", node));
+    }
+  }
+  signatures.Reset();
 }
 
 void MapDatabase::CreateTables() {
@@ -400,6 +462,14 @@ void MapDatabase::CreateTables() {
       arc_out INTEGER NOT NULL REFERENCES arcs(arc_id) ON DELETE CASCADE,
       scale REAL NOT NULL,
       PRIMARY KEY (node_id, arc_in, arc_out)) WITHOUT ROWID;
+    CREATE TABLE IF NOT EXISTS signatures (
+      node_id INTEGER PRIMARY KEY NOT NULL REFERENCES nodes(node_id) ON DELETE CASCADE,
+      keypoints BLOB NOT NULL,
+      descriptors BLOB NOT NULL,
+      appearance_width INTEGER NOT NULL,
+      appearance_height INTEGER NOT NULL,
+      appearance BLOB NOT NULL,
+      crc32 INTEGER NOT NULL);
   )sql");
 }
 
@@ -423,6 +493,7 @@ void MapDatabase::UpgradeSchema() {
       database_->Execute("ALTER TABLE nodes ADD COLUMN route INTEGER NOT NULL DEFAULT 0;");
       database_->Execute("ALTER TABLE arcs ADD COLUMN similarity REAL;");
     }
+    if (schema_version_ < 4) CreateTables();  // adds the signatures table; the others exist
     database_->Execute("PRAGMA user_version=" + std::to_string(kSchemaVersion) + ";");
   });
   schema_version_ = kSchemaVersion;
@@ -516,6 +587,37 @@ void MapDatabase::WriteNode(const MapNode& node) {
     if (has_routes) insert_node.Bind(9, int64_t{node.route});
     insert_node.Run();
     WriteObservations(node.id, node.features);
+    if (!node.signature.empty() && schema_version_ >= 4) WriteSignature(node.id, node.signature);
+  });
+}
+
+void MapDatabase::WriteSignature(node_t node, const KeyImageSignature& signature) {
+  if (schema_version_ < 4) throw InputError(path_.string(), "a map of schema < 4 cannot store signatures");
+  const KeyImageSignature& s = signature;
+  if (s.descriptors.type() != CV_8UC1 || s.descriptors.cols != kDescriptorBytes ||
+      s.descriptors.rows != static_cast<int>(s.keypoints.size()) || s.appearance.type() != CV_8UC1 ||
+      s.appearance.empty()) {
+    throw std::invalid_argument("WriteSignature: needs 32-byte descriptors, one per key-point, and an appearance");
+  }
+  const std::vector<uint8_t> keypoints = EncodeKeypoints(s.keypoints, path_.string());
+  const std::vector<uint8_t> descriptors = MatBytes(s.descriptors);
+  const std::vector<uint8_t> appearance = MatBytes(s.appearance);
+  // A null pointer would bind SQL NULL; a key-image without key-points (a blank image) stores an empty blob.
+  static const uint8_t kNothing = 0;
+  const auto data = [](const std::vector<uint8_t>& v) -> const void* { return v.empty() ? &kNothing : v.data(); };
+  InTransaction([&] {
+    database_
+        ->Prepare(
+            "INSERT OR REPLACE INTO signatures (node_id, keypoints, descriptors, appearance_width, appearance_height, "
+            "appearance, crc32) VALUES (?, ?, ?, ?, ?, ?, ?);")
+        .Bind(1, int64_t{node})
+        .BindBlob(2, data(keypoints), keypoints.size())
+        .BindBlob(3, data(descriptors), descriptors.size())
+        .Bind(4, int64_t{s.appearance.cols})
+        .Bind(5, int64_t{s.appearance.rows})
+        .BindBlob(6, appearance.data(), appearance.size())
+        .Bind(7, int64_t{SignatureCrc32(keypoints, descriptors, appearance)})
+        .Run();
   });
 }
 
@@ -672,6 +774,47 @@ Map MapDatabase::ReadMap(bool load_images) {
   }
   observations.Reset();
 
+  if (schema_version_ >= 4) {
+    SqliteStatement& signatures = database_->Prepare(
+        "SELECT node_id, keypoints, descriptors, appearance_width, appearance_height, appearance FROM signatures;");
+    while (signatures.Step()) {
+      const node_t node_id = signatures.ColumnInt(0);
+      MapNode* node = map.MutableNode(node_id);
+      if (node == nullptr) fail(signatures, fmt::format("relocalization signature of missing node {}", node_id));
+      const std::string name = fmt::format("relocalization signature of node {}", node_id);
+      const std::vector<uint8_t> keypoints = signatures.ColumnBlob(1);
+      const std::vector<uint8_t> descriptors = signatures.ColumnBlob(2);
+      const int64_t width = signatures.ColumnInt(3), height = signatures.ColumnInt(4);
+      const std::vector<uint8_t> appearance = signatures.ColumnBlob(5);
+      const size_t count = keypoints.size() / kKeypointBytes;
+      if (keypoints.size() % kKeypointBytes != 0 || descriptors.size() != count * kDescriptorBytes ||
+          count > (1u << 20)) {
+        fail(signatures, name + " has key-points and descriptors of mismatched sizes");
+      }
+      if (width < 1 || height < 1 || width > 1024 || height > 1024 ||
+          appearance.size() != static_cast<size_t>(width * height)) {
+        fail(signatures, name + " has an appearance of the wrong size");
+      }
+      const auto [image_width, image_height] = image_sizes[node_id];
+      KeyImageSignature& s = node->signature;
+      s.keypoints.resize(count);
+      for (size_t i = 0; i < count; ++i) {
+        const uint8_t* k = keypoints.data() + i * kKeypointBytes;
+        const auto value = [k](int j) { return static_cast<float>((k[2 * j] | (k[2 * j + 1] << 8)) / kKeypointUnit); };
+        s.keypoints[i] = cv::KeyPoint(value(0), value(1), value(2));
+        if (s.keypoints[i].pt.x > image_width || s.keypoints[i].pt.y > image_height) {
+          fail(signatures, fmt::format("{}: key-point {} lies outside the {}x{} key-image", name, i, image_width,
+                                       image_height));
+        }
+      }
+      s.descriptors = cv::Mat(static_cast<int>(count), kDescriptorBytes, CV_8UC1);
+      if (count > 0) std::copy(descriptors.begin(), descriptors.end(), s.descriptors.data);
+      s.appearance = cv::Mat(static_cast<int>(height), static_cast<int>(width), CV_8UC1);
+      std::copy(appearance.begin(), appearance.end(), s.appearance.data);
+    }
+    signatures.Reset();
+  }
+
   SqliteStatement& arcs = database_->Prepare(
       schema_version_ >= 3
           ? "SELECT arc_id, from_node, to_node, kind, rotation, translation, sigma_p, similarity FROM arcs "
@@ -754,6 +897,16 @@ Map MapDatabase::ReadMap(bool load_images) {
 
 int64_t MapDatabase::ImageBytes() {
   SqliteStatement& s = database_->Prepare("SELECT COALESCE(SUM(LENGTH(image)), 0) FROM nodes;");
+  s.Step();
+  const int64_t bytes = s.ColumnInt(0);
+  s.Reset();
+  return bytes;
+}
+
+int64_t MapDatabase::SignatureBytes() {
+  if (schema_version_ < 4) return 0;
+  SqliteStatement& s = database_->Prepare(
+      "SELECT COALESCE(SUM(LENGTH(keypoints) + LENGTH(descriptors) + LENGTH(appearance)), 0) FROM signatures;");
   s.Step();
   const int64_t bytes = s.ColumnInt(0);
   s.Reset();

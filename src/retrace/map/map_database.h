@@ -13,6 +13,10 @@
 //                kind, and the appearance similarity S_ij (schema 3, Booij 2007 §B.2; NULL = unknown, older maps)
 //   arc_points   3D points Q_kj of an arc's features, in the `from` node's camera frame, arc units
 //   node_scales  relative scale between the geometries of two arcs meeting at a node
+//   signatures   what relocalization needs of a key-image (map.h KeyImageSignature): binary key-points and their
+//                descriptors, the quantised appearance thumbnail, and a CRC-32 of the three (schema 4; maps of
+//                schemas 1 to 3 have none: repeat computes them when it loads such a map). Metadata
+//                `signature_features` / `signature_appearance` name the settings that made them.
 // The schema version is in `PRAGMA user_version` and the file is marked as a retrace map by
 // `PRAGMA application_id`, so opening a foreign file or a map of a newer schema gives a clear error.
 //
@@ -49,8 +53,9 @@ struct MapDatabaseOptions {
 
 class MapDatabase {
  public:
-  // Written by this retrace. 2: key-image checksums; 3: arcs.similarity and nodes.route (graphs of several drives).
-  static constexpr int kSchemaVersion = 3;
+  // Written by this retrace. 2: key-image checksums; 3: arcs.similarity and nodes.route (graphs of several drives);
+  // 4: key-image relocalization signatures.
+  static constexpr int kSchemaVersion = 4;
   static constexpr int kOldestSchemaVersion = 1;  // oldest schema still read
   static constexpr int kApplicationId = 0x52545243;  // "RTRC"
   // Metadata key of teach's progress: kIncomplete from the start of teach, kComplete when it finished. Maps
@@ -94,6 +99,8 @@ class MapDatabase {
   void WriteNode(const MapNode& node);
   // Adds observations to a node written before (e.g. features found later by wide-baseline matching).
   void WriteObservations(node_t node, const std::vector<FeatureObservation>& features);
+  // Stores a node's relocalization signature (also done by WriteNode when the node has one). Schema >= 3 only.
+  void WriteSignature(node_t node, const KeyImageSignature& signature);
   void WriteArc(const MapArc& arc);
   void WriteScale(const NodeScale& scale);
   std::unique_ptr<SqliteTransaction> BeginTransaction();
@@ -102,6 +109,8 @@ class MapDatabase {
   Map ReadMap(bool load_images = true);
   // Encoded size of every stored key-image, in bytes.
   int64_t ImageBytes();
+  // Stored size of the key-images' relocalization signatures, in bytes (0 for maps of schema < 4).
+  int64_t SignatureBytes();
   int64_t NumNodes();
   int64_t NumArcs();
 

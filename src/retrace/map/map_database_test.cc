@@ -36,6 +36,10 @@ MapNode MakeNode(node_t id, int num_features) {
     f.patch = RandomImage(15, 15, static_cast<int>(100 * id + i));
     node.features.push_back(f);
   }
+  // A relocalization signature: key-points at 1/8 px positions (stored exactly), random descriptors, a thumbnail.
+  for (int i = 0; i < 20; ++i) node.signature.keypoints.emplace_back(0.125f * (17 * i % 500), 0.375f * i, 19.0f + i);
+  node.signature.descriptors = RandomImage(20, 32, static_cast<int>(500 + id));
+  node.signature.appearance = RandomImage(9, 12, static_cast<int>(700 + id));
   return node;
 }
 
@@ -225,6 +229,12 @@ TEST(MapDatabase, DamagedMapsAreRefusedWithTheFault) {
                           "geometry of arc 0 is not a rotation and a unit translation");
   ExpectDamagedMapRefused("feature_outside", "UPDATE observations SET x = 1e300 WHERE node_id = 1;",
                           "lies outside its 64x48 key-image");
+  ExpectDamagedMapRefused("corrupt_signature",
+                          "UPDATE signatures SET descriptors = zeroblob(640) WHERE node_id = 2;",
+                          "corrupt map: relocalization signature of node 2 is corrupt (checksum mismatch)");
+  ExpectDamagedMapRefused("orphan_signature", "UPDATE signatures SET node_id = 7 WHERE node_id = 2;",
+                          "corrupt map: relocalization signature of missing node 7");
+  ExpectDamagedMapRefused("no_signatures", "DROP TABLE signatures;", "corrupt map: no table signatures");
   ExpectDamagedMapRefused("negative_scale", "UPDATE node_scales SET scale = -1;", "is -1");
   ExpectDamagedMapRefused("camera_size", "INSERT INTO cameras VALUES (0, 'perspective', 64, 40, 'yaml');",
                           "key-image of node 0 is 64x48, not the size of the map's camera");
@@ -242,13 +252,71 @@ void WriteTwoNodeMap(const std::filesystem::path& path) {
   db->WriteArc(MakeArc(0, 0, 1, 4));
 }
 
+TEST(MapDatabase, SignaturesRoundTrip) {
+  const auto dir = testing::MakeTempDir("map_signatures");
+  const auto path = dir / "route.db";
+  std::vector<MapNode> written;
+  {
+    auto db = MapDatabase::Create(path);
+    for (int i = 0; i < 3; ++i) {
+      written.push_back(MakeNode(i, 5));
+      db->WriteNode(written.back());
+    }
+    // A key-image without key-points (a blank image) still stores its appearance.
+    MapNode blank = MakeNode(3, 0);
+    blank.signature.keypoints.clear();
+    blank.signature.descriptors = cv::Mat(0, 32, CV_8U);
+    db->WriteNode(blank);
+    written.push_back(blank);
+    db->WriteArc(MakeArc(0, 0, 1, 4));
+    EXPECT_EQ(db->SignatureBytes(), 3 * (20 * 6 + 20 * 32 + 9 * 12) + 9 * 12);
+  }
+  const Map map = MapDatabase::Open(path)->ReadMap();
+  ASSERT_EQ(map.nodes().size(), written.size());
+  for (size_t n = 0; n < written.size(); ++n) {
+    const KeyImageSignature& a = written[n].signature;
+    const KeyImageSignature& b = map.nodes()[n].signature;
+    ASSERT_EQ(a.keypoints.size(), b.keypoints.size());
+    for (size_t i = 0; i < a.keypoints.size(); ++i) {
+      EXPECT_EQ(a.keypoints[i].pt, b.keypoints[i].pt);
+      EXPECT_EQ(a.keypoints[i].size, b.keypoints[i].size);
+    }
+    EXPECT_EQ(b.descriptors.rows, static_cast<int>(a.keypoints.size()));
+    if (!a.keypoints.empty()) {
+      EXPECT_EQ(cv::norm(a.descriptors, b.descriptors, cv::NORM_INF), 0.0);
+    }
+    EXPECT_EQ(cv::norm(a.appearance, b.appearance, cv::NORM_INF), 0.0);
+  }
+  // A key-point that cannot be stored is refused with the file named.
+  MapNode far = MakeNode(5, 0);
+  far.signature.keypoints[0].pt.x = 9000.0f;
+  auto db = MapDatabase::Open(path, /*writable=*/true);
+  ExpectInputError([&] { db->WriteNode(far); }, path, "cannot be stored");
+}
+
+TEST(MapDatabase, MapsOfSchemaThreeAreReadWithoutSignatures) {
+  const auto dir = testing::MakeTempDir("map_schema3");
+  const auto path = dir / "old.db";
+  WriteTwoNodeMap(path);
+  {
+    SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
+    raw.Execute("DROP TABLE signatures; PRAGMA user_version=3;");
+  }
+  auto db = MapDatabase::Open(path);
+  EXPECT_EQ(db->schema_version(), 3);
+  EXPECT_EQ(db->SignatureBytes(), 0);
+  const Map map = db->ReadMap();
+  ASSERT_EQ(map.nodes().size(), 2u);
+  for (const MapNode& node : map.nodes()) EXPECT_TRUE(node.signature.empty());
+}
+
 TEST(MapDatabase, MapsOfSchemaOneAreRead) {
   const auto dir = testing::MakeTempDir("map_schema1");
   const auto path = dir / "old.db";
   WriteTwoNodeMap(path);
   {
     SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
-    raw.Execute("ALTER TABLE nodes DROP COLUMN image_crc32; PRAGMA user_version=1;");
+    raw.Execute("DROP TABLE signatures; ALTER TABLE nodes DROP COLUMN image_crc32; PRAGMA user_version=1;");
   }
   EXPECT_EQ(MapDatabase::Open(path)->ReadMap().nodes().size(), 2u);
   // Without checksums a truncated JPEG is still found by its missing end.
@@ -299,7 +367,9 @@ TEST(MapDatabase, MapsOfSchemaTwoHaveRouteZeroAndUnknownSimilarity) {
   WriteTwoNodeMap(path);
   {
     SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
-    raw.Execute("ALTER TABLE nodes DROP COLUMN route; ALTER TABLE arcs DROP COLUMN similarity; PRAGMA user_version=2;");
+    raw.Execute(
+        "DROP TABLE signatures; ALTER TABLE nodes DROP COLUMN route; ALTER TABLE arcs DROP COLUMN similarity; "
+        "PRAGMA user_version=2;");
   }
   const Map map = MapDatabase::Open(path)->ReadMap();
   ASSERT_EQ(map.nodes().size(), 2u);
@@ -315,8 +385,8 @@ TEST(StagedMap, AppendUpgradesACopyAndReplacesTheMapOnlyOnCommit) {
   WriteTwoNodeMap(path);
   {
     SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
-    raw.Execute("ALTER TABLE nodes DROP COLUMN image_crc32; ALTER TABLE nodes DROP COLUMN route; "
-                "ALTER TABLE arcs DROP COLUMN similarity; PRAGMA user_version=1;");
+    raw.Execute("DROP TABLE signatures; ALTER TABLE nodes DROP COLUMN image_crc32; ALTER TABLE nodes DROP COLUMN "
+                "route; ALTER TABLE arcs DROP COLUMN similarity; PRAGMA user_version=1;");
   }
   const auto read_bytes = [](const std::filesystem::path& p) {
     std::ifstream in(p, std::ios::binary);
@@ -352,6 +422,9 @@ TEST(StagedMap, AppendUpgradesACopyAndReplacesTheMapOnlyOnCommit) {
   EXPECT_EQ(map.FindNode(2)->route, 1);
   EXPECT_FALSE(map.FindArc(0)->similarity.has_value());
   EXPECT_DOUBLE_EQ(map.FindArc(1)->similarity.value_or(-1), 0.125);
+  // The upgrade added the signatures table: the appended key-image keeps its signature, the old ones have none.
+  EXPECT_FALSE(map.FindNode(2)->signature.empty());
+  EXPECT_TRUE(map.FindNode(0)->signature.empty());
   // A missing map cannot be appended to.
   ExpectInputError([&] { StagedMap::BeginAppend(dir / "missing.db"); }, dir / "missing.db", "no such map");
   // Nor an incomplete one.

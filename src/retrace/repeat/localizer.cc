@@ -59,7 +59,9 @@ bool LocalizerOptions::Check(std::string* error) const {
   if (retry_interval < 1) return fail("retry_interval must be >= 1");
   if (min_features < 8) return fail("min_features must be >= 8");
   if (max_bad_frames < 1) return fail("max_bad_frames must be >= 1");
-  if (min_bootstrap_inliers < 8 || min_bootstrap_features < 8) return fail("bootstrap minima must be >= 8");
+  if (min_bootstrap_inliers < 8 || min_binary_inliers < 8 || min_bootstrap_features < 8) {
+    return fail("bootstrap minima must be >= 8");
+  }
   if (prediction_skipped_levels < 0) return fail("prediction_skipped_levels must be >= 0");
   if (relocalization_neighbourhood < 0 || relocalization_widening < 0) {
     return fail("relocalization_neighbourhood and relocalization_widening must be >= 0");
@@ -78,11 +80,21 @@ bool LocalizerOptions::Check(std::string* error) const {
   if (!pose.Check(&pose_error)) return fail("pose: " + pose_error);
   std::string matching_error;
   if (!matching.Check(&matching_error)) return fail("matching: " + matching_error);
+  if (!relocalization_features.Check(&matching_error)) return fail("relocalization_features: " + matching_error);
+  if (!(retrieval_ambiguity_ratio >= 0.0 && retrieval_ambiguity_ratio <= 1.0)) {
+    return fail("retrieval_ambiguity_ratio must be in [0, 1]");
+  }
+  if (relocalization_frame_keypoints < 8) return fail("relocalization_frame_keypoints must be >= 8");
+  if (relocalization_max_samples < 1) return fail("relocalization_max_samples must be >= 1");
   return true;
 }
 
 Localizer::Localizer(const Map& map, const CameraModel& camera, const LocalizerOptions& options)
-    : camera_(camera.Clone()), options_(options), map_(map), belief_(map_, options.belief) {
+    : camera_(camera.Clone()),
+      options_(options),
+      map_(map),
+      appearance_index_(options.retrieval),
+      belief_(map_, options.belief) {
   std::string error;
   if (!options_.Check(&error)) throw std::invalid_argument("LocalizerOptions: " + error);
   pixel_scale_ = static_cast<double>(camera.width()) / options_.reference_width;
@@ -103,6 +115,17 @@ Localizer::Localizer(const Map& map, const CameraModel& camera, const LocalizerO
   refine_options_.max_distance = options_.prediction_radius_px * pixel_scale_;
   refine_options_.max_scale_ratio = options_.prediction_scale_ratio;
   if (options_.path.camera_height > 0) path_ = std::make_unique<TaughtPath>(map_, camera, options_.path);
+  relocalization_matching_ = options_.matching;
+  relocalization_geometry_ = geometry_options_;
+  frame_features_ = options_.relocalization_features;
+  frame_features_.max_keypoints = options_.relocalization_frame_keypoints;
+  frame_features_.scale_with_area = true;
+  if (options_.binary_relocalization) {
+    relocalization_matching_.ratio = options_.relocalization_features.ratio;
+    relocalization_matching_.cross_check = options_.relocalization_features.cross_check;
+    relocalization_geometry_.ransac.max_iterations =
+        std::max(relocalization_geometry_.ransac.min_iterations, options_.relocalization_max_samples);
+  }
 
   for (const MapNode& node : map_.nodes()) {
     if (node.image.empty()) throw InputError("map", "key-image " + std::to_string(node.id) + " is not loaded");
@@ -120,6 +143,14 @@ Localizer::Localizer(const Map& map, const CameraModel& camera, const LocalizerO
       data->bearings[f.feature_id] = bearing;
     }
     nodes_[node.id] = std::move(data);
+    // Retrieval: the stored appearance when it was made with these options (its size tells the thumbnail's width;
+    // LoadMapForLocalizer drops signatures made with other settings), else computed now (0.1 ms per key-image).
+    cv::Mat appearance = node.signature.appearance;
+    if (appearance.empty() || appearance.cols != options_.retrieval.width) {
+      appearance = QuantizeGlobalDescriptor(ComputeGlobalDescriptor(node.image, options_.retrieval));
+    }
+    appearance_entry_[node.id] = appearance_index_.Add(appearance);
+    appearance_nodes_.push_back(node.id);
   }
   for (const MapArc& arc : map_.arcs()) {
     auto data = std::make_unique<ArcData>();
@@ -167,8 +198,27 @@ const ImagePyramid& Localizer::NodePyramid(node_t id) {
 const WideBaselineFeatures& Localizer::NodeWideBaseline(node_t id) {
   NodeData& node = Node(id);
   node.last_used = frame_counter_;
-  if (!node.wide_baseline) node.wide_baseline = ExtractWideBaselineFeatures(node.node->image, options_.matching);
+  if (!node.wide_baseline) {
+    const KeyImageSignature& signature = node.node->signature;
+    if (!options_.binary_relocalization) {
+      node.wide_baseline = ExtractWideBaselineFeatures(node.node->image, options_.matching);
+    } else if (!signature.descriptors.empty() || (signature.keypoints.empty() && !signature.appearance.empty())) {
+      // Stored by teach (no copy of the descriptors).
+      node.wide_baseline = WideBaselineFeatures{signature.keypoints, signature.descriptors};
+    } else {
+      node.wide_baseline = ExtractBinaryFeatures(node.node->image, options_.relocalization_features);
+    }
+  }
   return *node.wide_baseline;
+}
+
+KeyImageSignature Localizer::ComputeSignature(const cv::Mat& image, const LocalizerOptions& options) {
+  KeyImageSignature signature;
+  WideBaselineFeatures features = ExtractBinaryFeatures(image, options.relocalization_features);
+  signature.keypoints = std::move(features.keypoints);
+  signature.descriptors = features.descriptors;
+  signature.appearance = QuantizeGlobalDescriptor(ComputeGlobalDescriptor(image, options.retrieval));
+  return signature;
 }
 
 const ReferencePatch* Localizer::Reference(node_t node_id, feature_t feature) {

@@ -66,13 +66,15 @@
 // re-initialised by wide-baseline matching against the key-images, exactly as the bootstrap, and when that fails the
 // frame is kLost and the following frames keep trying (kRelocalizing). The belief carries on through all of it.
 //
-// Bootstrap (§3.3, relocalization.cc): the frame is matched (SIFT, ratio 0.8) against the key-images of a given
-// start arc, or — without one — against every key-image (retrieval); after a loss only the key-images within
+// Bootstrap (§3.3, relocalization.cc): the frame is matched (upright ORB stored in the map by teach, ratio 0.8;
+// or SIFT from three detectors extracted at repeat time, `binary_relocalization` false) against the key-images of a
+// given start arc, or — without one — against every key-image (retrieval); after a loss only the key-images within
 // `relocalization_neighbourhood` arcs of where it was lost, widened by `relocalization_widening` arcs per frame
 // since, and the whole map only after `global_relocalization_frames` (look-alike streets elsewhere verify too).
-// Candidates are ranked by whole-image appearance (GlobalDescriptor) and the `retrieval_shortlist` most alike are
-// verified geometrically (relative pose on the matches); the rest too unless one of them has
-// `retrieval_confident_inliers`. The key-image with most inliers wins. Its arc is chosen by which side of the
+// Candidates are ranked by whole-image appearance (the quantised thumbnails stored in the map, AppearanceIndex) and
+// verified geometrically (relative pose on the matches) in that order, within a budget: at most
+// `retrieval_shortlist` of them, stopping at the first with `retrieval_confident_inliers` (issue 16: a relocalizing
+// frame costs the same on a map of any size). The verified key-image with most inliers wins. Its arc is chosen by which side of the
 // key-image the camera is on (the sign test of eq. (9), which needs no scale); the key-image is a measurement of the
 // belief. The mapped features of that arc and of its two neighbours seen in the matched key-images are then located
 // in the frame from the displacement of the nearest matched key-points and refined against their references
@@ -89,6 +91,7 @@
 
 #include "retrace/camera/camera_model.h"
 #include "retrace/dataset/sequence.h"
+#include "retrace/feature/binary_features.h"
 #include "retrace/feature/feature_tracker.h"
 #include "retrace/feature/global_descriptor.h"
 #include "retrace/feature/image_pyramid.h"
@@ -165,14 +168,30 @@ struct LocalizerOptions {
   int max_bad_frames = 3;
   // k of Segvic 2009, eq. (10), radians of steering per unit of normalised image coordinate.
   double steering_gain = 1.0;
-  // Bootstrap / relocalization: fewest geometrically verified wide-baseline matches with the best key-image.
+  // Bootstrap / relocalization: fewest geometrically verified wide-baseline matches with the best key-image, with
+  // SIFT (binary_relocalization false) ...
   int min_bootstrap_inliers = 30;
+  // ... and with binary key-points, which find fewer matches under another sun (the right key-image in the simulated
+  // town: 25-80 inliers of 1000 key-points; key-images of other places: fewer than 20 matches before verification).
+  // On a map of 747 key-images (3 km in the simulated town), 20 let look-alike places elsewhere verify with 22-28
+  // inliers (4 of 100 kidnapped starts reported a place 100-500 m away); 30 none.
+  int min_binary_inliers = 30;
+  // Without a start arc, a verification is ambiguous, and the frame is not localized, when a key-image more than
+  // two arcs from the best one verified with at least this fraction of its inliers (a look-alike street: the
+  // ratio test of Segvic 2009 §4.1 at the level of places). 0 disables the test.
+  double retrieval_ambiguity_ratio = 0.8;
   // ... and fewest mapped features located in the frame for the bootstrap to succeed (enough for the current
   // geometries; the arc itself is already decided by the verified key-image). Under another sun many mapped
   // features (tree canopies, shadowed facades) no longer align within R: in the simulated town's crossings the
   // bootstrap located 8-19 of them for 15 frames in a row, and 20 kept the drive relocalizing there (demo drive
   // 92.7 % correct with 12, 94.3 % with 8; kitti07 100 % either way).
   int min_bootstrap_features = 8;
+  // ... and at least this many when the candidates were the whole map (no start arc, or lost for long): on a map of
+  // 1264 key-images of rows of equal blocks (out-and-back streets 58 m apart), look-alike places 150-870 m away
+  // verified with 32-70 inliers, and only 4-20 of the mapped features were located through them (4 of 100
+  // kidnapped starts wrong with 8); the right places mostly locate 40-130. 25 (none wrong there) localized 91 % of
+  // the kidnapped starts of the default town at the first frame, 30 86 %, 22 93 %.
+  int min_global_bootstrap_features = 25;
   // Relocalization after a loss matches the key-images of the arcs up to this many arcs around the arc where it
   // was lost, ...
   int relocalization_neighbourhood = 3;
@@ -182,14 +201,29 @@ struct LocalizerOptions {
   // ... and every key-image of the map once it has been lost for this many frames (a robot carried elsewhere).
   int global_relocalization_frames = 20;
   // Retrieval: the candidate key-images (the whole map, or the window around a loss) are ranked by whole-image
-  // appearance (GlobalDescriptor) and the most similar `retrieval_shortlist` are verified by wide-baseline matching
-  // first; 0 verifies every candidate. Extracting a key-image's key-points costs 187 ms at 1226x370, so this
-  // decides how long the first frame takes (kitti07's 18 key-images: 4.3 s when all are verified, BM_FindStartKitti/0).
+  // appearance (GlobalDescriptor) and verified by wide-baseline matching in that order, at most this many (the
+  // verification budget); 0 verifies every candidate.
   int retrieval_shortlist = 5;
-  // ... the other candidates are verified as well unless the best verified key-image has at least this many inliers
-  // (a look-alike street elsewhere in the simulated town verified with 42; the right key-image has hundreds on
-  // kitti07 and 60-150 in the simulated town).
+  // ... stopping at the first verified with at least this many inliers (a look-alike street elsewhere in the
+  // simulated town verified with 42 SIFT inliers; the right key-image has hundreds on kitti07 and 60-150 in the
+  // simulated town). Without a start arc the belief, not this, decides what is reported.
   int retrieval_confident_inliers = 60;
+  // Relocalization features: binary (upright ORB, binary_features.h), read from the key-images' signatures that
+  // teach stored in the map (computed when the map has none), 4 ms per 320x240 frame; false: SIFT from three
+  // detectors (`matching` below), extracted from the frame (45 ms at 320x240) and from every key-image verified
+  // (30 ms each at 320x240, 187 ms at 1226x370), as before issue 16.
+  bool binary_relocalization = true;
+  // The key-images' key-points must be made with the same settings as teach's (TeachOptions::signature_features,
+  // stored in the map's metadata), or they are computed again when the map is loaded.
+  BinaryFeatureOptions relocalization_features;
+  // Binary key-points of the frame, per 320x240 image and scaled by the square root of the image area
+  // (BinaryFeatureOptions::scale_with_area): as many as a key-image stores at 320x240, more than it stores at higher
+  // resolutions, so that the stored ones find their partners among them (the frame's cost, not the map's size).
+  int relocalization_frame_keypoints = 1000;
+  // Samples of the robust relative pose that verifies a candidate key-image at most. A key-image of the place gives
+  // matches with half or more inliers, found with 99.9 % confidence within 220 samples of the 5-point solver; a
+  // key-image of another place gives few inliers and would run the estimator's 5000 samples (100 ms at 320x240).
+  int relocalization_max_samples = 300;
   GlobalDescriptorOptions retrieval;
   // Key-images whose derived data (image pyramid, cut references, wide-baseline key-points; 1-4 MB each at 320 to
   // 1226 px width) is kept between frames, the least recently used released first. Bounds repeat's memory on a drive
@@ -324,6 +358,10 @@ class Localizer {
   // Key-images whose derived data is in memory now (at most max_cached_key_images between frames).
   int NumCachedKeyImages() const;
 
+  // A key-image's relocalization signature as this localizer uses it (binary key-points and quantised appearance
+  // made with `options`): what teach stores, and what LoadMapForLocalizer computes for maps without one.
+  static KeyImageSignature ComputeSignature(const cv::Mat& image, const LocalizerOptions& options);
+
  private:
   struct NodeData;
   struct ArcData;
@@ -402,6 +440,13 @@ class Localizer {
   Map map_;
   std::unordered_map<node_t, std::unique_ptr<NodeData>> nodes_;
   std::unordered_map<arc_t, std::unique_ptr<ArcData>> arcs_;
+  // Retrieval: every key-image's quantised appearance (entry i is node appearance_nodes_[i]).
+  AppearanceIndex appearance_index_;
+  std::vector<node_t> appearance_nodes_;
+  std::unordered_map<node_t, size_t> appearance_entry_;
+  WideBaselineOptions relocalization_matching_;  // ratio and cross-check of the relocalization matches
+  BinaryFeatureOptions frame_features_;           // binary key-points of a relocalizing frame
+  TwoViewOptions relocalization_geometry_;        // the relative pose verifying a candidate key-image
 
   double pixel_scale_ = 1.0;
   double max_sigma_p_px_ = 0.0;

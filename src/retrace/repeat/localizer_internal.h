@@ -18,8 +18,8 @@ struct Localizer::NodeData {
   std::unordered_map<feature_t, Vector2d> positions;
   std::unordered_map<feature_t, Vector3d> bearings;
   std::unique_ptr<ImagePyramid> pyramid;
+  // Relocalization key-points of the key-image (from its stored signature, or extracted).
   std::optional<WideBaselineFeatures> wide_baseline;
-  std::optional<GlobalDescriptor> appearance;
   std::unordered_map<feature_t, std::unique_ptr<ReferencePatch>> references;  // null = cannot be cut
   // Frame counter of the last use of the derived data above (pyramid, wide_baseline, references).
   size_t last_used = 0;

@@ -42,6 +42,17 @@ TEST(LocalizerOptions, CheckRejectsBadValues) {
   options.retrieval_shortlist = -1;
   EXPECT_FALSE(options.Check());
   options = LocalizerOptions();
+  options.retrieval_ambiguity_ratio = 1.5;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("ambiguity"), std::string::npos) << error;
+  options = LocalizerOptions();
+  options.relocalization_features.patch_size = 2;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("relocalization_features"), std::string::npos) << error;
+  options = LocalizerOptions();
+  options.relocalization_max_samples = 0;
+  EXPECT_FALSE(options.Check());
+  options = LocalizerOptions();
   options.retrieval.patch_size = 4;
   EXPECT_FALSE(options.Check(&error));
   EXPECT_NE(error.find("retrieval"), std::string::npos) << error;

@@ -1,9 +1,11 @@
 #include "retrace/repeat/map_loading.h"
 
+#include <chrono>
 #include <cmath>
 #include <exception>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include "retrace/camera/camera_io.h"
 #include "retrace/map/map_database.h"
@@ -55,6 +57,28 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
   }
   std::string error;
   if (!loaded.options.Check(&error)) throw InputError(path.string(), "tracking settings stored in the map: " + error);
+  // The key-images' relocalization signatures (issue 16): teach stores them; a map written before (schema < 4), or
+  // with other settings than this repeat's, gets them computed now, once, with a note.
+  if (loaded.options.binary_relocalization) {
+    const std::string features = loaded.options.relocalization_features.Name();
+    const std::string appearance = loaded.options.retrieval.Name();
+    const bool stored = database->Metadata("signature_features").value_or("") == features &&
+                        database->Metadata("signature_appearance").value_or("") == appearance;
+    size_t computed = 0;
+    const auto start = std::chrono::steady_clock::now();
+    for (const MapNode& node : loaded.map.nodes()) {
+      if (stored && !node.signature.empty()) continue;
+      loaded.map.MutableNode(node.id)->signature = Localizer::ComputeSignature(node.image, loaded.options);
+      ++computed;
+    }
+    if (computed > 0) {
+      spdlog::info("{}: {} of {} key-images have no stored relocalization signature{} (a map of an older retrace or "
+                   "other settings): computed them in {:.1f} s; teach the map again to store them",
+                   PrintableText(path.string()), computed, loaded.map.nodes().size(),
+                   stored ? "" : " made with these settings",
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    }
+  }
   return loaded;
 }
 

@@ -2,10 +2,12 @@
 // wide-baseline matching (SIFT, ratio test, cross-check) and a verified relative pose, the arc chosen by which side
 // of the best key-image the camera is on (the sign test of eq. (9)), and the mapped features of that arc and its
 // neighbours located in the frame. Retrieval ranks candidate key-images by whole-image appearance first
-// (GlobalDescriptor) and verifies the most alike.
+// (the quantised thumbnails of AppearanceIndex) and verifies the most alike, in order, within a budget (issue 16).
 
 #include <algorithm>
+#include <unordered_set>
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include "retrace/geometry/relative_pose.h"
@@ -19,10 +21,14 @@ using internal::Median;
 std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBaselineFeatures& current,
                                                                  const std::vector<node_t>& candidates) {
   std::vector<MatchedKeyImage> verified;
+  const int min_inliers =
+      options_.binary_relocalization ? options_.min_binary_inliers : options_.min_bootstrap_inliers;
   for (const node_t node : candidates) {
     const WideBaselineFeatures& key = NodeWideBaseline(node);
-    const std::vector<cv::DMatch> matches = MatchWideBaseline(key, current, options_.matching);
-    if (static_cast<int>(matches.size()) < options_.min_bootstrap_inliers) continue;
+    const std::vector<cv::DMatch> matches = MatchWideBaseline(key, current, relocalization_matching_);
+    spdlog::debug("repeat: key-image {}: {} matches of {} and {} key-points", node, matches.size(), key.size(),
+                  current.size());
+    if (static_cast<int>(matches.size()) < min_inliers) continue;
     MatchedKeyImage candidate;
     candidate.node = node;
     std::vector<Vector3d> bearings_key, bearings_current;
@@ -40,11 +46,11 @@ std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBase
       used.push_back(&m);
     }
     candidate.geometry =
-        EstimateRelativePose(bearings_key, bearings_current, camera_->FocalLength(), geometry_options_);
+        EstimateRelativePose(bearings_key, bearings_current, camera_->FocalLength(), relocalization_geometry_);
     // A frame taken (almost) where the key-image was shows no parallax: the rotation-only fit still verifies it.
     const bool verified_geometry = candidate.geometry.success ||
                                    candidate.geometry.failure == TwoViewFailure::kInsufficientParallax;
-    if (!verified_geometry || candidate.geometry.num_inliers < options_.min_bootstrap_inliers) continue;
+    if (!verified_geometry || candidate.geometry.num_inliers < min_inliers) continue;
     for (size_t i = 0; i < used.size(); ++i) {
       if (!candidate.geometry.inlier_mask[i]) continue;
       const cv::KeyPoint& kk = key.keypoints[used[i]->queryIdx];
@@ -62,32 +68,29 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
                                                                     const WideBaselineFeatures& current,
                                                                     const std::vector<node_t>& candidates,
                                                                     std::vector<node_t>* tried) {
-  std::vector<node_t> ranked = candidates;
+  // Rank by appearance: an exhaustive scan of the quantised thumbnails (about 0.3 µs per key-image).
+  std::vector<size_t> entries;
+  entries.reserve(candidates.size());
+  for (const node_t id : candidates) entries.push_back(appearance_entry_.at(id));
+  const cv::Mat query = QuantizeGlobalDescriptor(ComputeGlobalDescriptor(image, options_.retrieval));
+  std::vector<node_t> ranked;
+  ranked.reserve(candidates.size());
+  for (const size_t entry : appearance_index_.Rank(query, entries)) ranked.push_back(appearance_nodes_[entry]);
+  // The verification budget: the most alike first, at most retrieval_shortlist of them, stopping at the first
+  // confident one (0: every candidate, none skipped).
   const size_t shortlist = static_cast<size_t>(options_.retrieval_shortlist);
-  if (shortlist > 0 && candidates.size() > shortlist) {
-    std::vector<GlobalDescriptor> database;
-    database.reserve(candidates.size());
-    for (const node_t id : candidates) {
-      NodeData& node = Node(id);
-      if (!node.appearance) node.appearance = ComputeGlobalDescriptor(node.node->image, options_.retrieval);
-      database.push_back(*node.appearance);
-    }
-    const std::vector<size_t> order =
-        RankByGlobalDescriptor(ComputeGlobalDescriptor(image, options_.retrieval), database, options_.retrieval);
-    for (size_t i = 0; i < order.size(); ++i) ranked[i] = candidates[order[i]];
+  const size_t budget = shortlist > 0 ? std::min(shortlist, ranked.size()) : ranked.size();
+  std::vector<MatchedKeyImage> verified;
+  for (size_t i = 0; i < budget; ++i) {
+    tried->push_back(ranked[i]);
+    std::vector<MatchedKeyImage> one = MatchKeyImages(current, {ranked[i]});
+    spdlog::debug("repeat: retrieval candidate {} (rank {} of {}): {}", ranked[i], i, ranked.size(),
+                  one.empty() ? std::string("not verified") : fmt::format("{} inliers", one.front().geometry.num_inliers));
+    if (one.empty()) continue;
+    const bool confident = one.front().geometry.num_inliers >= options_.retrieval_confident_inliers;
+    verified.push_back(std::move(one.front()));
+    if (confident && shortlist > 0) break;
   }
-  const size_t first = shortlist > 0 ? std::min(shortlist, ranked.size()) : ranked.size();
-  std::vector<MatchedKeyImage> verified = MatchKeyImages(current, {ranked.begin(), ranked.begin() + first});
-  int best_inliers = 0;
-  for (const MatchedKeyImage& m : verified) best_inliers = std::max(best_inliers, m.geometry.num_inliers);
-  size_t matched = first;
-  if (best_inliers < options_.retrieval_confident_inliers && first < ranked.size()) {
-    // Not convincing (or nothing verified): the remaining candidates may hold the right key-image.
-    std::vector<MatchedKeyImage> rest = MatchKeyImages(current, {ranked.begin() + first, ranked.end()});
-    verified.insert(verified.end(), std::make_move_iterator(rest.begin()), std::make_move_iterator(rest.end()));
-    matched = ranked.size();
-  }
-  tried->insert(tried->end(), ranked.begin(), ranked.begin() + matched);
   return verified;
 }
 
@@ -116,10 +119,13 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   ClearTracks();
   arc_ = kInvalidArcId;
 
-  const WideBaselineFeatures current = ExtractWideBaselineFeatures(frame.image, options_.matching);
+  const WideBaselineFeatures current = options_.binary_relocalization
+                                          ? ExtractBinaryFeatures(frame.image, frame_features_)
+                                          : ExtractWideBaselineFeatures(frame.image, options_.matching);
   std::vector<MatchedKeyImage> verified;
   std::vector<node_t> tried;
   size_t candidate_count = 2;
+  bool global = false;  // retrieval over the whole map (a start without a start arc, or lost for long)
   if (use_start_arc) {
     const MapArc* arc = Arc(start_arc_)->arc;
     tried = {arc->from, arc->to};
@@ -136,6 +142,7 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
                                            static_cast<int>(frames_lost) * options_.relocalization_widening);
     } else {
       for (const MapNode& node : map_.nodes()) candidates.push_back(node.id);
+      global = true;
     }
     verified = RetrieveKeyImages(frame.image, current, candidates, &tried);
     candidate_count = candidates.size();
@@ -148,6 +155,24 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
                                                    });
   const node_t best_node = best->node;
   const int best_inliers = best->geometry.num_inliers;
+  if (!use_start_arc && options_.retrieval_ambiguity_ratio > 0.0 && verified.size() > 1) {
+    // A look-alike place elsewhere verified almost as well: which one is right is not decided by this frame.
+    arc_t near_arc = kInvalidArcId;
+    for (const auto& [id, data] : arcs_) {
+      if ((data->arc->from == best_node || data->arc->to == best_node) && (near_arc == kInvalidArcId || id < near_arc)) {
+        near_arc = id;
+      }
+    }
+    const std::vector<node_t> near = NodesNear(near_arc, 2);
+    for (const MatchedKeyImage& other : verified) {
+      if (std::find(near.begin(), near.end(), other.node) != near.end()) continue;
+      if (other.geometry.num_inliers >= options_.retrieval_ambiguity_ratio * best_inliers) {
+        spdlog::debug("repeat: bootstrap at frame {} ambiguous: key-image {} ({} inliers) and key-image {} ({})",
+                      frame.index, best_node, best_inliers, other.node, other.geometry.num_inliers);
+        return false;
+      }
+    }
+  }
 
   // The arc: the given one, or the one on the side of the best key-image where the camera is (eq. (9)'s sign).
   arc_t chosen = start_arc_;
@@ -202,6 +227,7 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   RefinePredictionOptions refine = refine_options_;
   refine.max_distance = options_.bootstrap_radius_px * pixel_scale_;
   refine.max_scale_ratio = 1.5;
+  std::unordered_set<feature_t> seen;  // mapped features of the three arcs seen in a verified key-image
   for (const MatchedKeyImage& candidate : verified) {
     const NodeData& node = Node(candidate.node);
     for (const ArcData* located : {arc, Arc(arc->previous), Arc(arc->next)}) {
@@ -212,6 +238,7 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
         if (tracker_.Find(id) != nullptr) continue;
         const auto position = node.positions.find(id);
         if (position == node.positions.end()) continue;
+        seen.insert(id);
         // The matched key-points within the radius (at least 2), else (distant structure, where SIFT finds little)
         // within twice the radius (at least 3) or three times (at least 4).
         std::vector<double> dx, dy, ratios;
@@ -243,9 +270,12 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
       }
     }
   }
-  if (tracker_.NumFeatures() < options_.min_bootstrap_features) {
-    spdlog::debug("repeat: bootstrap at frame {} failed: {} features located around arc {} (key-image {}, {} inliers)",
-                  frame.index, tracker_.NumFeatures(), chosen, best_node, best_inliers);
+  const int min_features = global ? std::max(options_.min_bootstrap_features, options_.min_global_bootstrap_features)
+                                  : options_.min_bootstrap_features;
+  if (tracker_.NumFeatures() < min_features) {
+    spdlog::debug("repeat: bootstrap at frame {} failed: {} of {} features located around arc {} (key-image {}, {} "
+                  "inliers)",
+                  frame.index, tracker_.NumFeatures(), seen.size(), chosen, best_node, best_inliers);
     ClearTracks();
     return false;
   }
@@ -253,8 +283,8 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   start_arc_ = kInvalidArcId;  // the start arc serves the first bootstrap only
   // The key-image is a measurement of the belief (placement.h), picked among the candidates.
   bootstrap_key_image_ = BootstrapKeyImage{chosen, best_node, static_cast<int>(candidate_count)};
-  spdlog::debug("repeat: frame {} localized on arc {} by matching key-image {} ({} inliers), {} features",
-                frame.index, arc_, best_node, best_inliers, tracker_.NumFeatures());
+  spdlog::debug("repeat: frame {} localized on arc {} by matching key-image {} ({} inliers), {} of {} features",
+                frame.index, arc_, best_node, best_inliers, tracker_.NumFeatures(), seen.size());
   return true;
 }
 

@@ -197,6 +197,33 @@ TEST_F(RepeatKitti, RetrievalShortlistAgreesWithMatchingEveryKeyImage) {
   EXPECT_GE(shortlisted.tracked, 0.9 * exhaustive.tracked);
 }
 
+// The key-images' relocalization signatures that teach stored, and the same computed by the localizer for a map
+// without them (a map of an older retrace): frame 81 from scratch is localized on the same arc with the same
+// features, and the stored key-points are those LoadMapForLocalizer would compute.
+TEST_F(RepeatKitti, StoredSignaturesAreThoseComputedForOlderMaps) {
+  SubsampledSequence odd(OpenSequence(kitti_), 2, 81);
+  const Frame frame = *odd.Next();
+  Map without = *map_;
+  for (const MapNode& node : map_->nodes()) {
+    ASSERT_FALSE(node.signature.empty()) << "teach stores every key-image's signature";
+    without.MutableNode(node.id)->signature = KeyImageSignature();
+  }
+  const MapNode& first = map_->nodes().front();
+  const KeyImageSignature computed = Localizer::ComputeSignature(first.image, LocalizerOptions());
+  ASSERT_EQ(computed.keypoints.size(), first.signature.keypoints.size());
+  EXPECT_EQ(cv::norm(computed.descriptors, first.signature.descriptors, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(computed.appearance, first.signature.appearance, cv::NORM_INF), 0.0);
+  const FrameResult stored = Localizer(*map_, *camera_).ProcessFrame(frame);
+  const FrameResult recomputed = Localizer(without, *camera_).ProcessFrame(frame);
+  ASSERT_EQ(stored.state, LocalizerState::kTracking);
+  EXPECT_EQ(stored.arc, recomputed.arc);
+  EXPECT_EQ(stored.state, recomputed.state);
+  EXPECT_EQ(stored.tracked, recomputed.tracked);
+  // The verification budget: at most retrieval_shortlist candidates, plus the key-images of the chosen arc and its
+  // neighbours that retrieval did not try.
+  EXPECT_LE(stored.key_images_matched, LocalizerOptions().retrieval_shortlist + 4);
+}
+
 // The same repeat at 320 px width (320x97), the resolution of the throughput target: key-images are denser there
 // (in the turns the camera passes about one arc per repeat frame), so the continuity of the position along the arc
 // must follow the camera's own speed. Before it did, 16 of 80 frames were on a wrong arc, 6 of them by two.

@@ -19,6 +19,11 @@ void WriteTeachSettings(const CameraModel& camera, const TeachOptions& options, 
   database->SetMetadata("reference_width", std::to_string(options.reference_width));
   if (camera_height > 0) database->SetMetadata("camera_height", fmt::format("{:g}", camera_height));
   database->SetMetadata("smoothing_sigma_px", fmt::format("{}", options.smoothing_sigma_px));
+  // The settings that made the key-images' relocalization signatures: repeat computes them again when its own differ.
+  if (options.store_signatures) {
+    database->SetMetadata("signature_features", options.signature_features.Name());
+    database->SetMetadata("signature_appearance", options.signature_appearance.Name());
+  }
 }
 
 }  // namespace retrace

@@ -31,8 +31,9 @@ class ScopedTimer {
   Clock::time_point start_;
 };
 
-// A key-image made of a teach frame, without features yet.
-MapNode NodeFromFrame(node_t id, const Frame& frame, int route) {
+// A key-image of `route` made of a teach frame, without features yet; with its relocalization signature when the
+// options ask.
+MapNode NodeFromFrame(node_t id, const Frame& frame, int route, const TeachOptions& options) {
   MapNode node;
   node.id = id;
   node.route = route;
@@ -40,6 +41,13 @@ MapNode NodeFromFrame(node_t id, const Frame& frame, int route) {
   node.image_name = frame.name;
   node.timestamp = frame.timestamp;
   node.image = frame.image;
+  if (options.store_signatures) {
+    WideBaselineFeatures features = ExtractBinaryFeatures(frame.image, options.signature_features);
+    node.signature.keypoints = std::move(features.keypoints);
+    node.signature.descriptors = features.descriptors;
+    node.signature.appearance =
+        QuantizeGlobalDescriptor(ComputeGlobalDescriptor(frame.image, options.signature_appearance));
+  }
   return node;
 }
 
@@ -71,6 +79,9 @@ bool TeachOptions::Check(std::string* error) const {
     return false;
   };
   if (reference_width <= 0) return fail("reference_width must be positive");
+  std::string signature_error;
+  if (!signature_features.Check(&signature_error)) return fail("signature_features: " + signature_error);
+  if (!signature_appearance.Check(&signature_error)) return fail("signature_appearance: " + signature_error);
   if (!(max_sigma_p_px > 0)) return fail("max_sigma_p_px (r_p) must be positive");
   if (min_features < 8) return fail("min_features (n) must be at least 8");
   if (!(min_features_fraction >= 0 && min_features_fraction < 1))
@@ -374,7 +385,7 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
   // key-image to this one, or by this key-image when a gap arc reaches it from there; without either, rejected.
   std::unique_ptr<PendingGap> earlier_gap = std::move(pending_gap_);
   const node_t from_node = subrange_ ? subrange_->node : kInvalidNodeId;
-  MapNode node = NodeFromFrame(NextNodeId(), frame->frame, route_);
+  MapNode node = NodeFromFrame(NextNodeId(), frame->frame, route_, options_);
   // A gap arc is held back until the drive after it confirms it (TeachOptions::verify_links).
   const bool hold_back = with_arc && reason == KeyImageReason::kGap && options_.verify_links;
 
@@ -805,7 +816,7 @@ MatchableImage& Teacher::MatchableFrame(size_t index) {
 void Teacher::BuildByMatching() {
   if (frames_.empty()) return;
   const auto register_node = [&](size_t index, KeyImageReason reason) {
-    MapNode node = NodeFromFrame(NextNodeId(), frames_[index], route_);
+    MapNode node = NodeFromFrame(NextNodeId(), frames_[index], route_, options_);
     Commit(&node, nullptr, {}, {});
     node_of_frame_[index] = node.id;
     map_.AddNode(std::move(node));
@@ -851,7 +862,7 @@ void Teacher::RelateFramesByMatching(size_t a, size_t b) {
     ++statistics_.gaps_unrecovered;
   }
 
-  MapNode node = NodeFromFrame(NextNodeId(), frames_[b], route_);
+  MapNode node = NodeFromFrame(NextNodeId(), frames_[b], route_, options_);
   std::optional<MapArc> arc;
   std::optional<NodeScale> scale;
   std::vector<FeatureObservation> from_additions;

@@ -29,3 +29,26 @@ if [[ -d $data/kitti07 && -f $tmp/repeat_route.db ]]; then
     expect repeat-bad-metadata 1 "^retrace: error: .*repeat_bad_meta.db: metadata smoothing_sigma_px is not a number: 'abc'$" -- \
       "$bin" repeat --map "$tmp/repeat_bad_meta.db" --sequence "$k" --every 2 --offset 1 --output "$tmp/r2.csv" --no-progress
 fi
+
+if [[ -d $data/kitti07 && -f $tmp/repeat_route.db ]]; then
+  # Issue 16: a map written before key-images stored their relocalization signatures (schema 3) still localizes,
+  # with a note that they were computed; every odd frame correct from the first, without a start arc.
+  cp "$tmp/repeat_route.db" "$tmp/repeat_schema3.db"
+  python3 -c '
+import sqlite3, sys
+c = sqlite3.connect(sys.argv[1])
+c.executescript("DROP TABLE signatures; PRAGMA user_version=3;")
+c.close()' "$tmp/repeat_schema3.db" &&
+    expect repeat-old-map-signatures-computed 0 "have no stored relocalization signature.*teach the map again" -- \
+      "$bin" repeat --map "$tmp/repeat_schema3.db" --sequence "$k" --every 2 --offset 1 --output "$tmp/r3.csv" \
+      --evaluate --no-progress &&
+    expect repeat-old-map-correct 0 "80 frames: 100\.0% correct, 0 wrong" -- \
+      "$bin" repeat --map "$tmp/repeat_schema3.db" --sequence "$k" --every 2 --offset 1 --output "$tmp/r3.csv" \
+      --evaluate --no-progress
+  # Kidnapped starts (retrace bench kidnap): fresh localizers at random frames, scored against KITTI's poses.
+  expect bench-kidnap-kitti 0 "kidnap: 10 starts on a map of [0-9]+ key-images .* 0 wrong frames in 0 starts" -- \
+    "$bin" bench kidnap --map "$tmp/repeat_route.db" --sequence "$k" --starts 10 --frames 2
+  expect bench-retrieval-kitti 0 "retrieval \(quantised index\): [0-9]+ frames, [0-9]+ key-images: recall@1" -- \
+    "$bin" bench retrieval --map "$tmp/repeat_route.db" --sequence "$k"
+  expect inspect-signature-bytes 0 "kB of relocalization signatures" -- "$bin" inspect --map "$tmp/repeat_route.db"
+fi

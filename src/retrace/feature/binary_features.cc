@@ -1,0 +1,62 @@
+#include "retrace/feature/binary_features.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <fmt/format.h>
+#include <opencv2/features2d.hpp>
+
+namespace retrace {
+
+bool BinaryFeatureOptions::Check(std::string* error) const {
+  const auto fail = [error](const char* message) {
+    if (error != nullptr) *error = message;
+    return false;
+  };
+  if (max_keypoints < 8) return fail("max_keypoints must be >= 8");
+  if (reference_area < 1) return fail("reference_area must be positive");
+  if (!(scale_factor > 1.0 && scale_factor <= 2.0)) return fail("scale_factor must be in (1, 2]");
+  if (levels < 1 || levels > 16) return fail("levels must be in 1..16");
+  if (fast_threshold < 1 || fast_threshold > 255) return fail("fast_threshold must be in 1..255");
+  if (patch_size < 7 || patch_size > 63) return fail("patch_size must be in 7..63");
+  if (!(ratio > 0.0 && ratio <= 1.0)) return fail("ratio must be in (0, 1]");
+  return true;
+}
+
+std::string BinaryFeatureOptions::Name() const {
+  return fmt::format("orb-upright n{}{} f{} l{} t{} p{}", max_keypoints,
+                     scale_with_area ? fmt::format(" a{}", reference_area) : std::string(), scale_factor, levels,
+                     fast_threshold, patch_size);
+}
+
+WideBaselineFeatures ExtractBinaryFeatures(const cv::Mat& image, const BinaryFeatureOptions& options) {
+  CV_Assert(image.type() == CV_8UC1);
+  std::string error;
+  if (!options.Check(&error)) throw std::invalid_argument("BinaryFeatureOptions: " + error);
+  const double area_ratio =
+      options.scale_with_area ? static_cast<double>(image.total()) / options.reference_area : 1.0;
+  const int n = std::max(8, static_cast<int>(std::lround(options.max_keypoints * std::sqrt(area_ratio))));
+  const cv::Ptr<cv::ORB> orb =
+      cv::ORB::create(n, static_cast<float>(options.scale_factor), options.levels, options.patch_size,
+                      /*firstLevel=*/0, /*WTA_K=*/2, cv::ORB::HARRIS_SCORE, options.patch_size, options.fast_threshold);
+  WideBaselineFeatures features;
+  orb->detect(image, features.keypoints);
+  // Upright: describe every key-point at orientation 0 (the provided key-points keep their level and position).
+  for (cv::KeyPoint& k : features.keypoints) k.angle = 0.0f;
+  if (!features.keypoints.empty()) orb->compute(image, features.keypoints, features.descriptors);
+  if (features.descriptors.empty()) {
+    features.keypoints.clear();
+    features.descriptors = cv::Mat(0, 32, CV_8U);
+  }
+  return features;
+}
+
+std::vector<cv::DMatch> MatchBinary(const WideBaselineFeatures& query, const WideBaselineFeatures& train,
+                                    const BinaryFeatureOptions& options) {
+  WideBaselineOptions matching;
+  matching.ratio = options.ratio;
+  matching.cross_check = options.cross_check;
+  return MatchWideBaseline(query, train, matching);
+}
+
+}  // namespace retrace

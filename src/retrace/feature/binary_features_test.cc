@@ -1,0 +1,101 @@
+#include "retrace/feature/binary_features.h"
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "retrace/feature/synthetic_texture.h"
+
+namespace retrace {
+namespace {
+
+cv::Mat ClutteredTexture(int width, int height, uint64_t seed) {
+  SyntheticTextureOptions options;
+  options.width = width;
+  options.height = height;
+  options.num_shapes = std::max(4, width * height / 500);
+  options.min_grey = 10;
+  options.max_grey = 240;
+  options.seed = seed;
+  cv::Mat image;
+  SyntheticTexture(options).Render(width, height).convertTo(image, CV_8U);
+  return image;
+}
+
+// The fraction of `matches` that follow the affine `transform` (2x3, a -> b) within `tolerance` pixels.
+double FractionFollowing(const WideBaselineFeatures& fa, const WideBaselineFeatures& fb,
+                         const std::vector<cv::DMatch>& matches, const cv::Mat& transform, double tolerance) {
+  int correct = 0;
+  for (const cv::DMatch& m : matches) {
+    const cv::Point2f p = fa.keypoints[m.queryIdx].pt;
+    const cv::Point2d expected(
+        transform.at<double>(0, 0) * p.x + transform.at<double>(0, 1) * p.y + transform.at<double>(0, 2),
+        transform.at<double>(1, 0) * p.x + transform.at<double>(1, 1) * p.y + transform.at<double>(1, 2));
+    if (cv::norm(cv::Point2d(fb.keypoints[m.trainIdx].pt) - expected) < tolerance) ++correct;
+  }
+  return matches.empty() ? 0.0 : static_cast<double>(correct) / matches.size();
+}
+
+TEST(BinaryFeatures, MatchesFollowAKnownScaleAndShiftUnderOtherLight) {
+  const cv::Mat a = ClutteredTexture(320, 240, 7);
+  // b: a scaled by 1.15 about the centre (the camera drove closer), shifted, darker and with less contrast.
+  cv::Mat transform = cv::getRotationMatrix2D(cv::Point2f(160, 120), 0.0, 1.15);
+  transform.at<double>(0, 2) += 9.0;
+  transform.at<double>(1, 2) -= 4.0;
+  cv::Mat warped, b;
+  cv::warpAffine(a, warped, transform, a.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(128));
+  warped.convertTo(b, CV_8U, 0.7, 15.0);
+
+  const BinaryFeatureOptions options;
+  const WideBaselineFeatures fa = ExtractBinaryFeatures(a, options);
+  const WideBaselineFeatures fb = ExtractBinaryFeatures(b, options);
+  EXPECT_EQ(fa.descriptors.type(), CV_8U);
+  EXPECT_EQ(fa.descriptors.cols, 32);
+  EXPECT_EQ(fa.descriptors.rows, static_cast<int>(fa.size()));
+  EXPECT_LE(fa.size(), 1000u);
+  EXPECT_GE(fa.size(), 500u);
+  const std::vector<cv::DMatch> matches = MatchBinary(fa, fb, options);
+  ASSERT_GE(matches.size(), 100u);
+  EXPECT_GE(FractionFollowing(fa, fb, matches, transform, 3.0), 0.9) << matches.size() << " matches";
+  // Every match is mutual (cross-check) and passes the ratio test: no key-point is used twice.
+  std::vector<int> used(fb.size(), 0);
+  for (const cv::DMatch& m : matches) EXPECT_EQ(++used[m.trainIdx], 1);
+}
+
+TEST(BinaryFeatures, OtherPlacesGiveFewMatches) {
+  const BinaryFeatureOptions options;
+  const WideBaselineFeatures fa = ExtractBinaryFeatures(ClutteredTexture(320, 240, 1), options);
+  const WideBaselineFeatures fb = ExtractBinaryFeatures(ClutteredTexture(320, 240, 2), options);
+  // Chance matches pass the ratio test rarely (a geometric verification rejects the rest).
+  EXPECT_LT(MatchBinary(fa, fb, options).size(), 0.1 * fa.size());
+}
+
+TEST(BinaryFeatures, KeyPointsScaleWithTheImageOnlyWhenAskedAndBlankImagesHaveNone) {
+  BinaryFeatureOptions options;
+  const cv::Mat large_image = ClutteredTexture(1280, 960, 3);
+  EXPECT_EQ(ExtractBinaryFeatures(large_image, options).size(), 1000u);  // a stored key-image: max_keypoints
+  options.scale_with_area = true;
+  const WideBaselineFeatures small = ExtractBinaryFeatures(ClutteredTexture(320, 240, 3), options);
+  const WideBaselineFeatures large = ExtractBinaryFeatures(large_image, options);
+  EXPECT_GT(large.size(), 1.5 * small.size());
+  EXPECT_GT(large.size(), 1000u);
+  EXPECT_LE(large.size(), 4000u);  // 1000 * sqrt(area ratio 16) at most
+  const WideBaselineFeatures blank = ExtractBinaryFeatures(cv::Mat(240, 320, CV_8U, cv::Scalar(90)), options);
+  EXPECT_EQ(blank.size(), 0u);
+  EXPECT_EQ(blank.descriptors.type(), CV_8U);
+  EXPECT_EQ(blank.descriptors.cols, 32);
+  EXPECT_TRUE(MatchBinary(blank, small, options).empty());
+}
+
+TEST(BinaryFeatures, RejectsBadOptions) {
+  BinaryFeatureOptions options;
+  EXPECT_TRUE(options.Check());
+  options.patch_size = 3;
+  std::string error;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("patch_size"), std::string::npos);
+  EXPECT_THROW(ExtractBinaryFeatures(ClutteredTexture(64, 48, 1), options), std::invalid_argument);
+  EXPECT_NE(BinaryFeatureOptions().Name(), options.Name());
+}
+
+}  // namespace
+}  // namespace retrace

@@ -1,0 +1,80 @@
+// What a relocalizing frame pays in the feature layer (issue 16), 1 thread:
+//  - BM_ExtractBinary: upright ORB key-points and descriptors of one image (binary_features.h), 320x240 and
+//    1226x370, against BM_ExtractWideBaseline (SIFT from three detectors, wide_baseline.h) on the same images;
+//  - BM_MatchBinary: the Hamming table, ratio test and cross-check of two 320x240 images;
+//  - BM_AppearanceIndexRank/N: ranking N key-images by their quantised thumbnails (global_descriptor.h).
+//
+//   build/src/retrace/feature/bench_feature_relocalization --benchmark_repetitions=5
+//     --benchmark_report_aggregates_only=true
+
+#include <numeric>
+
+#include <benchmark/benchmark.h>
+#include <opencv2/imgproc.hpp>
+
+#include "retrace/feature/binary_features.h"
+#include "retrace/feature/global_descriptor.h"
+#include "retrace/feature/synthetic_texture.h"
+
+namespace retrace {
+namespace {
+
+cv::Mat Texture(int width, int height, uint64_t seed) {
+  SyntheticTextureOptions options;
+  options.width = width;
+  options.height = height;
+  options.num_shapes = std::max(4, width * height / 500);
+  options.seed = seed;
+  cv::Mat image;
+  SyntheticTexture(options).Render(width, height).convertTo(image, CV_8U);
+  return image;
+}
+
+void BM_ExtractBinary(benchmark::State& state) {
+  const cv::Mat image = Texture(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)), 1);
+  size_t keypoints = 0;
+  for (auto _ : state) keypoints = ExtractBinaryFeatures(image).size();
+  state.counters["keypoints"] = static_cast<double>(keypoints);
+}
+BENCHMARK(BM_ExtractBinary)->Args({320, 240})->Args({1226, 370})->Unit(benchmark::kMillisecond);
+
+void BM_ExtractWideBaseline(benchmark::State& state) {
+  const cv::Mat image = Texture(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)), 1);
+  size_t keypoints = 0;
+  for (auto _ : state) keypoints = ExtractWideBaselineFeatures(image).size();
+  state.counters["keypoints"] = static_cast<double>(keypoints);
+}
+BENCHMARK(BM_ExtractWideBaseline)->Args({320, 240})->Args({1226, 370})->Unit(benchmark::kMillisecond);
+
+void BM_MatchBinary(benchmark::State& state) {
+  const cv::Mat a = Texture(320, 240, 2);
+  cv::Mat transform = cv::getRotationMatrix2D(cv::Point2f(160, 120), 0.0, 1.1), b;
+  cv::warpAffine(a, b, transform, a.size());
+  const WideBaselineFeatures fa = ExtractBinaryFeatures(a), fb = ExtractBinaryFeatures(b);
+  size_t matches = 0;
+  for (auto _ : state) matches = MatchBinary(fa, fb).size();
+  state.counters["keypoints"] = static_cast<double>(fa.size());
+  state.counters["matches"] = static_cast<double>(matches);
+}
+BENCHMARK(BM_MatchBinary)->Unit(benchmark::kMillisecond);
+
+void BM_AppearanceIndexRank(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  AppearanceIndex index;
+  // Distinct thumbnails without rendering n images: random patch-normalised-like values.
+  cv::RNG rng(3);
+  for (int i = 0; i < n; ++i) {
+    cv::Mat thumbnail(36, 48, CV_32F);
+    rng.fill(thumbnail, cv::RNG::NORMAL, 0.0, 1.0);
+    index.Add(QuantizeGlobalDescriptor(GlobalDescriptor{thumbnail}));
+  }
+  const cv::Mat query = QuantizeGlobalDescriptor(ComputeGlobalDescriptor(Texture(320, 240, 4)));
+  std::vector<size_t> all(n);
+  std::iota(all.begin(), all.end(), 0);
+  for (auto _ : state) benchmark::DoNotOptimize(index.Rank(query, all));
+  state.counters["key_images"] = n;
+}
+BENCHMARK(BM_AppearanceIndexRank)->Arg(1000)->Arg(4000)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace retrace
