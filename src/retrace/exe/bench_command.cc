@@ -96,14 +96,31 @@ std::vector<TimedPose> TruthOf(const std::filesystem::path& sequence_path) {
   return ReadKittiPoses(*file);
 }
 
+// A map and a drive to run against it, with the ground truth of both (the teach sequence the map names).
+struct BenchDrive {
+  MapForLocalizer loaded;
+  std::vector<TimedPose> key_truth, repeat_truth;
+  std::unique_ptr<Sequence> sequence;
+};
+
+BenchDrive LoadBenchDrive(const std::filesystem::path& map, const std::filesystem::path& sequence,
+                          const LocalizerOptions& options) {
+  BenchDrive drive{LoadMapForLocalizer(map, options), {}, {}, nullptr};
+  if (!drive.loaded.camera) throw InputError(map.string(), "the map stores no camera");
+  if (!drive.loaded.source_sequence) throw InputError(map.string(), "the map does not name its teach sequence");
+  drive.key_truth = TruthOf(*drive.loaded.source_sequence);
+  drive.repeat_truth = TruthOf(sequence);
+  drive.sequence = OpenSequence(sequence);
+  return drive;
+}
+
 void RunKidnap(const KidnapArguments& args) {
   cv::setNumThreads(1);  // the figures are for one thread
-  MapForLocalizer loaded = LoadMapForLocalizer(args.map, args.options);
-  if (!loaded.camera) throw InputError(args.map.string(), "the map stores no camera");
-  if (!loaded.source_sequence) throw InputError(args.map.string(), "the map does not name its teach sequence");
-  const std::vector<TimedPose> key_truth = TruthOf(*loaded.source_sequence);
-  const std::vector<TimedPose> repeat_truth = TruthOf(args.sequence);
-  std::unique_ptr<Sequence> sequence = OpenSequence(args.sequence);
+  BenchDrive drive = LoadBenchDrive(args.map, args.sequence, args.options);
+  MapForLocalizer& loaded = drive.loaded;
+  const std::vector<TimedPose>& key_truth = drive.key_truth;
+  const std::vector<TimedPose>& repeat_truth = drive.repeat_truth;
+  std::unique_ptr<Sequence>& sequence = drive.sequence;
   const size_t n = sequence->size();
   if (n < static_cast<size_t>(args.frames)) throw InputError(args.sequence.string(), "fewer frames than --frames");
 
@@ -201,12 +218,11 @@ struct RetrievalArguments {
 // among all key-images, by today's float thumbnails (RankByGlobalDescriptor) and by the quantised index the
 // localizer uses (AppearanceIndex over the signatures stored in the map).
 void RunRetrieval(const RetrievalArguments& args) {
-  MapForLocalizer loaded = LoadMapForLocalizer(args.map, args.options);
-  if (!loaded.camera) throw InputError(args.map.string(), "the map stores no camera");
-  if (!loaded.source_sequence) throw InputError(args.map.string(), "the map does not name its teach sequence");
-  const std::vector<TimedPose> key_truth = TruthOf(*loaded.source_sequence);
-  const std::vector<TimedPose> repeat_truth = TruthOf(args.sequence);
-  std::unique_ptr<Sequence> sequence = OpenSequence(args.sequence);
+  BenchDrive drive = LoadBenchDrive(args.map, args.sequence, args.options);
+  MapForLocalizer& loaded = drive.loaded;
+  const std::vector<TimedPose>& key_truth = drive.key_truth;
+  const std::vector<TimedPose>& repeat_truth = drive.repeat_truth;
+  std::unique_ptr<Sequence>& sequence = drive.sequence;
   const Map& map = loaded.map;
   const GlobalDescriptorOptions& options = loaded.options.retrieval;
   std::vector<GlobalDescriptor> thumbnails;

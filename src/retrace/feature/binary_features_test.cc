@@ -8,19 +8,6 @@
 namespace retrace {
 namespace {
 
-cv::Mat ClutteredTexture(int width, int height, uint64_t seed) {
-  SyntheticTextureOptions options;
-  options.width = width;
-  options.height = height;
-  options.num_shapes = std::max(4, width * height / 500);
-  options.min_grey = 10;
-  options.max_grey = 240;
-  options.seed = seed;
-  cv::Mat image;
-  SyntheticTexture(options).Render(width, height).convertTo(image, CV_8U);
-  return image;
-}
-
 // The fraction of `matches` that follow the affine `transform` (2x3, a -> b) within `tolerance` pixels.
 double FractionFollowing(const WideBaselineFeatures& fa, const WideBaselineFeatures& fb,
                          const std::vector<cv::DMatch>& matches, const cv::Mat& transform, double tolerance) {

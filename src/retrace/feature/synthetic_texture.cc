@@ -93,4 +93,17 @@ cv::Mat SyntheticTexture::Render(int width, int height, double scale, const Vect
   return image;
 }
 
+cv::Mat ClutteredTexture(int width, int height, uint64_t seed) {
+  SyntheticTextureOptions options;
+  options.width = width;
+  options.height = height;
+  options.num_shapes = std::max(4, width * height / 500);
+  options.min_grey = 10;
+  options.max_grey = 240;
+  options.seed = seed;
+  cv::Mat image;
+  SyntheticTexture(options).Render(width, height).convertTo(image, CV_8U);
+  return image;
+}
+
 }  // namespace retrace

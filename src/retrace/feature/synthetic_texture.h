@@ -52,4 +52,8 @@ class SyntheticTexture {
   double background_fx_ = 0, background_fy_ = 0, background_px_ = 0, background_py_ = 0;
 };
 
+// A width x height 8-bit gray image of a cluttered texture (corners, blobs and edges; a shape per 500 pixels, grey
+// levels 10-240) generated from `seed`: the test image of the wide-baseline and binary feature tests.
+cv::Mat ClutteredTexture(int width, int height, uint64_t seed);
+
 }  // namespace retrace

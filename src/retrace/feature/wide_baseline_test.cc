@@ -9,20 +9,6 @@
 namespace retrace {
 namespace {
 
-// A cluttered texture with corners, blobs and edges, generated from a seed, as 8-bit gray.
-cv::Mat ClutteredTexture(int width, int height, uint64_t seed) {
-  SyntheticTextureOptions options;
-  options.width = width;
-  options.height = height;
-  options.num_shapes = std::max(4, width * height / 500);
-  options.min_grey = 10;
-  options.max_grey = 240;
-  options.seed = seed;
-  cv::Mat image;
-  SyntheticTexture(options).Render(width, height).convertTo(image, CV_8U);
-  return image;
-}
-
 TEST(WideBaseline, MatchesFollowAKnownSimilarityTransform) {
   const cv::Mat a = ClutteredTexture(640, 480, 7);
   // b = a rotated by 8 degrees, scaled by 1.3 about the centre, then shifted.
