@@ -10,6 +10,7 @@
 #include <spdlog/spdlog.h>
 
 #include "retrace/feature/global_descriptor.h"
+#include "retrace/geometry/motion_uncertainty.h"
 #include "retrace/geometry/relative_pose.h"
 #include "retrace/geometry/scale.h"
 #include "retrace/teach/link_verification.h"
@@ -93,6 +94,7 @@ bool TeachOptions::Check(std::string* error) const {
   if (min_matched_samples < 1) return fail("min_matched_samples must be positive");
   if (!(max_link_rotation_disagreement_deg > 0) || !(max_link_direction_disagreement_deg > 0))
     return fail("the link disagreement limits must be positive");
+  if (!(direction_confidence > 0 && direction_confidence < 1)) return fail("direction_confidence must lie in (0, 1)");
   if (!(inlier_threshold_px > 0)) return fail("inlier_threshold_px must be positive");
   if (!(min_parallax_px >= 0)) return fail("min_parallax_px must not be negative");
   if (matching_interval < 2) return fail("matching_interval must be at least 2");
@@ -117,6 +119,10 @@ struct Teacher::FrameState {
   // Appearance similarity of the key-image and this frame when wide-baseline matching related them (a gap arc).
   std::optional<double> matched_similarity;
   int survivors = 0;                     // features of the key-image still tracked here
+  // Whether W(K, this frame) leaves the motion undetermined (UndeterminedMotion as a tracked arc), and why; computed
+  // once, when this frame is a candidate key-image.
+  std::optional<bool> undetermined;
+  std::string undetermined_reason;
 };
 
 struct Teacher::Subrange {
@@ -226,7 +232,7 @@ void Teacher::AddFrame(const Frame& frame) {
   };
   track(current.get());
   EstimateGeometryToKey(current.get());
-  if (GeometryAcceptable(*current)) {
+  if (GeometryAcceptable(*current) || ExtendsUndeterminedArc(current.get())) {
     // A gap arc waiting for confirmation keeps the frames tracked from its key-image (its witnesses).
     if (pending_gap_ && subrange_->node == pending_gap_->arc.to && current->geometry.success) {
       PendingGap::Witness witness;
@@ -308,6 +314,27 @@ void Teacher::EstimateGeometryToKey(FrameState* frame) {
   if (frame->geometry.success) subrange_->last_geometry = frame->geometry.b_from_a;
 }
 
+bool Teacher::TrackedArcUndetermined(FrameState* frame) const {
+  if (!frame->undetermined) {
+    frame->undetermined = UndeterminedMotion(frame->bearings_key, frame->bearings_frame, frame->geometry,
+                                             &frame->undetermined_reason, /*tracked=*/true);
+  }
+  return *frame->undetermined;
+}
+
+bool Teacher::ExtendsUndeterminedArc(FrameState* frame) const {
+  // Only when the feature fraction ends the arc: the paper's n (absolute) and σ_p <= r_p still hold here.
+  if (previous_->frame.index == subrange_->frame_index || !previous_->geometry.success) return false;
+  if (!frame->geometry.success || frame->survivors < options_.min_features ||
+      frame->geometry.num_inliers < options_.min_features || frame->geometry.sigma_p > max_sigma_p_px_) {
+    return false;
+  }
+  if (!TrackedArcUndetermined(previous_.get())) return false;
+  spdlog::debug("teach: arc from key-image {} extended past frame {}: {}", subrange_->node, previous_->frame.name,
+                previous_->undetermined_reason);
+  return true;
+}
+
 bool Teacher::GeometryAcceptable(const FrameState& frame) const {
   const int n = subrange_->min_features;
   if (frame.survivors < n) return false;
@@ -366,17 +393,18 @@ void Teacher::StartSubrange(FrameState* frame) {
 
 void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool with_arc,
                                const MatchableImage* matched) {
-  // A tracked arc whose inliers one plane explains does not determine the motion: the key-image is registered
-  // without it, and the map is disconnected there (TeachOptions::reject_planar_geometry).
+  // A tracked arc whose pair does not determine the motion (one plane, or an undetermined direction): the key-image is
+  // registered without it, and the map is disconnected there (TeachOptions::reject_planar_geometry,
+  // reject_undetermined_direction).
   if (with_arc && reason != KeyImageReason::kGap) {
-    if (std::string planar;
-        PlanarGeometry(frame->bearings_key, frame->bearings_frame, frame->geometry, &planar, /*tracked=*/true)) {
+    if (TrackedArcUndetermined(frame)) {
+      const std::string& why = frame->undetermined_reason;
       statistics_.rejected_links.push_back(
           {"tracking", subrange_->node, NextNodeId(),
            map_.FindNode(subrange_->node)->source_frame, static_cast<int64_t>(frame->frame.source_index),
-           frame->geometry.num_inliers, frame->geometry.num_inliers, frame->geometry.sigma_p, planar});
+           frame->geometry.num_inliers, frame->geometry.num_inliers, frame->geometry.sigma_p, why});
       spdlog::warn("teach: tracked arc from key-image {} to frame {} rejected ({}); the map is disconnected there",
-                   subrange_->node, frame->frame.name, planar);
+                   subrange_->node, frame->frame.name, why);
       with_arc = false;
       reason = KeyImageReason::kDisconnected;
     }
@@ -555,32 +583,56 @@ bool Teacher::AcceptableMatchedGeometry(const MatchedGeometry& matched, int min_
          matched.geometry.num_inliers >= min_inliers;
 }
 
-bool Teacher::PlanarGeometry(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
-                             const TwoViewGeometry& geometry, std::string* description, bool tracked) const {
-  if (!options_.reject_planar_geometry || !geometry.success) return false;
-  PlanarDegeneracyOptions options;
-  options.inlier_threshold_px = geometry_options_.ransac.max_error_px;
-  options.distinct_rotation_deg = options_.max_link_rotation_disagreement_deg;
-  options.distinct_direction_deg = options_.max_link_direction_disagreement_deg;
-  // A tracked geometry carries the evidence of the frames before it (each W(K, f) starts from W(K, f - 1) and keeps
-  // it unless a sample fits better by guess_preference): it is rejected only when the pair fits the plane's other
-  // motion at least as well. A pair related by matching has no such history: within guess_preference is a tie.
-  options.preference = tracked ? 0.0 : geometry_options_.guess_preference;
-  const PlanarDegeneracy test = TestPlanarDegeneracy(bearings_a, bearings_b, geometry.inlier_mask, geometry.b_from_a,
-                                                     camera_->FocalLength(), options);
-  *description = fmt::format("{} of its {} inliers lie on one plane (GRIC homography {:.0f}, motion {:.0f}, noise "
-                             "{:.2f} px{}): the pair does not determine the motion",
-                             test.homography_inliers, test.num_points, test.gric_homography, test.gric_essential,
-                             test.sigma_px,
-                             test.alternative_cost_ratio > 0
-                                 ? fmt::format("; another motion of the plane, {:.1f} deg / {:.1f} deg away, fits at "
-                                               "{:.2f} times the cost",
-                                               test.alternative_rotation_deg, test.alternative_direction_deg,
-                                               test.alternative_cost_ratio)
-                                 : "");
-  spdlog::debug("teach: planar test: {}{}{}", *description, test.planar ? " [planar]" : "",
-                test.ambiguous ? " [ambiguous]" : "");
-  return test.ambiguous;
+bool Teacher::UndeterminedMotion(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
+                                 const TwoViewGeometry& geometry, std::string* description, bool tracked) const {
+  if (!geometry.success) return false;
+  if (options_.reject_planar_geometry) {
+    PlanarDegeneracyOptions options;
+    options.inlier_threshold_px = geometry_options_.ransac.max_error_px;
+    options.distinct_rotation_deg = options_.max_link_rotation_disagreement_deg;
+    options.distinct_direction_deg = options_.max_link_direction_disagreement_deg;
+    // A tracked geometry carries the evidence of the frames before it (each W(K, f) starts from W(K, f - 1) and keeps
+    // it unless a sample fits better by guess_preference): it is rejected only when the pair fits the plane's other
+    // motion at least as well. A pair related by matching has no such history: within guess_preference is a tie.
+    options.preference = tracked ? 0.0 : geometry_options_.guess_preference;
+    const PlanarDegeneracy test = TestPlanarDegeneracy(bearings_a, bearings_b, geometry.inlier_mask,
+                                                       geometry.b_from_a, camera_->FocalLength(), options);
+    *description = fmt::format("{} of its {} inliers lie on one plane (GRIC homography {:.0f}, motion {:.0f}, noise "
+                               "{:.2f} px{}): the pair does not determine the motion",
+                               test.homography_inliers, test.num_points, test.gric_homography, test.gric_essential,
+                               test.sigma_px,
+                               test.alternative_cost_ratio > 0
+                                   ? fmt::format("; another motion of the plane, {:.1f} deg / {:.1f} deg away, fits "
+                                                 "at {:.2f} times the cost",
+                                                 test.alternative_rotation_deg, test.alternative_direction_deg,
+                                                 test.alternative_cost_ratio)
+                                   : "");
+    spdlog::debug("teach: planar test: {}{}{}", *description, test.planar ? " [planar]" : "",
+                  test.ambiguous ? " [ambiguous]" : "");
+    if (test.ambiguous) return true;
+  }
+  if (options_.reject_undetermined_direction) {
+    const double limit = options_.max_link_direction_disagreement_deg;
+    const DirectionTest test =
+        TestDirectionAt(bearings_a, bearings_b, geometry.inlier_mask, geometry.b_from_a, camera_->FocalLength(),
+                        limit, options_.direction_confidence);
+    const MotionUncertainty linear = EstimateMotionUncertainty(bearings_a, bearings_b, geometry.inlier_mask,
+                                                               geometry.b_from_a, camera_->FocalLength(),
+                                                               options_.direction_confidence);
+    const std::string measured = fmt::format(
+        "a direction {:g} deg from the estimate {} (the {:.0f} % confidence region admits {:.1f} sigma^2{}; "
+        "linearised sigma {:.1f} deg; {} inliers, noise {:.2f} px)",
+        limit,
+        test.cost_increase < 0 ? std::string("fits them better")
+                               : fmt::format("costs {:.1f} sigma^2 more", test.cost_increase),
+        100 * options_.direction_confidence, test.bound,
+        !test.within_region ? "" : test.connected ? ", connected to the estimate: a weak pair" : ": a second solution",
+        linear.direction_sigma_deg, linear.num_points, linear.sigma_px);
+    spdlog::debug("teach: direction test: {}", measured);
+    *description = "the pair does not determine the direction of motion within the link limit: " + measured;
+    if (test.within_region) return true;
+  }
+  return false;
 }
 
 bool Teacher::RecoverGap(FrameState* frame) {
@@ -598,15 +650,15 @@ bool Teacher::RecoverGap(FrameState* frame) {
                 matched.matches.size(), matched.geometry.num_inliers, matched.num_trackable,
                 matched.geometry.sigma_p);
   if (!AcceptableMatchedGeometry(matched, options_.min_matched_inliers)) return false;
-  if (std::string planar; PlanarGeometry(matched.bearings_a, matched.bearings_b, matched.geometry, &planar)) {
+  if (std::string why; UndeterminedMotion(matched.bearings_a, matched.bearings_b, matched.geometry, &why)) {
     // The frame becomes the next node, a disconnected key-image (AddFrame).
     statistics_.rejected_links.push_back({"gap", subrange_->node, NextNodeId(),
                                           map_.FindNode(subrange_->node)->source_frame,
                                           static_cast<int64_t>(frame->frame.source_index),
                                           matched.geometry.num_inliers, matched.num_trackable,
-                                          matched.geometry.sigma_p, planar});
+                                          matched.geometry.sigma_p, why});
     spdlog::warn("teach: gap candidate from key-image {} to frame {} rejected: {}", subrange_->node,
-                 frame->frame.name, planar);
+                 frame->frame.name, why);
     return false;
   }
   if (options_.verify_links && last_arc_ != kInvalidArcId && map_.FindArc(last_arc_)->to == subrange_->node) {
@@ -842,10 +894,10 @@ void Teacher::RelateFramesByMatching(size_t a, size_t b) {
   // Arcs join consecutive frames of the drive here, so they cannot link places that are not neighbours; they are
   // not witnessed (TeachOptions::verify_links): a halfway frame as witness also turned down arcs whose own
   // geometry was right, and splitting those made one-frame arcs worse than the arcs it removed (simulated town).
-  std::string planar;
+  std::string why;
   const bool acceptable =
       AcceptableMatchedGeometry(matched, options_.min_features) && matched.num_trackable >= options_.min_features &&
-      !PlanarGeometry(matched.bearings_a, matched.bearings_b, matched.geometry, &planar);
+      !UndeterminedMotion(matched.bearings_a, matched.bearings_b, matched.geometry, &why);
   spdlog::debug("teach (matching): frames {}-{}: {} inliers, {} trackable, sigma_p {:.2f} px{}", a, b,
                 matched.geometry.num_inliers, matched.num_trackable, matched.geometry.sigma_p,
                 acceptable ? "" : b - a > 1 ? ": splitting" : ": cannot relate");
@@ -958,11 +1010,11 @@ void Teacher::CloseLoop() {
                   matched.matches.size(), matched.geometry.num_inliers, matched.geometry.sigma_p);
     // A wrong loop closure is worse than none: more support is required than for a gap.
     if (!AcceptableMatchedGeometry(matched, options_.min_loop_inliers)) continue;
-    if (std::string planar; PlanarGeometry(matched.bearings_a, matched.bearings_b, matched.geometry, &planar)) {
+    if (std::string why; UndeterminedMotion(matched.bearings_a, matched.bearings_b, matched.geometry, &why)) {
       statistics_.rejected_links.push_back({"loop", last.id, node.id, last.source_frame, node.source_frame,
                                             matched.geometry.num_inliers, matched.num_trackable,
-                                            matched.geometry.sigma_p, planar});
-      spdlog::info("teach: loop candidate from key-image {} to {} rejected: {}", last.id, node.id, planar);
+                                            matched.geometry.sigma_p, why});
+      spdlog::info("teach: loop candidate from key-image {} to {} rejected: {}", last.id, node.id, why);
       continue;
     }
     candidates.push_back({&node, std::move(image), std::move(matched)});
@@ -1115,10 +1167,10 @@ void Teacher::JoinRoutes() {
       // As strict as a loop closure (a wrong link is worse than none), and similar enough (Booij 2007 §B.2).
       if (!AcceptableMatchedGeometry(matched, options_.min_loop_inliers)) continue;
       if (similarity < options_.min_join_similarity) continue;
-      if (std::string planar; PlanarGeometry(matched.bearings_a, matched.bearings_b, matched.geometry, &planar)) {
+      if (std::string why; UndeterminedMotion(matched.bearings_a, matched.bearings_b, matched.geometry, &why)) {
         statistics_.rejected_links.push_back({"join", a.id, b.id, a.source_frame, b.source_frame,
                                               matched.geometry.num_inliers, matched.num_trackable,
-                                              matched.geometry.sigma_p, planar});
+                                              matched.geometry.sigma_p, why});
         continue;
       }
       candidates.push_back({&b, std::move(matched), similarity});

@@ -167,6 +167,18 @@ struct TeachOptions {
   // links are not tested (kitti07 at 320 px every 4th frame: the witness of the true gap 140-144 fits the plane's
   // other motion alike and confirms on its second look). false: σ_p and the inlier count alone.
   bool reject_planar_geometry = true;
+  // A geometry whose pair does not determine its direction of motion within max_link_direction_disagreement_deg is
+  // not written either (tracked, gap, loop, matching, join): some direction that far from the estimate lies in the
+  // `direction_confidence` likelihood-ratio confidence region of the direction (motion_uncertainty.h,
+  // TestDirectionAt; σ from the pair's own residuals, no constant fitted to a data set). A tracked arc that the
+  // feature fraction would end while its direction is undetermined goes on instead, as long as the paper's n
+  // features and σ_p <= r_p hold (the baseline grows, and with it what the pair determines); only then is it
+  // rejected. On a plane of fine ground texture (teacher_degenerate_test) a tracked arc of 0.8 m (52 inliers) was
+  // 15.9 degrees off and gap arcs of 26-29 matches 12 and 51 degrees off, all with a direction 10 degrees away inside
+  // the region; in the validation matrix (62 drives, 2667 arcs) the test rejects the tracked arc of hard126's frames
+  // 131-147 (31 degrees off) and extends one correct arc of seed109 by a frame. false: no such test.
+  bool reject_undetermined_direction = true;
+  double direction_confidence = 0.95;
 
   FeatureTrackerOptions tracker;
   CornerDetectorOptions detector;
@@ -273,6 +285,12 @@ class Teacher {
   // Two-view geometry between the subrange's key-image and `frame` from the features tracked since the key-image.
   void EstimateGeometryToKey(FrameState* frame);
   bool GeometryAcceptable(const FrameState& frame) const;
+  // Whether the tracked arc to `frame` would be rejected (UndeterminedMotion; computed once per frame).
+  bool TrackedArcUndetermined(FrameState* frame) const;
+  // An arc that the feature fraction would end (TeachOptions::min_features_fraction) while its pair does not yet
+  // determine its motion goes on to `frame` as long as the paper's n features and σ_p <= r_p hold: the baseline grows
+  // and with it what the pair determines (TeachOptions::reject_undetermined_direction).
+  bool ExtendsUndeterminedArc(FrameState* frame) const;
   // Registers `frame` as key-image: the arc from the current key-image (when `with_arc`), the node with its
   // observations (tracked features plus new corners), the scale at the previous key-image; then starts a subrange.
   // `matched`: the frame prepared for matching, when a gap arc reaches it (it may witness the gap arc before).
@@ -310,11 +328,13 @@ class Teacher {
   // The geometry options of a witness's second look (WeighWitness).
   TwoViewOptions SecondLookOptions() const;
   bool AcceptableMatchedGeometry(const MatchedGeometry& matched, int min_inliers) const;
-  // Whether one plane explains the inliers of `geometry` over these correspondences (planar_degeneracy.h);
-  // `description` says how, for the report. Always false when TeachOptions::reject_planar_geometry is off.
+  // Whether the correspondences leave the motion of `geometry` undetermined: one plane explains its inliers and
+  // another motion of that plane fits alike (planar_degeneracy.h; TeachOptions::reject_planar_geometry), or a
+  // direction beyond the link limit lies in its confidence region (motion_uncertainty.h;
+  // TeachOptions::reject_undetermined_direction). `description` says why, for the report.
   // `tracked`: a tracked W(K, f), which the plane's other motion must fit at least as well (not only alike).
-  bool PlanarGeometry(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
-                      const TwoViewGeometry& geometry, std::string* description, bool tracked = false) const;
+  bool UndeterminedMotion(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
+                          const TwoViewGeometry& geometry, std::string* description, bool tracked = false) const;
   MatchableImage PrepareForMatching(const cv::Mat& image) const;
   void Commit(const MapNode* node, const MapArc* arc, const std::vector<NodeScale>& scales,
               const std::vector<std::pair<node_t, std::vector<FeatureObservation>>>& extra_observations);

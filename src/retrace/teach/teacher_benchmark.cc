@@ -1,6 +1,8 @@
 // Teach throughput on kitti07 (160 real frames), single thread, frames decoded and resized beforehand:
 //   bench_teach_teacher --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
-// The argument is the working width (0 = native 1226 px). Skips when the shared data is absent.
+// The arguments are the working width (0 = native 1226 px) and whether teach tests each arc for a motion its pair
+// does not determine (1, the default: TeachOptions::reject_planar_geometry and reject_undetermined_direction; 0:
+// neither, to measure their cost in the same run). Skips when the shared data is absent.
 
 #include <benchmark/benchmark.h>
 #include <opencv2/core.hpp>
@@ -51,9 +53,11 @@ void BM_TeachKitti(benchmark::State& state) {
     state.SkipWithError("shared data kitti07 not found");
     return;
   }
+  TeachOptions options;
+  options.reject_planar_geometry = options.reject_undetermined_direction = state.range(1) != 0;
   size_t key_images = 0;
   for (auto _ : state) {
-    Teacher teacher(*kitti.camera, TeachOptions(), nullptr);
+    Teacher teacher(*kitti.camera, options, nullptr);
     for (const Frame& frame : kitti.frames) teacher.AddFrame(frame);
     teacher.Finish();
     key_images = teacher.map().nodes().size();
@@ -63,7 +67,11 @@ void BM_TeachKitti(benchmark::State& state) {
   state.counters["key_images"] = static_cast<double>(key_images);
   state.SetLabel(std::to_string(kitti.camera->width()) + "x" + std::to_string(kitti.camera->height()));
 }
-BENCHMARK(BM_TeachKitti)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_TeachKitti)
+    ->ArgsProduct({{0, 320}, {1, 0}})
+    ->ArgNames({"width", "tests"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 }  // namespace
 }  // namespace retrace

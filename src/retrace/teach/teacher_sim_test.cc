@@ -234,6 +234,7 @@ TEST(TeachSim, LookAlikeCrossingDoesNotCloseTheLoop) {
   TeachOptions single_pair;
   single_pair.verify_links = false;
   single_pair.reject_planar_geometry = false;
+  single_pair.reject_undetermined_direction = false;
   const Taught unverified = Teach(drive, FrameRange(0, 299), single_pair);
   ASSERT_TRUE(unverified.statistics.loop_closed);
   const std::vector<std::string> premise = FalseLinks(unverified.map, drive.truth);
@@ -274,6 +275,7 @@ TEST(TeachSim, GapOntoALookAlikePlaceStaysDisconnected) {
   TeachOptions single_pair = options;
   single_pair.verify_links = false;
   single_pair.reject_planar_geometry = false;
+  single_pair.reject_undetermined_direction = false;
   const Taught unverified = Teach(drive, frames, single_pair);
   ASSERT_EQ(unverified.statistics.gaps_recovered, 1) << "the premise: one pair of images links across the jump";
   const std::vector<std::string> premise = FalseLinks(unverified.map, drive.truth);
@@ -318,6 +320,7 @@ TEST(TeachSim, RunOfGapArcsOntoALookAlikePlaceStaysDisconnected) {
   TeachOptions single_pair = options;
   single_pair.verify_links = false;
   single_pair.reject_planar_geometry = false;
+  single_pair.reject_undetermined_direction = false;
   const Taught unverified = Teach(drive, frames, single_pair);
   ASSERT_EQ(unverified.map.arcs().size() + 1, unverified.map.nodes().size()) << "the premise: all frames linked";
   const std::vector<std::string> premise = FalseLinks(unverified.map, drive.truth);
