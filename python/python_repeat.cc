@@ -35,7 +35,7 @@ class PythonLocalizer {
     std::string error;
     if (!options.Check(&error)) throw InputError("localizer options", error);
     loaded_ = LoadMapForLocalizer(map_path, options);
-    const int key_width = loaded_.map.nodes().front().image.cols;
+    const int key_width = loaded_.key_image_size.width;
     if (camera) {
       camera_ = camera->width() == key_width ? camera->Clone()
                                              : camera->Scaled(static_cast<double>(key_width) / camera->width());
@@ -60,7 +60,7 @@ class PythonLocalizer {
       if (!loaded_.camera) throw InputError(map_path.string(), "the map stores no camera; give camera=");
       camera_ = loaded_.camera->Clone();
     }
-    localizer_ = std::make_unique<Localizer>(loaded_.map, *camera_, loaded_.options);
+    localizer_ = std::make_unique<Localizer>(std::move(loaded_.map), *camera_, loaded_.options);
     if (start_arc) localizer_->SetStartArc(*start_arc);
   }
 
@@ -81,7 +81,6 @@ class PythonLocalizer {
 
   const CameraModel& camera() const { return *camera_; }
   const Localizer& localizer() const { return *localizer_; }
-  const MapForLocalizer& loaded() const { return loaded_; }
 
  private:
   MapForLocalizer loaded_;

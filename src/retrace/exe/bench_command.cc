@@ -229,7 +229,7 @@ void RunRetrieval(const RetrievalArguments& args) {
   AppearanceIndex index(options);
   std::vector<size_t> all;
   for (const MapNode& node : map.nodes()) {
-    thumbnails.push_back(ComputeGlobalDescriptor(node.image, options));
+    thumbnails.push_back(ComputeGlobalDescriptor(map.KeyImage(node.id), options));
     all.push_back(index.Add(node.signature.appearance));
   }
   std::vector<Frame> frames;

@@ -300,26 +300,18 @@ std::unique_ptr<CameraModel> RepeatCamera(const RepeatArguments& args, int key_w
 
 void RunRepeat(const RepeatArguments& args) {
   MapForLocalizer loaded = LoadMapForLocalizer(args.map, args.options);
-  const Map& map = loaded.map;
   const LocalizerOptions& options = loaded.options;
   const std::optional<std::string>& source = loaded.source_sequence;
   std::unique_ptr<Sequence> sequence = OpenInputSequence(args.sequence, args.bag);
 
-  const int key_width = map.nodes().front().image.cols;
+  const int key_width = loaded.key_image_size.width;
   std::unique_ptr<CameraModel> camera = RepeatCamera(args, key_width, loaded.camera.get(), *sequence);
 
   if (args.every > 1 || args.offset > 0) {
     sequence = std::make_unique<SubsampledSequence>(std::move(sequence), std::max<size_t>(1, args.every), args.offset);
   }
-  Localizer localizer(map, *camera, options);
-  // The localizer works on its own copy of the map (key-images shared, not copied); what else is needed of it here
-  // is the graph and the key-images' source frames (evaluation), so the copy's features and relocalization
-  // signatures are released: on a map of 1264 key-images this is about a fifth of repeat's peak memory.
-  for (const MapNode& node : map.nodes()) {
-    MapNode* mutable_node = loaded.map.MutableNode(node.id);
-    std::vector<FeatureObservation>().swap(mutable_node->features);
-    mutable_node->signature = KeyImageSignature();
-  }
+  Localizer localizer(std::move(loaded.map), *camera, options);
+  const Map& map = localizer.map();
   if (args.start_arc != kInvalidArcId) localizer.SetStartArc(args.start_arc);
 
   std::ofstream csv(args.output);

@@ -211,13 +211,13 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   MapForLocalizer loaded = LoadMapForLocalizer(args.map, base);
   Simulator simulator(ApplyVariant(scenario, ScenarioVariant::kRepeat));
   const CameraModel& camera = simulator.camera();
-  const cv::Mat& key_image = loaded.map.nodes().front().image;
-  if (key_image.cols != camera.width() || key_image.rows != camera.height()) {
+  const cv::Size key_image = loaded.key_image_size;
+  if (key_image.width != camera.width() || key_image.height != camera.height()) {
     throw InputError(args.map, fmt::format("key-images are {}x{} but the scenario's camera is {}x{} (--width, "
                                            "--height)",
-                                           key_image.cols, key_image.rows, camera.width(), camera.height()));
+                                           key_image.width, key_image.height, camera.width(), camera.height()));
   }
-  Localizer localizer(loaded.map, camera, loaded.options);
+  Localizer localizer(std::move(loaded.map), camera, loaded.options);
 
   std::filesystem::create_directories(args.out);
   const std::filesystem::path csv_path = std::filesystem::path(args.out) / "drive.csv";
@@ -245,7 +245,7 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   ClosedLoopSummary summary;
   {
     ProgressBar progress("drive", 0, !args.quiet);
-    summary = DriveClosedLoop(&simulator, &localizer, loaded.map, taught, drive, [&](const ClosedLoopStep& step) {
+    summary = DriveClosedLoop(&simulator, &localizer, localizer.map(), taught, drive, [&](const ClosedLoopStep& step) {
       const FrameResult& r = *step.result;
       const Vector3d& c = step.view->world_from_cam.translation;
       const Vector3d forward = step.view->world_from_cam.rotation.col(2);

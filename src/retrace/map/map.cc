@@ -68,4 +68,23 @@ feature_t Map::MaxFeatureId() const {
   return max_id;
 }
 
+cv::Mat Map::KeyImage(node_t id) const {
+  const MapNode* node = FindNode(id);
+  if (node == nullptr) return cv::Mat();
+  if (!node->image.empty() || !key_image_loader_) return node->image;
+  return key_image_loader_(id);
+}
+
+KeyImageSignature Map::Signature(node_t id) const {
+  const MapNode* node = FindNode(id);
+  if (node == nullptr) return KeyImageSignature();
+  if (!node->signature.descriptors.empty() || !signature_loader_) return node->signature;
+  return signature_loader_(id);
+}
+
+bool Map::HasKeyImage(node_t id) const {
+  const MapNode* node = FindNode(id);
+  return node != nullptr && (!node->image.empty() || key_image_loader_);
+}
+
 }  // namespace retrace

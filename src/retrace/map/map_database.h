@@ -105,8 +105,15 @@ class MapDatabase {
   void WriteScale(const NodeScale& scale);
   std::unique_ptr<SqliteTransaction> BeginTransaction();
 
-  // Reads the whole map. Key-images are decoded only when `load_images` is true.
-  Map ReadMap(bool load_images = true);
+  // Reads the whole map. Key-images are decoded only when `load_images` is true; the key-points and descriptors of
+  // the relocalization signatures are kept only when `load_signature_features` is true (their appearance always).
+  Map ReadMap(bool load_images = true, bool load_signature_features = true);
+  // The relocalization signature of node `id` as ReadMap reads it (empty when the node has none). Throws InputError
+  // naming the map when it is damaged.
+  KeyImageSignature ReadSignature(node_t id);
+  // Decodes the key-image of node `id` (8-bit gray), as ReadMap does. Throws InputError naming the map when the node
+  // has none or it cannot be decoded to its stored size.
+  cv::Mat ReadKeyImage(node_t id);
   // Encoded size of every stored key-image, in bytes.
   int64_t ImageBytes();
   // Stored size of the key-images' relocalization signatures, in bytes (0 for maps of schema < 4).

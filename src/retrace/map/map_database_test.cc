@@ -287,6 +287,28 @@ TEST(MapDatabase, SignaturesRoundTrip) {
     }
     EXPECT_EQ(cv::norm(a.appearance, b.appearance, cv::NORM_INF), 0.0);
   }
+  // Read on demand (repeat's way, issue 16: key-images and key-points stay in the file), they are the same: the map
+  // read without them keeps the appearance only, and the loaders give the rest through Map.
+  std::shared_ptr<MapDatabase> lazy = MapDatabase::Open(path);
+  Map on_demand = lazy->ReadMap(/*load_images=*/false, /*load_signature_features=*/false);
+  on_demand.SetKeyImageLoader([lazy](node_t id) { return lazy->ReadKeyImage(id); });
+  on_demand.SetSignatureLoader([lazy](node_t id) { return lazy->ReadSignature(id); });
+  for (const MapNode& node : map.nodes()) {
+    const MapNode& held = *on_demand.FindNode(node.id);
+    EXPECT_TRUE(held.image.empty());
+    EXPECT_TRUE(held.signature.keypoints.empty() && held.signature.descriptors.empty());
+    EXPECT_EQ(cv::norm(held.signature.appearance, node.signature.appearance, cv::NORM_INF), 0.0);
+    EXPECT_TRUE(on_demand.HasKeyImage(node.id));
+    EXPECT_EQ(cv::norm(on_demand.KeyImage(node.id), node.image, cv::NORM_INF), 0.0);
+    const KeyImageSignature read = on_demand.Signature(node.id);
+    ASSERT_EQ(read.keypoints.size(), node.signature.keypoints.size());
+    for (size_t i = 0; i < read.keypoints.size(); ++i) EXPECT_EQ(read.keypoints[i].pt, node.signature.keypoints[i].pt);
+    EXPECT_EQ(read.descriptors.rows, node.signature.descriptors.rows);
+    if (!read.keypoints.empty()) EXPECT_EQ(cv::norm(read.descriptors, node.signature.descriptors, cv::NORM_INF), 0.0);
+  }
+  ExpectInputError([&] { lazy->ReadKeyImage(42); }, path, "node 42 is missing");
+  EXPECT_TRUE(lazy->ReadSignature(42).empty());
+
   // A key-point that cannot be stored is refused with the file named.
   MapNode far = MakeNode(5, 0);
   far.signature.keypoints[0].pt.x = 9000.0f;

@@ -89,10 +89,10 @@ bool LocalizerOptions::Check(std::string* error) const {
   return true;
 }
 
-Localizer::Localizer(const Map& map, const CameraModel& camera, const LocalizerOptions& options)
+Localizer::Localizer(Map map, const CameraModel& camera, const LocalizerOptions& options)
     : camera_(camera.Clone()),
       options_(options),
-      map_(map),
+      map_(std::move(map)),
       appearance_index_(options.retrieval),
       belief_(map_, options.belief) {
   std::string error;
@@ -128,12 +128,9 @@ Localizer::Localizer(const Map& map, const CameraModel& camera, const LocalizerO
   }
 
   for (const MapNode& node : map_.nodes()) {
-    if (node.image.empty()) throw InputError("map", "key-image " + std::to_string(node.id) + " is not loaded");
-    if (node.image.cols != camera.width() || node.image.rows != camera.height()) {
-      throw InputError("map", "key-image " + std::to_string(node.id) + " is " + std::to_string(node.image.cols) +
-                                  "x" + std::to_string(node.image.rows) + " but the camera is " +
-                                  std::to_string(camera.width()) + "x" + std::to_string(camera.height()));
-    }
+    // Images held by the map are checked now, those it reads on demand when they are read (NodeImage).
+    if (!map_.HasKeyImage(node.id)) throw InputError("map", "key-image " + std::to_string(node.id) + " is not loaded");
+    if (!node.image.empty()) CheckKeyImageSize(node.id, node.image);
     auto data = std::make_unique<NodeData>();
     data->node = &node;
     for (const FeatureObservation& f : node.features) {
@@ -147,7 +144,7 @@ Localizer::Localizer(const Map& map, const CameraModel& camera, const LocalizerO
     // LoadMapForLocalizer drops signatures made with other settings), else computed now (0.1 ms per key-image).
     cv::Mat appearance = node.signature.appearance;
     if (appearance.empty() || appearance.cols != options_.retrieval.width) {
-      appearance = QuantizeGlobalDescriptor(ComputeGlobalDescriptor(node.image, options_.retrieval));
+      appearance = QuantizeGlobalDescriptor(ComputeGlobalDescriptor(NodeImage(node.id), options_.retrieval));
     }
     appearance_entry_[node.id] = appearance_index_.Add(appearance);
     appearance_nodes_.push_back(node.id);
@@ -188,10 +185,24 @@ const Localizer::ArcData* Localizer::Arc(arc_t id) const {
   return it == arcs_.end() ? nullptr : it->second.get();
 }
 
+void Localizer::CheckKeyImageSize(node_t id, const cv::Mat& image) const {
+  if (image.cols != camera_->width() || image.rows != camera_->height()) {
+    throw InputError("map", fmt::format("key-image {} is {}x{} but the camera is {}x{}", id, image.cols, image.rows,
+                                        camera_->width(), camera_->height()));
+  }
+}
+
+cv::Mat Localizer::NodeImage(node_t id) const {
+  cv::Mat image = map_.KeyImage(id);
+  if (image.empty()) throw InputError("map", "key-image " + std::to_string(id) + " is not loaded");
+  CheckKeyImageSize(id, image);
+  return image;
+}
+
 const ImagePyramid& Localizer::NodePyramid(node_t id) {
   NodeData& node = Node(id);
   node.last_used = frame_counter_;
-  if (!node.pyramid) node.pyramid = std::make_unique<ImagePyramid>(node.node->image, pyramid_options_);
+  if (!node.pyramid) node.pyramid = std::make_unique<ImagePyramid>(NodeImage(id), pyramid_options_);
   return *node.pyramid;
 }
 
@@ -199,14 +210,14 @@ const WideBaselineFeatures& Localizer::NodeWideBaseline(node_t id) {
   NodeData& node = Node(id);
   node.last_used = frame_counter_;
   if (!node.wide_baseline) {
-    const KeyImageSignature& signature = node.node->signature;
+    const KeyImageSignature signature = options_.binary_relocalization ? map_.Signature(id) : KeyImageSignature();
     if (!options_.binary_relocalization) {
-      node.wide_baseline = ExtractWideBaselineFeatures(node.node->image, options_.matching);
+      node.wide_baseline = ExtractWideBaselineFeatures(NodeImage(id), options_.matching);
     } else if (!signature.descriptors.empty() || (signature.keypoints.empty() && !signature.appearance.empty())) {
       // Stored by teach (no copy of the descriptors).
       node.wide_baseline = WideBaselineFeatures{signature.keypoints, signature.descriptors};
     } else {
-      node.wide_baseline = ExtractBinaryFeatures(node.node->image, options_.relocalization_features);
+      node.wide_baseline = ExtractBinaryFeatures(NodeImage(id), options_.relocalization_features);
     }
   }
   return *node.wide_baseline;
@@ -216,6 +227,7 @@ KeyImageSignature Localizer::ComputeSignature(const cv::Mat& image, const Locali
   KeyImageSignature signature;
   WideBaselineFeatures features = ExtractBinaryFeatures(image, options.relocalization_features);
   signature.keypoints = std::move(features.keypoints);
+  signature.keypoints.shrink_to_fit();  // the detector's growth doubled them (30 MB on 1264 key-images)
   signature.descriptors = features.descriptors;
   signature.appearance = QuantizeGlobalDescriptor(ComputeGlobalDescriptor(image, options.retrieval));
   return signature;

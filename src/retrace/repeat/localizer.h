@@ -229,7 +229,10 @@ struct LocalizerOptions {
   // 1226 px width) is kept between frames, the least recently used released first. Bounds repeat's memory on a drive
   // of any length: without it every key-image visited stayed in memory (kitti07's 1226 px: +4.2 MB per key-image).
   // A released key-image's data is computed again when needed (its wide-baseline key-points are the costly part).
-  int max_cached_key_images = 24;
+  // 12 holds what one frame touches at most: the current arc's two key-images and their neighbours, and while
+  // relocalizing the retrieval shortlist (5) with the chosen arc's. On the 1264-key-image map 24 peaked at 334 MB,
+  // 12 at 289 MB, every frame's result the same.
+  int max_cached_key_images = 12;
   // Bootstrap: matched key-points nearer than this (px at reference_width) predict a mapped feature's position.
   double bootstrap_neighbour_radius_px = 30.0;
   // Bootstrap: accept a located feature within this distance of its local prediction (px at reference_width).
@@ -337,10 +340,15 @@ struct FrameResult {
 
 class Localizer {
  public:
-  // `map` must hold its key-images (MapDatabase::ReadMap(true)); it is copied (images are shared, not
-  // duplicated). `camera` describes the frames given to ProcessFrame.
-  Localizer(const Map& map, const CameraModel& camera, const LocalizerOptions& options = {});
+  // `map` must hold its key-images (MapDatabase::ReadMap(true)) or read them on demand (LoadMapForLocalizer,
+  // Map::SetKeyImageLoader); the localizer keeps it: pass it with std::move
+  // when the caller does not need its own (a copy shares the images but duplicates the features and signatures: a
+  // fifth of repeat's peak memory on a map of 1264 key-images), and read it back with map(). `camera` describes the
+  // frames given to ProcessFrame.
+  Localizer(Map map, const CameraModel& camera, const LocalizerOptions& options = {});
   ~Localizer();
+
+  const Map& map() const { return map_; }
 
   // Bootstrap the first frame against this arc's key-images only (Segvic 2009 §3.3: the user gives the start
   // arc). Without it, or after a loss, the localizer finds the arc itself by retrieval over all key-images.
@@ -369,6 +377,10 @@ class Localizer {
 
   NodeData& Node(node_t id);
   const ArcData* Arc(arc_t id) const;
+  // The key-image of node `id`, from the map or read on demand (Map::KeyImage); throws InputError when it cannot be
+  // had or is not the camera's size.
+  cv::Mat NodeImage(node_t id) const;
+  void CheckKeyImageSize(node_t id, const cv::Mat& image) const;
   const ImagePyramid& NodePyramid(node_t id);
   const WideBaselineFeatures& NodeWideBaseline(node_t id);
   // The reference appearance of `feature` cut from key-image `node` (cached), or null when it cannot be cut.

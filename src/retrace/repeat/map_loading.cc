@@ -27,18 +27,23 @@ double ParseMetadataNumber(const std::string& text, const std::string& key, cons
 }  // namespace
 
 MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const LocalizerOptions& base) {
-  auto database = MapDatabase::Open(path);
+  std::shared_ptr<MapDatabase> database = MapDatabase::Open(path);
   MapForLocalizer loaded;
-  loaded.map = database->ReadMap(/*load_images=*/true);
+  // The key-images and the key-points of their signatures stay in the file and are read when the localizer needs
+  // them (Map::SetKeyImageLoader, SetSignatureLoader): it keeps what it derives from the few around its belief
+  // (LocalizerOptions::max_cached_key_images) and the appearance of all (retrieval).
+  loaded.map = database->ReadMap(/*load_images=*/false, /*load_signature_features=*/false);
   if (loaded.map.arcs().empty()) throw InputError(path.string(), "the map has no arcs");
+  loaded.map.SetKeyImageLoader([database](node_t id) { return database->ReadKeyImage(id); });
+  const cv::Mat first = loaded.map.KeyImage(loaded.map.nodes().front().id);
+  loaded.key_image_size = first.size();
   if (const auto yaml = database->ReadCameraYaml()) {
     loaded.camera = ParseCameraText(*yaml, path.string());
     // The map's camera images its own key-images; when it does not, the map is damaged (not the sequence).
-    const MapNode& key_image = loaded.map.nodes().front();
-    if (loaded.camera->width() != key_image.image.cols || loaded.camera->height() != key_image.image.rows) {
+    if (loaded.camera->width() != first.cols || loaded.camera->height() != first.rows) {
       throw InputError(path.string(), fmt::format("corrupt map: its camera images {}x{} but its key-images are {}x{}",
-                                                  loaded.camera->width(), loaded.camera->height(),
-                                                  key_image.image.cols, key_image.image.rows));
+                                                  loaded.camera->width(), loaded.camera->height(), first.cols,
+                                                  first.rows));
     }
   }
   loaded.source_sequence = database->Metadata("source_sequence");
@@ -64,11 +69,14 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
     const std::string appearance = loaded.options.retrieval.Name();
     const bool stored = database->Metadata("signature_features").value_or("") == features &&
                         database->Metadata("signature_appearance").value_or("") == appearance;
+    // Read on demand only when made with these settings; otherwise all are computed below, and kept.
+    if (stored) loaded.map.SetSignatureLoader([database](node_t id) { return database->ReadSignature(id); });
     size_t computed = 0;
     const auto start = std::chrono::steady_clock::now();
     for (const MapNode& node : loaded.map.nodes()) {
       if (stored && !node.signature.empty()) continue;
-      loaded.map.MutableNode(node.id)->signature = Localizer::ComputeSignature(node.image, loaded.options);
+      loaded.map.MutableNode(node.id)->signature =
+          Localizer::ComputeSignature(loaded.map.KeyImage(node.id), loaded.options);
       ++computed;
     }
     if (computed > 0) {

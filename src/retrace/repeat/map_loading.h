@@ -16,10 +16,12 @@
 
 namespace retrace {
 
-// A map for localizing in: its key-images loaded, the camera it stores (null when none), the teach sequence it
-// names, and `base` with the tracking settings teach stored in the map (and its camera height, unless `base` has one).
+// A map for localizing in: its key-images read from the file on demand (Map::KeyImage; the file stays open while the
+// map or a copy of it lives), their size, the camera it stores (null when none), the teach sequence it names, and
+// `base` with the tracking settings teach stored in the map (and its camera height, unless `base` has one).
 struct MapForLocalizer {
   Map map;
+  cv::Size key_image_size;
   std::unique_ptr<CameraModel> camera;
   std::optional<std::string> source_sequence;
   LocalizerOptions options;

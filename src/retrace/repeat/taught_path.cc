@@ -131,7 +131,8 @@ const std::optional<Vector3d>& TaughtPath::GroundNormal() {
     const MapNode* a = map_.FindNode(arc.from);
     const MapNode* b = map_.FindNode(arc.to);
     if (a == nullptr || b == nullptr) continue;
-    planes.push_back(EstimateGroundPlane(a->image, b->image, *camera_, arc.to_from_from, options_.ground));
+    planes.push_back(EstimateGroundPlane(map_.KeyImage(a->id), map_.KeyImage(b->id), *camera_, arc.to_from_from,
+                                         options_.ground));
   }
   normal_ = CommonGroundNormal(planes, std::min(3, count));
   return normal_;
@@ -148,7 +149,8 @@ const TaughtPath::ArcGround& TaughtPath::Ground(arc_t arc_id) {
     const MapNode* a = map_.FindNode(arc->from);
     const MapNode* b = map_.FindNode(arc->to);
     if (a != nullptr && b != nullptr) {
-      ground->plane = EstimateGroundPlane(a->image, b->image, *camera_, arc->to_from_from, options);
+      ground->plane = EstimateGroundPlane(map_.KeyImage(a->id), map_.KeyImage(b->id), *camera_, arc->to_from_from,
+                                         options);
       if (ground->plane.valid) ground->metres_per_unit = options_.camera_height / ground->plane.distance_b;
     }
   }

@@ -39,7 +39,7 @@ void ReadParameter(const ros::NodeHandle& node, const std::string& name, T* valu
 // CameraInfo) when it images the same rays.
 std::unique_ptr<CameraModel> NodeCamera(const MapForLocalizer& loaded, std::unique_ptr<CameraModel> given,
                                         const std::string& given_source, const std::string& map_source) {
-  const int key_width = loaded.map.nodes().front().image.cols;
+  const int key_width = loaded.key_image_size.width;
   if (!given) {
     if (!loaded.camera) throw InputError(map_source, "the map stores no camera; set ~camera or ~use_camera_info");
     return loaded.camera->Clone();
@@ -146,7 +146,7 @@ RepeatNode::RepeatNode(const ros::NodeHandle& node, const ros::NodeHandle& priva
     given = CameraFromCameraInfo(*info, given_source);
   }
   camera_ = NodeCamera(loaded_, std::move(given), given_source, options_.map.string());
-  localizer_ = std::make_unique<Localizer>(loaded_.map, *camera_, loaded_.options);
+  localizer_ = std::make_unique<Localizer>(std::move(loaded_.map), *camera_, loaded_.options);
   if (options_.start_arc != kInvalidArcId) localizer_->SetStartArc(options_.start_arc);
 
   cmd_vel_ = node_.advertise<geometry_msgs::Twist>("cmd_vel", 10);
@@ -164,7 +164,7 @@ RepeatNode::RepeatNode(const ros::NodeHandle& node, const ros::NodeHandle& priva
   last_received_ = ros::WallTime::now();
   worker_ = std::thread(&RepeatNode::Work, this);
   ROS_INFO("retrace_node: ready: map %s (%zu key-images, %zu arcs), camera %s %dx%d, listening on %s",
-           options_.map.string().c_str(), loaded_.map.nodes().size(), loaded_.map.arcs().size(),
+           options_.map.string().c_str(), localizer_->map().nodes().size(), localizer_->map().arcs().size(),
            camera_->model_name().c_str(), camera_->width(), camera_->height(),
            image_subscriber_.getTopic().c_str());
 }
