@@ -59,24 +59,13 @@ MotionUncertainty EstimateMotionUncertainty(const std::vector<Vector3d>& bearing
     r->resize(n);
     for (int k = 0; k < n; ++k) (*r)(k) = SampsonResidual(e, bearings_a[inliers[k]], bearings_b[inliers[k]]);
   };
-  Eigen::VectorXd r, r_plus, r_minus;
+  Eigen::VectorXd r;
   residuals(b_from_a, &r);
   const double min_sigma = min_sigma_px / focal_length_px;
   const double sigma = std::max(std::sqrt(r.squaredNorm() / (n - kDim)), min_sigma);
   result.sigma_px = sigma * focal_length_px;
 
-  // Central differences, as the refinement (two_view_geometry.cc).
-  constexpr double kStep = 1e-7;
-  Eigen::MatrixXd jacobian(n, kDim);
-  double delta[kDim];
-  for (int j = 0; j < kDim; ++j) {
-    std::fill(delta, delta + kDim, 0.0);
-    delta[j] = kStep;
-    residuals(manifold.update(b_from_a, delta), &r_plus);
-    delta[j] = -kStep;
-    residuals(manifold.update(b_from_a, delta), &r_minus);
-    jacobian.col(j) = (r_plus - r_minus) / (2.0 * kStep);
-  }
+  const Eigen::MatrixXd jacobian = internal::NumericJacobian(residuals, b_from_a, manifold, n);
   const Eigen::Matrix<double, kDim, kDim> normal = jacobian.transpose() * jacobian;
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, kDim, kDim>> eigen(normal);
   if (eigen.info() != Eigen::Success || !(eigen.eigenvalues()(0) > 1e-12 * eigen.eigenvalues()(kDim - 1))) {

@@ -179,6 +179,23 @@ bool ValidBearings(const std::vector<Vector3d>& bearings) {
   return true;
 }
 
+Eigen::MatrixXd NumericJacobian(const PoseResiduals& residuals, const Rigid3d& pose, const PoseManifold& manifold,
+                                int rows) {
+  constexpr double kStep = 1e-7;
+  Eigen::MatrixXd jacobian(rows, manifold.dim);
+  std::vector<double> delta(manifold.dim, 0.0);
+  Eigen::VectorXd plus, minus;
+  for (int j = 0; j < manifold.dim; ++j) {
+    std::fill(delta.begin(), delta.end(), 0.0);
+    delta[j] = kStep;
+    residuals(manifold.update(pose, delta.data()), &plus);
+    delta[j] = -kStep;
+    residuals(manifold.update(pose, delta.data()), &minus);
+    jacobian.col(j) = (plus - minus) / (2.0 * kStep);
+  }
+  return jacobian;
+}
+
 Rigid3d RefineOnSampson(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
                         const std::vector<int>& indices, const Rigid3d& initial, const PoseManifold& manifold,
                         int max_iterations, double cauchy_scale) {
@@ -206,29 +223,20 @@ Rigid3d RefineOnSampson(const std::vector<Vector3d>& bearings_a, const std::vect
     }
   };
   Rigid3d pose = initial;
-  Eigen::VectorXd r, r_plus, r_minus;
+  Eigen::VectorXd r;
   update_weights(pose);
   residuals(pose, &r);
   double cost = r.squaredNorm();
   double lambda = 1e-4;
-  Eigen::MatrixXd jacobian(m, dim);
   std::vector<double> delta(dim, 0.0);
-  constexpr double kStep = 1e-7;
   for (int iteration = 0; iteration < max_iterations; ++iteration) {
     if (iteration > 0 && c2 > 0.0) {
       update_weights(pose);
       residuals(pose, &r);
       cost = r.squaredNorm();
     }
-    // Central-difference Jacobian: 5 parameters at most, so this costs a few residual evaluations.
-    for (int j = 0; j < dim; ++j) {
-      std::fill(delta.begin(), delta.end(), 0.0);
-      delta[j] = kStep;
-      residuals(manifold.update(pose, delta.data()), &r_plus);
-      delta[j] = -kStep;
-      residuals(manifold.update(pose, delta.data()), &r_minus);
-      jacobian.col(j) = (r_plus - r_minus) / (2.0 * kStep);
-    }
+    // 5 parameters at most, so the Jacobian costs a few residual evaluations.
+    const Eigen::MatrixXd jacobian = NumericJacobian(residuals, pose, manifold, m);
     const Eigen::MatrixXd jtj = jacobian.transpose() * jacobian;
     const Eigen::VectorXd jtr = jacobian.transpose() * r;
     bool improved = false;

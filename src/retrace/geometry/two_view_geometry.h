@@ -137,6 +137,12 @@ TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const s
                                 const MinimalSolver& solver, const PoseManifold& manifold,
                                 const Rigid3d* guess = nullptr);
 
+// Central-difference Jacobian (step 1e-7) of `residuals` (fills its vector of `rows` values at a pose) over the
+// manifold's parameters at `pose`: rows x manifold.dim.
+using PoseResiduals = std::function<void(const Rigid3d& pose, Eigen::VectorXd* residuals)>;
+Eigen::MatrixXd NumericJacobian(const PoseResiduals& residuals, const Rigid3d& pose, const PoseManifold& manifold,
+                                int rows);
+
 // Levenberg-Marquardt on the Sampson residuals (radians) of `indices` over the manifold, with an optional Cauchy
 // loss of scale `cauchy_scale` (radians; 0, the default used by the estimators, is plain least squares: on a clean
 // inlier set it is the maximum-likelihood estimate, while a robust loss moved the optimum of these weakly

@@ -209,13 +209,13 @@ const ImagePyramid& Localizer::NodePyramid(node_t id) {
 const WideBaselineFeatures& Localizer::NodeWideBaseline(node_t id) {
   NodeData& node = Node(id);
   node.last_used = frame_counter_;
-  if (!node.wide_baseline) {
-    const KeyImageSignature signature = options_.binary_relocalization ? map_.Signature(id) : KeyImageSignature();
-    if (!options_.binary_relocalization) {
-      node.wide_baseline = ExtractWideBaselineFeatures(NodeImage(id), options_.matching);
-    } else if (!signature.descriptors.empty() || (signature.keypoints.empty() && !signature.appearance.empty())) {
-      // Stored by teach (no copy of the descriptors).
-      node.wide_baseline = WideBaselineFeatures{signature.keypoints, signature.descriptors};
+  if (!node.wide_baseline && !options_.binary_relocalization) {
+    node.wide_baseline = ExtractWideBaselineFeatures(NodeImage(id), options_.matching);
+  } else if (!node.wide_baseline) {
+    KeyImageSignature signature = map_.Signature(id);  // held by the map, or read from its file
+    if (!signature.descriptors.empty() || (signature.keypoints.empty() && !signature.appearance.empty())) {
+      // Stored by teach (the descriptors shared, not copied).
+      node.wide_baseline = WideBaselineFeatures{std::move(signature.keypoints), signature.descriptors};
     } else {
       node.wide_baseline = ExtractBinaryFeatures(NodeImage(id), options_.relocalization_features);
     }
@@ -227,7 +227,7 @@ KeyImageSignature Localizer::ComputeSignature(const cv::Mat& image, const Locali
   KeyImageSignature signature;
   WideBaselineFeatures features = ExtractBinaryFeatures(image, options.relocalization_features);
   signature.keypoints = std::move(features.keypoints);
-  signature.keypoints.shrink_to_fit();  // the detector's growth doubled them (30 MB on 1264 key-images)
+  signature.keypoints.shrink_to_fit();  // the detector's growth doubled them (32 MB on 1264 key-images)
   signature.descriptors = features.descriptors;
   signature.appearance = QuantizeGlobalDescriptor(ComputeGlobalDescriptor(image, options.retrieval));
   return signature;

@@ -239,10 +239,7 @@ Outcome Examine(const Street& street, const Taught& taught) {
   outcome.joined_across = last_before != kInvalidNodeId && first_after != kInvalidNodeId &&
                           root(last_before) == root(first_after);
   for (const RejectedLink& rejected : taught.statistics.rejected_links) {
-    if (rejected.reason.find("do not determine") != std::string::npos ||
-        rejected.reason.find("does not determine") != std::string::npos) {
-      ++outcome.undetermined_rejections;
-    }
+    if (rejected.reason.find("does not determine") != std::string::npos) ++outcome.undetermined_rejections;
   }
   std::cout << map.nodes().size() << " key-images, " << map.arcs().size() << " arcs (" << outcome.arcs_before
             << " before the open stretch, " << outcome.arcs_after << " after), "
