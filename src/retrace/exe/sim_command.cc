@@ -4,6 +4,9 @@
 #include <cmath>
 #include <fstream>
 #include <iostream>
+#include <map>
+
+#include <nlohmann/json.hpp>
 
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
@@ -11,6 +14,8 @@
 
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/drive/closed_loop.h"
+#include "retrace/drive/navigation_loop.h"
+#include "retrace/map/map_database.h"
 #include "retrace/exe/commands.h"
 #include "retrace/exe/sequence_input.h"
 #include "retrace/sim/recording.h"
@@ -319,6 +324,213 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
             << (deviation.x.empty() ? "" : ", deviation.png") << "\n";
 }
 
+
+struct NavigateArguments {
+  ScenarioArguments scenario;
+  std::string map;
+  int64_t goal = -1;
+  std::string out;
+  std::vector<std::string> taught;  // the teach sequences of the map's routes, in route order
+  std::string graph = "auto";
+  std::string cost = "appearance";
+  bool quiet = false;
+  NavigatorOptions navigator;
+  NavigationLoopOptions loop;
+};
+
+// Ground truth of a map's key-images from the recorded teach sequences of its routes: each sequence's poses.txt
+// (its own world frame, the camera at its start) moved into the town frame by its scenario.yaml.
+std::unordered_map<node_t, Vector2d> KeyImagePositionsInTown(const Map& map, const std::vector<std::string>& taught) {
+  std::vector<std::vector<Vector2d>> routes;
+  for (const std::string& folder : taught) {
+    const std::filesystem::path dir(folder);
+    const Scenario scenario = ReadScenario((dir / "scenario.yaml").string());
+    const Rigid3d town_from_world = Simulator(scenario).town_from_world();
+    std::vector<Vector2d> positions;
+    for (const TimedPose& pose : ReadKittiPoses((dir / "poses.txt").string())) {
+      positions.push_back((town_from_world * pose.world_from_cam).translation.head<2>());
+    }
+    routes.push_back(std::move(positions));
+  }
+  std::unordered_map<node_t, Vector2d> positions;
+  for (const MapNode& node : map.nodes()) {
+    if (node.route < 0 || node.route >= static_cast<int>(routes.size())) {
+      throw InputError("--taught", fmt::format("the map has route {} (key-image {}) but {} teach sequences were given",
+                                               node.route, node.id, routes.size()));
+    }
+    const std::vector<Vector2d>& route = routes[node.route];
+    if (node.source_frame < 0 || node.source_frame >= static_cast<int64_t>(route.size())) {
+      throw InputError(taught[node.route], fmt::format("has {} poses, but key-image {} is its frame {}", route.size(),
+                                                       node.id, node.source_frame));
+    }
+    positions[node.id] = route[node.source_frame];
+  }
+  return positions;
+}
+
+// `sim navigate`: the car placed at the start of the scenario's drive (its repeat variant: other light) and driven by
+// the Navigator to a goal key-image (closed loop, Booij 2007 §B.4).
+void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
+  const Scenario scenario = ReadScenarioWithOverrides(args.scenario.scenario, args.scenario.Overrides(command));
+  Map map = MapDatabase::Open(args.map)->ReadMap(/*load_images=*/true, /*load_signature_features=*/false);
+  const node_t goal = static_cast<node_t>(args.goal);
+  if (args.goal < 0 || map.FindNode(goal) == nullptr) {
+    throw InputError(args.map, fmt::format("has no key-image {} (--goal; `retrace inspect --json` lists them)", args.goal));
+  }
+  std::unordered_map<node_t, Vector2d> truth;
+  if (!args.taught.empty()) truth = KeyImagePositionsInTown(map, args.taught);
+
+  Simulator simulator(ApplyVariant(scenario, ScenarioVariant::kRepeat));
+  const CameraModel& camera = simulator.camera();
+  const cv::Mat any_key_image = map.KeyImage(map.nodes().front().id);
+  if (any_key_image.cols != camera.width() || any_key_image.rows != camera.height()) {
+    throw InputError(args.map, fmt::format("key-images are {}x{} but the scenario's camera is {}x{} (--width, --height)",
+                                           any_key_image.cols, any_key_image.rows, camera.width(), camera.height()));
+  }
+  NavigatorOptions options = args.navigator;
+  options.planning.cost = args.cost == "drive" ? PlanOptions::Cost::kDrive : PlanOptions::Cost::kAppearance;
+  // An omnidirectional camera sees a route backwards too (the paper's undirected graph); a perspective one only
+  // ahead.
+  options.planning.directed = args.graph == "directed" ||
+                              (args.graph == "auto" && camera.type() == CameraModelType::kPerspective);
+  std::string error;
+  if (!options.Check(&error)) throw InputError("sim navigate options", error);
+  NavigationLoopOptions loop = args.loop;
+  loop.frame_period = 1.0 / scenario.frame_rate;
+  if (!loop.Check(&error)) throw InputError("sim navigate options", error);
+  Navigator navigator(std::move(map), camera, goal, options);
+  if (navigator.distances_to_goal().size() <= 1) {
+    throw InputError(args.map, fmt::format("no key-image can reach the goal {} ({} graph)", goal,
+                                           options.planning.directed ? "directed" : "undirected"));
+  }
+
+  std::filesystem::create_directories(args.out);
+  const std::filesystem::path out(args.out);
+  const std::filesystem::path csv_path = out / "drive.csv";
+  std::ofstream csv(csv_path);
+  if (!csv) throw InputError(csv_path.string(), "cannot be written");
+  csv << "frame,timestamp,x,y,yaw,state,subgoal,advanced,compared,relocalized,heading,filtered_heading,similarity,"
+         "misses,curvature,speed,wheels,ms,true_heading\n";
+  const auto number = [](std::optional<double> v) { return v ? fmt::format("{:.4f}", *v) : std::string(); };
+  NavigationLoopSummary summary;
+  {
+    ProgressBar progress("navigate", 0, !args.quiet);
+    int frame = 0;
+    summary = DriveToGoal(&simulator, &navigator, loop, [&](const NavigationLoopStep& s) {
+      const NavigationStep& n = *s.step;
+      const Rigid3d& town_from_cam = s.view->town_from_cam;
+      const Vector3d forward = town_from_cam.rotation.col(2);
+      // The true heading to the subgoal, as the navigator measures it (0 ahead, positive right).
+      std::optional<double> true_heading;
+      if (const auto t = truth.find(n.subgoal); t != truth.end()) {
+        const Vector3d to_subgoal(t->second.x() - town_from_cam.translation.x(),
+                                  t->second.y() - town_from_cam.translation.y(), 0.0);
+        const Vector3d in_cam = town_from_cam.rotation.transpose() * to_subgoal;
+        true_heading = std::atan2(in_cam.x(), in_cam.z());
+      }
+      csv << fmt::format("{},{:.3f},{:.3f},{:.3f},{:.4f},{},{},{},{},{},", frame++, s.view->timestamp,
+                         town_from_cam.translation.x(), town_from_cam.translation.y(),
+                         std::atan2(forward.y(), forward.x()), NavigationStateName(n.state),
+                         n.subgoal == kInvalidNodeId ? std::string() : std::to_string(n.subgoal), n.advanced,
+                         n.compared, n.relocalized ? 1 : 0)
+          << fmt::format("{},{},{:.4f},{},{:.5f},{:.3f},{:.5f},{:.1f},{}\n", number(n.heading),
+                         number(n.filtered_heading), n.similarity, n.misses, n.curvature, n.speed, s.wheels,
+                         1000.0 * n.seconds, number(true_heading));
+      progress.Advance(1, n.subgoal == kInvalidNodeId ? std::string(NavigationStateName(n.state))
+                                                      : fmt::format("subgoal {}", n.subgoal));
+    });
+  }
+  csv.flush();
+  if (!csv) throw InputError(csv_path.string(), "write failed");
+
+  // Ground-truth figures: distance to the goal's key-image and the street distance (the grid's streets: the
+  // Manhattan distance between start and goal, exact where they lie on crossing streets).
+  nlohmann::json json{{"reached_goal", summary.reached_goal},
+                      {"frames", summary.frames},
+                      {"path_length_m", summary.path_length_m},
+                      {"relocalizations", summary.relocalizations},
+                      {"frames_without_heading", summary.frames_without_heading},
+                      {"stalled", summary.stalled},
+                      {"left_streets", summary.left_streets},
+                      {"planned_path", navigator.planned_path().nodes}};
+  std::string figures;
+  if (!truth.empty() && !summary.camera_positions.empty()) {
+    const Vector2d goal_position = truth.at(goal);
+    const Vector2d d = summary.camera_positions.back() - goal_position;
+    const Vector2d s = summary.camera_positions.front() - goal_position;
+    json["distance_to_goal_m"] = d.norm();
+    json["street_distance_m"] = std::abs(s.x()) + std::abs(s.y());
+    json["length_ratio"] = summary.path_length_m / std::max(1e-9, json["street_distance_m"].get<double>());
+    figures = fmt::format("; {:.2f} m from the goal, driven {:.1f} m for a street distance of {:.1f} m ({:+.1f} %)",
+                          d.norm(), summary.path_length_m, json["street_distance_m"].get<double>(),
+                          100.0 * (json["length_ratio"].get<double>() - 1.0));
+  }
+  const std::filesystem::path json_path = out / "summary.json";
+  {
+    std::ofstream file(json_path);
+    file << json.dump(2) << "\n";
+    if (!file) throw InputError(json_path.string(), "cannot be written");
+  }
+
+  // From above: the graph's key-images (ground truth), the planned path, the driven path.
+  std::vector<PlotSeries> top_view;
+  if (!truth.empty()) {
+    std::map<int, PlotSeries> routes;
+    for (const MapNode& node : navigator.map().nodes()) {
+      PlotSeries& r = routes[node.route];
+      r.label = fmt::format("key-images of route {}", node.route);
+      r.style = PlotSeries::Style::kPoints;
+      r.color = SeriesColor(node.route + 2);
+      r.x.push_back(truth.at(node.id).x());
+      r.y.push_back(truth.at(node.id).y());
+    }
+    for (auto& entry : routes) top_view.push_back(entry.second);
+    PlotSeries planned;
+    planned.label = "planned path (from the last localization)";
+    planned.color = cv::Scalar(40, 40, 220);
+    planned.thickness = 3;
+    for (node_t n : navigator.planned_path().nodes) {
+      planned.x.push_back(truth.at(n).x());
+      planned.y.push_back(truth.at(n).y());
+    }
+    if (!planned.x.empty()) top_view.push_back(planned);
+    PlotSeries goal_point;
+    goal_point.label = "goal";
+    goal_point.style = PlotSeries::Style::kPoints;
+    goal_point.thickness = 8;
+    goal_point.color = cv::Scalar(0, 160, 255);
+    goal_point.x.push_back(truth.at(goal).x());
+    goal_point.y.push_back(truth.at(goal).y());
+    top_view.push_back(goal_point);
+  }
+  PlotSeries driven;
+  driven.label = "driven by retrace";
+  driven.color = cv::Scalar(30, 30, 30);
+  for (const Vector2d& p : summary.camera_positions) {
+    driven.x.push_back(p.x());
+    driven.y.push_back(p.y());
+  }
+  top_view.push_back(driven);
+  PlotOptions top;
+  top.title = "navigation to a goal (seen from above, town frame)";
+  top.x_label = "east (m)";
+  top.y_label = "north (m)";
+  top.equal_aspect = true;
+  top.height = 800;
+  const std::filesystem::path top_path = out / "path.png";
+  if (!cv::imwrite(top_path.string(), RenderPlot(top_view, top))) throw InputError(top_path.string(), "cannot be written");
+
+  std::cout << fmt::format("navigate to key-image {}: {} after {} frames, {} relocalizations, {} frames without a "
+                           "heading{}\n",
+                           goal,
+                           summary.reached_goal ? "stopped at the goal"
+                           : summary.stalled    ? "gave up standing still (not localized)"
+                           : summary.left_streets ? "left the streets"
+                                                  : "did not reach the goal in --max-frames",
+                           summary.frames, summary.relocalizations, summary.frames_without_heading, figures);
+  std::cout << "wrote " << csv_path.string() << ", " << top_path.string() << ", " << json_path.string() << "\n";
+}
+
 }  // namespace
 
 void RegisterSimCommand(CLI::App& app) {
@@ -407,6 +619,43 @@ void RegisterSimCommand(CLI::App& app) {
       ->capture_default_str();
   drive->add_flag("--quiet", args->quiet, "No progress bar");
   drive->callback([drive, args]() { RunDrive(*drive, *args); });
+
+  CLI::App* navigate = sim->add_subcommand(
+      "navigate", "Drive the car from the scenario's start to a goal key-image of a map of several routes with "
+                  "retrace's navigator (closed loop, Booij 2007): drive.csv, path.png, summary.json");
+  auto nav_args = std::make_shared<NavigateArguments>();
+  nav_args->scenario.Register(navigate);
+  navigate->add_option("--map", nav_args->map, "Map of the town's routes (`retrace teach`, `teach --append`)")->required();
+  navigate->add_option("--goal", nav_args->goal, "Goal key-image (node id, as in `retrace inspect --json`)")->required();
+  navigate->add_option("--out", nav_args->out, "Output folder: drive.csv, path.png, summary.json")->required();
+  navigate->add_option("--taught", nav_args->taught,
+                       "The recorded teach sequences of the map's routes, in route order (their scenario.yaml and "
+                       "poses.txt): ground truth for the distance to the goal and the drawing");
+  navigate->add_option("--graph", nav_args->graph,
+                       "Plan along the taught directions (directed) or both ways (undirected); auto: undirected for "
+                       "a panoramic camera, directed otherwise")
+      ->check(CLI::IsMember({"auto", "directed", "undirected"}))
+      ->capture_default_str();
+  navigate->add_option("--cost", nav_args->cost, "Edge length: appearance (1 / S, Booij 2007) or drive (teach seconds)")
+      ->check(CLI::IsMember({"appearance", "drive"}))
+      ->capture_default_str();
+  navigate->add_option("--speed", nav_args->navigator.speed, "Speed while a heading is known, (0, 50] m/s")
+      ->capture_default_str();
+  navigate->add_option("--look-ahead", nav_args->navigator.look_ahead,
+                       "Pure-pursuit distance towards the subgoal's heading, m")
+      ->capture_default_str();
+  navigate->add_option("--localization-candidates", nav_args->navigator.localization_candidates,
+                       "Key-images compared when (re)localizing: 0 = all (the paper), else the closest in appearance")
+      ->capture_default_str();
+  navigate->add_option("--match-ratio", nav_args->navigator.matching.ratio,
+                       "Ratio test of the wide-baseline matches between the image and a key-image")
+      ->capture_default_str();
+  navigate->add_option("--min-similarity", nav_args->navigator.min_similarity,
+                       "Similarity S at which a key-image matches the image (Booij 2007: 0.05)")
+      ->capture_default_str();
+  navigate->add_option("--max-frames", nav_args->loop.max_frames, "Give up after this many frames")->capture_default_str();
+  navigate->add_flag("--quiet", nav_args->quiet, "No progress bar");
+  navigate->callback([navigate, nav_args]() { RunNavigate(*navigate, *nav_args); });
 }
 
 }  // namespace retrace

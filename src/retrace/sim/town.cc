@@ -480,6 +480,18 @@ std::vector<Vector2d> RandomRouteJunctions(const TownLayout& layout, int num_seg
   return points;
 }
 
+bool TownLayout::OnStreets(const Vector2d& p) const {
+  if (street_x.empty() || street_y.empty()) return false;
+  const double half = road_width / 2.0 + sidewalk_width;
+  const auto [x_min, x_max] = std::minmax_element(street_x.begin(), street_x.end());
+  const auto [y_min, y_max] = std::minmax_element(street_y.begin(), street_y.end());
+  if (p.x() < *x_min - half || p.x() > *x_max + half || p.y() < *y_min - half || p.y() > *y_max + half) return false;
+  const auto near_one = [half](const std::vector<double>& lines, double v) {
+    return std::any_of(lines.begin(), lines.end(), [&](double line) { return std::abs(v - line) <= half; });
+  };
+  return near_one(street_x, p.x()) || near_one(street_y, p.y());
+}
+
 std::vector<Vector2d> OffsetPolyline(const std::vector<Vector2d>& points, double offset) {
   const size_t n = points.size();
   if (n < 2) return points;

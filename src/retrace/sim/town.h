@@ -57,6 +57,9 @@ struct TownLayout {
   // Centre of the right lane (metres right of the centre line).
   double lane_offset() const { return road_width / 4.0; }
   Vector2d Junction(int i, int j) const { return Vector2d(street_x[i], street_y[j]); }
+  // Whether `p` lies on a street (carriageway or sidewalk) of the grid: within road_width / 2 + sidewalk_width of a
+  // centre line and between the outermost streets' curbs. False inside a block and outside the town.
+  bool OnStreets(const Vector2d& p) const;
 };
 
 // Builds the town into `scene` (textures, materials, static meshes, moving objects, sky) and commits it.

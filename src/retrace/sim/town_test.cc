@@ -41,6 +41,20 @@ TEST(TownTest, StreetsHaveJunctionsAndTheRouteTurns) {
   EXPECT_NEAR(lane[0].y(), -2.0, 1e-12);
 }
 
+TEST(TownTest, OnStreetsIsTrueOnCarriagewaysAndSidewalksOnly) {
+  TownLayout layout;
+  layout.street_x = {0.0, 50.0};
+  layout.street_y = {0.0, 40.0};
+  const double half = layout.road_width / 2 + layout.sidewalk_width;  // 6.5 m
+  EXPECT_TRUE(layout.OnStreets({25.0, 0.0}));           // on a west-east street
+  EXPECT_TRUE(layout.OnStreets({50.0, 20.0}));          // on a south-north street
+  EXPECT_TRUE(layout.OnStreets({25.0, half - 0.01}));   // its sidewalk
+  EXPECT_FALSE(layout.OnStreets({25.0, half + 0.01}));  // the block behind it
+  EXPECT_FALSE(layout.OnStreets({25.0, 20.0}));         // inside the block
+  EXPECT_FALSE(layout.OnStreets({-half - 0.01, 0.0}));  // out of the town
+  EXPECT_FALSE(TownLayout().OnStreets({0.0, 0.0}));     // no streets
+}
+
 TEST(TownTest, ViewsAreRichInCornersForTracking) {
   Scenario s;
   s.town.blocks_x = 2;

@@ -80,6 +80,11 @@ c.close()' "$tmp/schema2.db"
     --map "$tmp/schema2.db" --from 0 --to 3
   expect plan-old-map-drive 0 'path from 0 to 3' -- "$bin" plan --map "$tmp/schema2.db" --from 0 --to 3 --cost drive
   expect inspect-old-map 0 'similarity +not stored' -- "$bin" inspect --map "$tmp/schema2.db"
+  # sim navigate refuses a goal the map does not have and a scenario whose camera did not take the key-images.
+  expect navigate-missing-goal 1 "^retrace: error: $tmp/graph.db: has no key-image 99999 \\(--goal" -- "$bin" sim \
+    navigate --map "$tmp/graph.db" --goal 99999 --out "$tmp/navigate" --quiet
+  expect navigate-camera-mismatch 1 "graph.db: key-images are 320x97 but the scenario's camera is 64x48" -- "$bin" \
+    sim navigate --map "$tmp/graph.db" --goal 0 --out "$tmp/navigate" --width 64 --height 48 --quiet
 fi
 # two-view --planar --json: the heading (eq. B.4 in retrace's axes: atan2(c_x, c_z) of B's centre c in A's camera
 # frame) in the simulator with a level camera on flat ground (the planar model's setting), in the left turn of the

@@ -1,0 +1,49 @@
+#pragma once
+
+// Closed-loop navigation in the simulator (Booij 2007 §B.4-B.5): the simulated car, placed where its scenario's drive
+// starts, is steered by the Navigator alone — frame by frame, the heading towards the subgoal turned into a curvature
+// and a speed — until the navigator stops at the goal or the drive gives up. The front wheels are set to atan(L κ)
+// (L the scenario's wheelbase, positive left) for one frame period.
+//
+// The car may leave the scenario's route (it drives to a goal on another one), so the drive ends where the streets
+// end instead (TownLayout OnStreets: inside a block or outside the town), not at Simulator::OffRoute.
+
+#include <functional>
+#include <vector>
+
+#include "retrace/nav/navigator.h"
+#include "retrace/sim/simulator.h"
+
+namespace retrace {
+
+struct NavigationLoopOptions {
+  double frame_period = 0.1;  // seconds between frames: the car drives this long with one command
+  int max_frames = 3000;      // the drive gives up after this many frames ...
+  int max_stopped_frames = 50;  // ... or this many in a row standing still (not localized, no path)
+
+  bool Check(std::string* error = nullptr) const;
+};
+
+// One frame of a navigation drive.
+struct NavigationLoopStep {
+  const SimFrame* view = nullptr;         // what the camera saw and where it was (ground truth)
+  const NavigationStep* step = nullptr;   // what the navigator made of it
+  double wheels = 0.0;                    // steering applied after this frame (radians, positive left)
+};
+
+struct NavigationLoopSummary {
+  int frames = 0;
+  bool reached_goal = false;   // the navigator stopped at the goal
+  bool stalled = false;        // stood still for max_stopped_frames frames
+  bool left_streets = false;   // drove into a block or out of the town
+  int relocalizations = 0;     // recoveries after max_misses images without a heading (not the first localization)
+  int frames_without_heading = 0;
+  double path_length_m = 0.0;             // driven by the camera
+  std::vector<Vector2d> camera_positions;  // per frame, town frame (x east, y north)
+};
+
+// Drives `simulator` (at its scenario's start) with `navigator`'s commands. `on_step` (optional) sees every frame.
+NavigationLoopSummary DriveToGoal(Simulator* simulator, Navigator* navigator, const NavigationLoopOptions& options,
+                                  const std::function<void(const NavigationLoopStep&)>& on_step = {});
+
+}  // namespace retrace

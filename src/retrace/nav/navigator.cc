@@ -1,0 +1,257 @@
+#include "retrace/nav/navigator.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "retrace/feature/global_descriptor.h"
+#include "retrace/geometry/planar_pose.h"
+
+namespace retrace {
+
+WideBaselineOptions NavigationMatchingDefaults() {
+  WideBaselineOptions options;
+  options.max_harris_keypoints = 0;
+  options.max_mser_keypoints = 0;
+  options.ratio = 0.8;
+  return options;
+}
+
+bool NavigatorOptions::Check(std::string* error) const {
+  const auto fail = [error](const std::string& message) {
+    if (error != nullptr) *error = message;
+    return false;
+  };
+  std::string part;
+  if (!planning.Check(&part)) return fail("planning: " + part);
+  if (!heading.Check(&part)) return fail("heading: " + part);
+  if (!matching.Check(&part)) return fail("matching: " + part);
+  if (!(min_similarity > 0 && min_similarity <= 1)) {
+    return fail(fmt::format("min_similarity must be in (0, 1], got {}", min_similarity));
+  }
+  if (localization_candidates < 0) {
+    return fail(fmt::format("localization_candidates must be >= 0 (0 = all), got {}", localization_candidates));
+  }
+  if (!(look_ahead > 0 && look_ahead <= 1000)) return fail(fmt::format("look_ahead must be in (0, 1000] m, got {}", look_ahead));
+  if (!(speed > 0 && speed <= 50)) return fail(fmt::format("speed must be in (0, 50] m/s, got {}", speed));
+  if (max_cached_key_images < 1) {
+    return fail(fmt::format("max_cached_key_images must be >= 1, got {}", max_cached_key_images));
+  }
+  return true;
+}
+
+const char* NavigationStateName(NavigationState state) {
+  switch (state) {
+    case NavigationState::kLocalizing:
+      return "localizing";
+    case NavigationState::kNavigating:
+      return "navigating";
+    case NavigationState::kAtGoal:
+      return "at_goal";
+    case NavigationState::kNoPath:
+      return "no_path";
+  }
+  return "?";
+}
+
+Navigator::Navigator(Map map, const CameraModel& camera, node_t goal, const NavigatorOptions& options)
+    : map_(std::move(map)), camera_(camera.Clone()), goal_(goal), options_(options), filter_(options.heading) {
+  std::string error;
+  if (!options_.Check(&error)) throw std::invalid_argument("NavigatorOptions: " + error);
+  if (map_.FindNode(goal_) == nullptr) throw std::invalid_argument(fmt::format("the goal {} is not a node of the map", goal_));
+  graph_ = BuildPlanningGraph(map_, options_.planning);
+  distance_to_goal_ = DistancesToGoal(graph_, goal_);
+}
+
+Navigator::KeyImageFeatures Navigator::Describe(const cv::Mat& image) const {
+  KeyImageFeatures result;
+  result.features = ExtractWideBaselineFeatures(image, options_.matching);
+  result.bearings.resize(result.features.size(), Vector3d::Zero());
+  for (size_t i = 0; i < result.features.size(); ++i) {
+    const cv::Point2f& p = result.features.keypoints[i].pt;
+    Vector3d bearing;
+    if (camera_->Unproject(Vector2d(p.x, p.y), &bearing)) result.bearings[i] = bearing.normalized();
+  }
+  return result;
+}
+
+const Navigator::KeyImageFeatures& Navigator::FeaturesOf(node_t node) {
+  auto found = cache_.find(node);
+  if (found != cache_.end()) {
+    cache_order_.remove(node);
+    cache_order_.push_front(node);
+    return found->second;
+  }
+  while (cache_.size() >= static_cast<size_t>(options_.max_cached_key_images) && !cache_order_.empty()) {
+    cache_.erase(cache_order_.back());
+    cache_order_.pop_back();
+  }
+  cache_order_.push_front(node);
+  return cache_.emplace(node, Describe(map_.KeyImage(node))).first->second;
+}
+
+Navigator::Comparison Navigator::Compare(node_t node, int* compared) {
+  if (const auto done = comparisons_.find(node); done != comparisons_.end()) return done->second;
+  const KeyImageFeatures& key_image = FeaturesOf(node);
+  ++*compared;
+  Comparison comparison;
+  std::vector<Vector3d> bearings_current, bearings_key_image;
+  for (const cv::DMatch& match : MatchWideBaseline(current_.features, key_image.features, options_.matching)) {
+    const Vector3d& a = current_.bearings[match.queryIdx];
+    const Vector3d& b = key_image.bearings[match.trainIdx];
+    if (a.isZero() || b.isZero()) continue;
+    bearings_current.push_back(a);
+    bearings_key_image.push_back(b);
+  }
+  if (bearings_current.size() >= 3) {
+    comparison.geometry =
+        EstimatePlanarRelativePose(bearings_current, bearings_key_image, camera_->FocalLength(), options_.geometry);
+    // Booij 2007 §B.2: epipolar-consistent matches over the fewer key-points of the two images. An estimate refused
+    // only for its parallax still counts its matches: the robot stands at the key-image's place.
+    const size_t fewer = std::min(current_.features.size(), key_image.features.size());
+    const bool consistent = comparison.geometry.success ||
+                            comparison.geometry.failure == TwoViewFailure::kInsufficientParallax;
+    if (consistent && fewer > 0) {
+      comparison.similarity = std::min(1.0, static_cast<double>(comparison.geometry.num_inliers) / fewer);
+    }
+  }
+  comparison.matches = comparison.similarity >= options_.min_similarity &&
+                       comparison.geometry.num_inliers >= options_.geometry.min_inliers;
+  spdlog::debug("navigator: key-image {}: {} matches, {} inliers ({}), similarity {:.3f}", node,
+                bearings_current.size(), comparison.geometry.num_inliers,
+                comparison.geometry.success ? "geometry" : TwoViewFailureName(comparison.geometry.failure),
+                comparison.similarity);
+  comparisons_.emplace(node, comparison);
+  return comparison;
+}
+
+node_t Navigator::Localize(int* compared) {
+  std::vector<node_t> candidates;
+  for (const MapNode& node : map_.nodes()) candidates.push_back(node.id);
+  if (options_.localization_candidates > 0 && static_cast<size_t>(options_.localization_candidates) < candidates.size()) {
+    std::vector<GlobalDescriptor> descriptors;
+    for (node_t id : candidates) descriptors.push_back(ComputeGlobalDescriptor(map_.KeyImage(id)));
+    // Recomputed at every localization (rare: the start and recoveries), so that no thumbnails are held.
+    std::vector<node_t> ranked;
+    for (size_t i : RankByGlobalDescriptor(ComputeGlobalDescriptor(current_image_), descriptors)) {
+      ranked.push_back(candidates[i]);
+      if (ranked.size() == static_cast<size_t>(options_.localization_candidates)) break;
+    }
+    candidates = ranked;
+  }
+  node_t best = kInvalidNodeId;
+  double best_similarity = 0.0;
+  for (node_t id : candidates) {
+    const Comparison comparison = Compare(id, compared);
+    if (comparison.matches && comparison.similarity > best_similarity) {
+      best = id;
+      best_similarity = comparison.similarity;
+    }
+  }
+  return best;
+}
+
+double Navigator::Curvature(double heading) const {
+  // Pure pursuit towards the point at distance ℓ in the direction φ (positive right): κ = 2 sin φ / ℓ to the right,
+  // the largest turn (2 / ℓ) for a point beside or behind. Curvature is positive left.
+  const double turn = std::abs(heading) >= M_PI / 2 ? 1.0 : std::sin(std::abs(heading));
+  return -std::copysign(2.0 * turn / options_.look_ahead, heading);
+}
+
+NavigationStep Navigator::ProcessImage(const cv::Mat& image) {
+  const auto start = std::chrono::steady_clock::now();
+  NavigationStep step;
+  comparisons_.clear();
+  current_image_ = image;
+  current_ = Describe(image);
+
+  if (at_goal_) {
+    step.state = NavigationState::kAtGoal;
+    step.subgoal = subgoal_;
+  } else {
+    // (Re)localization: at the start, and after max_misses images in a row without a heading (Booij 2007 §B.4).
+    bool localized = subgoal_ != kInvalidNodeId && !filter_.NeedsRelocalization();
+    if (!localized) {
+      const bool recovering = subgoal_ != kInvalidNodeId;
+      const node_t found = Localize(&step.compared);
+      if (found != kInvalidNodeId) {
+        planned_path_ = PlanPath(graph_, found, goal_);
+        spdlog::debug("navigator: localized at key-image {} (similarity {:.3f}), {} to the goal", found,
+                      comparisons_.at(found).similarity,
+                      planned_path_.found ? fmt::format("{} key-images", planned_path_.nodes.size())
+                                          : std::string("no path"));
+        step.relocalized = true;
+        relocalizations_ += recovering;
+        filter_.Reset();
+        subgoal_ = planned_path_.found ? found : kInvalidNodeId;
+        localized = planned_path_.found;
+        step.state = localized ? NavigationState::kNavigating : NavigationState::kNoPath;
+      } else if (recovering) {
+        filter_.Update(std::nullopt);  // still lost: the misses go on counting
+      }
+    }
+    if (!localized) {
+      // Not localized (or nowhere to go from here): stand still and try again with the next image.
+      if (step.state != NavigationState::kNoPath) step.state = NavigationState::kLocalizing;
+      step.subgoal = subgoal_;
+    } else {
+      // Dynamic subgoal (Booij 2007 §B.4, subgoal.h).
+      const SubgoalUpdate update = AdvanceSubgoal(graph_, distance_to_goal_, subgoal_, goal_, [&](node_t node) {
+        return Compare(node, &step.compared).matches;
+      });
+      subgoal_ = update.subgoal;
+      step.advanced = update.advanced;
+      step.subgoal = subgoal_;
+      step.state = NavigationState::kNavigating;
+
+      // Heading towards the subgoal: eq. (B.4) on the planar geometry of this image and the subgoal's key-image.
+      const Comparison comparison = Compare(subgoal_, &step.compared);
+      step.similarity = comparison.similarity;
+      const bool is_goal = subgoal_ == goal_;
+      // The paper's heading needs only a geometry (it is missing when fewer than 3-4 points correspond), not a
+      // match strong enough to advance the subgoal.
+      bool reached = false;  // the robot is at the subgoal or past it
+      if (comparison.geometry.success) {
+        const double heading = PlanarHeading(comparison.geometry.b_from_a);
+        step.heading = heading;
+        const bool behind = std::abs(heading) > M_PI / 2;
+        // A subgoal behind that still matches was passed before its successor matched. A heading behind from a
+        // weaker geometry (a few chance inliers point anywhere) is no evidence: moving on from it skipped whole
+        // stretches of the path in the simulated town. Either would turn the robot round.
+        reached = behind && comparison.matches;
+        filter_.Update(behind ? std::nullopt : std::optional<double>(heading));
+      } else {
+        // The subgoal's own place: it matches, but the matches show no parallax.
+        reached = comparison.matches && comparison.geometry.failure == TwoViewFailure::kInsufficientParallax;
+        filter_.Update(std::nullopt);
+      }
+      if (reached && is_goal) {
+        at_goal_ = true;
+      } else if (reached) {
+        // On the way to the next key-image of the shortest path.
+        const PlannedPath onwards = PlanPath(graph_, subgoal_, goal_);
+        if (onwards.found && onwards.nodes.size() >= 2) {
+          subgoal_ = step.subgoal = onwards.nodes[1];
+          ++step.advanced;
+        }
+      }
+      if (at_goal_) step.state = NavigationState::kAtGoal;
+    }
+  }
+
+  step.misses = filter_.misses();
+  step.filtered_heading = filter_.heading();
+  if (const auto d = distance_to_goal_.find(subgoal_); d != distance_to_goal_.end()) step.distance_to_goal = d->second;
+  if (step.state == NavigationState::kNavigating && step.filtered_heading.has_value()) {
+    step.curvature = Curvature(*step.filtered_heading);
+    step.speed = step.heading.has_value() ? options_.speed : 0.5 * options_.speed;
+  }
+  step.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return step;
+}
+
+}  // namespace retrace
