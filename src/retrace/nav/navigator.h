@@ -30,6 +30,7 @@
 // positive right (PlanarHeading). Curvature: positive left (the simulator's and the path tracker's convention).
 
 #include <list>
+#include <memory>
 #include <optional>
 #include <string>
 #include <unordered_map>
