@@ -63,6 +63,12 @@ Navigator::Navigator(Map map, const CameraModel& camera, node_t goal, const Navi
   std::string error;
   if (!options_.Check(&error)) throw std::invalid_argument("NavigatorOptions: " + error);
   if (map_.FindNode(goal_) == nullptr) throw std::invalid_argument(fmt::format("the goal {} is not a node of the map", goal_));
+  if (options_.level_camera) {
+    camera_mount_ = EstimateCameraMount(map_, options_.camera_mount);
+    spdlog::info("navigator: camera tilted {:.2f} deg against the ground (from {} arc translations and {} turns; {} "
+                 "outliers dropped)", camera_mount_.tilt_rad() * 180 / M_PI, camera_mount_.translations,
+                 camera_mount_.rotations, camera_mount_.dropped);
+  }
   graph_ = BuildPlanningGraph(map_, options_.planning);
   distance_to_goal_ = DistancesToGoal(graph_, goal_);
 }
@@ -74,7 +80,9 @@ Navigator::KeyImageFeatures Navigator::Describe(const cv::Mat& image) const {
   for (size_t i = 0; i < result.features.size(); ++i) {
     const cv::Point2f& p = result.features.keypoints[i].pt;
     Vector3d bearing;
-    if (camera_->Unproject(Vector2d(p.x, p.y), &bearing)) result.bearings[i] = bearing.normalized();
+    if (camera_->Unproject(Vector2d(p.x, p.y), &bearing)) {
+      result.bearings[i] = camera_mount_.level_from_camera * bearing.normalized();
+    }
   }
   return result;
 }

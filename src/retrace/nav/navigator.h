@@ -26,6 +26,9 @@
 // the robot drives on until the goal, matching, is more than 90° off ahead (beside or behind) or shows no parallax.
 // A heading behind from a geometry too weak to be a match (a few chance inliers point anywhere) is only ignored.
 //
+// Bearings are rotated into the level frame of the ground plane estimated from the map's arcs (camera_mount.h), so
+// that the planar model holds for a camera pitched against the ground (a car's camera) across turns.
+//
 // The camera frame is retrace's (x right, y down, z forward); the robot drives along z. Headings: 0 ahead,
 // positive right (PlanarHeading). Curvature: positive left (the simulator's and the path tracker's convention).
 
@@ -43,6 +46,7 @@
 #include "retrace/geometry/two_view_geometry.h"
 #include "retrace/map/map.h"
 #include "retrace/nav/graph_planner.h"
+#include "retrace/nav/camera_mount.h"
 #include "retrace/nav/heading_filter.h"
 #include "retrace/nav/subgoal.h"
 
@@ -77,6 +81,11 @@ struct NavigatorOptions {
   double speed = 2.0;
   // Features of this many key-images are kept between images (a subgoal's neighbourhood needs a handful).
   int max_cached_key_images = 64;
+  // Rotate every bearing into the level frame of the ground plane estimated from the map's arcs (camera_mount.h)
+  // before the planar geometry, so that a camera pitched or rolled against the ground still moves in the plane the
+  // model assumes. Off: the camera is taken as level (Booij's upright panoramic camera).
+  bool level_camera = true;
+  CameraMountOptions camera_mount;
 
   bool Check(std::string* error = nullptr) const;
 };
@@ -123,6 +132,8 @@ class Navigator {
   // The path planned to the goal from the key-image of the last (re)localization.
   const PlannedPath& planned_path() const { return planned_path_; }
   int relocalizations() const { return relocalizations_; }
+  // The ground plane the bearings are levelled by (a level camera when options.level_camera is off).
+  const CameraMount& camera_mount() const { return camera_mount_; }
   // D of every node that reaches the goal.
   const std::unordered_map<node_t, double>& distances_to_goal() const { return distance_to_goal_; }
 
@@ -148,6 +159,7 @@ class Navigator {
   std::unique_ptr<CameraModel> camera_;
   node_t goal_;
   NavigatorOptions options_;
+  CameraMount camera_mount_;
   PlanningGraph graph_;
   std::unordered_map<node_t, double> distance_to_goal_;
   PlannedPath planned_path_;
