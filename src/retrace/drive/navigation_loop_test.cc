@@ -1,9 +1,19 @@
-// Closed-loop navigation in the simulator (Booij 2007 §B.4): a panoramic camera's drive along one street of a small
-// town is taught, and the car, placed where the repeat variant starts (1 m to the side, another sun), is driven by
-// the Navigator alone to a key-image about 60 m on. Ground truth: the camera's distance from the goal key-image's
-// place when the navigator stops, and the length of the drive against the straight street between them.
+// Closed-loop navigation in the simulator (Booij 2007 §B.4; issue 15's acceptance, shortened): a panoramic camera's
+// drives along two crossing streets of a small town are taught (the second appended to the first's map, linked
+// where they see the same place), and the car, placed where the first drive's repeat variant starts (1 m to the
+// side, another sun), is driven by the Navigator alone to a key-image of the second drive about 25 m past the
+// crossing: it must turn where neither drive turned. Ground truth: the camera's distance from the goal key-image's
+// place when the navigator stops, the length of the drive against the streets between start and goal, and the
+// largest distance from the path planned at the time (a wrong turn).
 
 #include "retrace/drive/navigation_loop.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <fmt/format.h>
@@ -38,7 +48,7 @@ TEST(NavigatorOptions, CheckRejectsBadValues) {
   EXPECT_FALSE(options.Check());
 }
 
-Scenario StreetScenario() {
+Scenario StreetScenario(std::vector<std::array<int, 2>> junctions) {
   Scenario scenario;
   scenario.seed = 5;
   scenario.town.seed = 5;
@@ -50,56 +60,96 @@ Scenario StreetScenario() {
   scenario.camera.width = 640;
   scenario.camera.height = 320;
   scenario.route.type = "junctions";
-  scenario.route.junctions = {{{0, 1}}, {{1, 1}}, {{2, 1}}};  // east along one street, through a junction
+  scenario.route.junctions = std::move(junctions);
   return scenario;
 }
 
-TEST(NavigationLoop, PanoramicCarStopsAtAGoalAlongTheTaughtStreet) {
-  const Scenario scenario = StreetScenario();
-  const RecordedDrive teach = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kTeach));
-  Teacher teacher(*teach.camera, TeachOptions(), nullptr);
-  for (const Frame& frame : teach.frames) teacher.AddFrame(frame);
-  teacher.Finish();
-  const Map map = teacher.map();
-  ASSERT_GE(map.nodes().size(), 10u);
+// Distance of p from the polyline through `points`.
+double DistanceToPolyline(const std::vector<Vector2d>& points, const Vector2d& p) {
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i + 1 < points.size(); ++i) {
+    const Vector2d ab = points[i + 1] - points[i];
+    const double along = ab.squaredNorm() > 0 ? std::clamp((p - points[i]).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0;
+    best = std::min(best, (points[i] + along * ab - p).norm());
+  }
+  return points.size() == 1 ? (points[0] - p).norm() : best;
+}
 
-  // The goal: the key-image taught nearest 60 m from the start; its place in the town frame.
-  Simulator simulator(ApplyVariant(scenario, ScenarioVariant::kRepeat));
-  const Rigid3d town_from_world = Simulator(scenario).town_from_world();
-  const auto town_position = [&](int64_t frame) {
-    return Vector2d((town_from_world * teach.truth[frame].world_from_cam).translation.head<2>());
-  };
-  node_t goal = kInvalidNodeId;
+TEST(NavigationLoop, PanoramicCarTurnsWhereNoDriveTurned) {
+  // Route 0 east through the junctions (0,1) (1,1) (2,1); route 1 north through (1,0) (1,1) (1,2): they cross at (1,1).
+  const std::array<Scenario, 2> scenarios = {StreetScenario({{{0, 1}}, {{1, 1}}, {{2, 1}}}),
+                                             StreetScenario({{{1, 0}}, {{1, 1}}, {{1, 2}}})};
+  std::unordered_map<node_t, Vector2d> truth;  // key-images' places, town frame
+  Map map;
+  for (int route = 0; route < 2; ++route) {
+    const RecordedDrive teach = RecordDrive(ApplyVariant(scenarios[route], ScenarioVariant::kTeach));
+    Teacher teacher(*teach.camera, TeachOptions(), nullptr);
+    if (route == 1) teacher.AppendTo(map);
+    for (const Frame& frame : teach.frames) teacher.AddFrame(frame);
+    teacher.Finish();
+    // An appended teacher's map holds the new drive and its joins (teach --append adds them to the map's file).
+    for (const MapNode& node : teacher.map().nodes()) map.AddNode(node);
+    for (const MapArc& arc : teacher.map().arcs()) map.AddArc(arc);
+    for (const NodeScale& scale : teacher.map().scales()) map.AddScale(scale);
+    const Rigid3d town_from_world = Simulator(scenarios[route]).town_from_world();
+    for (const MapNode& node : map.nodes()) {
+      if (node.route != route) continue;
+      truth[node.id] = (town_from_world * teach.truth[node.source_frame].world_from_cam).translation.head<2>();
+    }
+  }
+  int joins = 0;
+  for (const MapArc& arc : map.arcs()) joins += arc.kind == "join";
+  ASSERT_GE(joins, 1) << "the two drives were not linked at their crossing";
+
+  // The goal: the key-image of route 1 nearest 25 m north of the crossing, which is route 1's key-image nearest
+  // route 0's street (route 0 runs east at a constant y).
+  Vector2d junction = Vector2d::Zero();
   double best = 1e9;
   for (const MapNode& node : map.nodes()) {
-    const double from_start = (town_position(node.source_frame) - town_position(0)).norm();
-    if (std::abs(from_start - 60.0) < best) {
-      best = std::abs(from_start - 60.0);
+    if (node.route == 1 && std::abs(truth.at(node.id).y() - truth.at(0).y()) < best) {
+      best = std::abs(truth.at(node.id).y() - truth.at(0).y());
+      junction = truth.at(node.id);
+    }
+  }
+  node_t goal = kInvalidNodeId;
+  best = 1e9;
+  for (const MapNode& node : map.nodes()) {
+    const Vector2d d = truth.at(node.id) - junction;
+    if (node.route == 1 && d.y() > 0 && std::abs(d.y() - 25.0) < best) {
+      best = std::abs(d.y() - 25.0);
       goal = node.id;
     }
   }
-  const Vector2d goal_position = town_position(map.FindNode(goal)->source_frame);
+  ASSERT_NE(goal, kInvalidNodeId);
+  const Vector2d goal_position = truth.at(goal);
 
+  Simulator simulator(ApplyVariant(scenarios[0], ScenarioVariant::kRepeat));
   Navigator navigator(map, simulator.camera(), goal);
   NavigationLoopOptions options;
-  options.frame_period = 1.0 / scenario.frame_rate;
-  options.max_frames = 600;
+  options.frame_period = 1.0 / scenarios[0].frame_rate;
+  options.max_frames = 800;
   std::string steps;  // per frame: subgoal, heading, relocalization (printed on failure)
+  double off_path = 0.0;
   const NavigationLoopSummary summary = DriveToGoal(&simulator, &navigator, options, [&](const NavigationLoopStep& s) {
-    steps += fmt::format("{}{}{} ", s.step->subgoal, s.step->heading ? fmt::format("/{:.2f}", *s.step->heading) : "",
-                         s.step->relocalized ? "R" : "");
+    steps += fmt::format("{}{}{}{} ", s.step->subgoal, s.step->heading ? fmt::format("/{:.2f}", *s.step->heading) : "",
+                         s.step->along_arc ? "A" : "", s.step->relocalized ? "R" : "");
+    std::vector<Vector2d> plan;
+    for (node_t n : navigator.planned_path().nodes) plan.push_back(truth.at(n));
+    if (!plan.empty()) off_path = std::max(off_path, DistanceToPolyline(plan, s.view->town_from_cam.translation.head<2>()));
   });
   ASSERT_FALSE(summary.camera_positions.empty());
-  const double straight = (summary.camera_positions.front() - goal_position).norm();
+  const Vector2d start_to_goal = goal_position - summary.camera_positions.front();
+  const double streets = std::abs(start_to_goal.x()) + std::abs(start_to_goal.y());  // along the two streets
   const double off_goal = (summary.camera_positions.back() - goal_position).norm();
-  spdlog::info("navigation along the street to key-image {}: {} frames, reached {}, {:.2f} m from the goal, driven "
-               "{:.1f} m for {:.1f} m, {} relocalizations, {} frames without a heading",
-               goal, summary.frames, summary.reached_goal, off_goal, summary.path_length_m, straight,
-               summary.relocalizations, summary.frames_without_heading);
+  spdlog::info("navigation across the junction to key-image {}: {} frames, reached {}, {:.2f} m from the goal, "
+               "driven {:.1f} m for {:.1f} m, at most {:.1f} m from the planned path, {} relocalizations, {} frames "
+               "without a heading", goal, summary.frames, summary.reached_goal, off_goal, summary.path_length_m,
+               streets, off_path, summary.relocalizations, summary.frames_without_heading);
   EXPECT_TRUE(summary.reached_goal) << steps;
   EXPECT_FALSE(summary.left_streets);
-  EXPECT_LT(off_goal, 2.0);  // issue 15: stop within 2 m of the goal
-  EXPECT_LT(summary.path_length_m, 1.1 * straight);  // ... after a drive within 10 % of the street's length
+  EXPECT_LT(off_goal, 2.0);                           // issue 15: stop within 2 m of the goal
+  EXPECT_LT(std::abs(summary.path_length_m / streets - 1.0), 0.1);  // ... after a drive within 10 % of the streets
+  EXPECT_LT(off_path, 8.0) << steps;                  // no wrong turn: within a road's width of the plan
   EXPECT_LT(summary.frames_without_heading, summary.frames / 4) << steps;
 }
 

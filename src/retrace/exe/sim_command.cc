@@ -412,7 +412,7 @@ void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
   std::ofstream csv(csv_path);
   if (!csv) throw InputError(csv_path.string(), "cannot be written");
   csv << "frame,timestamp,x,y,yaw,state,subgoal,advanced,compared,relocalized,heading,filtered_heading,similarity,"
-         "misses,curvature,speed,wheels,ms,true_heading\n";
+         "misses,curvature,speed,wheels,ms,true_heading,along_arc\n";
   const auto number = [](std::optional<double> v) { return v ? fmt::format("{:.4f}", *v) : std::string(); };
   // A wrong turn shows as the car far from the path planned at that frame: the largest distance of the camera from
   // the polyline through the (true places of the) key-images of the current plan.
@@ -454,9 +454,9 @@ void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
                          std::atan2(forward.y(), forward.x()), NavigationStateName(n.state),
                          n.subgoal == kInvalidNodeId ? std::string() : std::to_string(n.subgoal), n.advanced,
                          n.compared, n.relocalized ? 1 : 0)
-          << fmt::format("{},{},{:.4f},{},{:.5f},{:.3f},{:.5f},{:.1f},{}\n", number(n.heading),
+          << fmt::format("{},{},{:.4f},{},{:.5f},{:.3f},{:.5f},{:.1f},{},{}\n", number(n.heading),
                          number(n.filtered_heading), n.similarity, n.misses, n.curvature, n.speed, s.wheels,
-                         1000.0 * n.seconds, number(true_heading));
+                         1000.0 * n.seconds, number(true_heading), n.along_arc ? 1 : 0);
       progress.Advance(1, n.subgoal == kInvalidNodeId ? std::string(NavigationStateName(n.state))
                                                       : fmt::format("subgoal {}", n.subgoal));
     });

@@ -163,6 +163,22 @@ node_t Navigator::Localize(int* compared) {
   return best;
 }
 
+std::optional<double> HeadingAlongArc(const Map& map, node_t from, node_t to, const Matrix3d& from_from_robot,
+                                      const Matrix3d& level_from_camera) {
+  // `to`'s camera centre in `from`'s camera frame, from the taught arc either way (x_to = R x_from + t).
+  std::optional<Vector3d> centre;
+  for (const MapArc* arc : map.ArcsFrom(from)) {
+    if (arc->to == to) centre = -arc->to_from_from.rotation.transpose() * arc->to_from_from.translation;
+  }
+  for (const MapArc* arc : map.ArcsTo(from)) {
+    if (!centre && arc->from == to) centre = arc->to_from_from.translation;
+  }
+  if (!centre || centre->norm() < 1e-9) return std::nullopt;
+  // Levelled as the bearings are, then into the robot's frame; the robot's offset from `from` is neglected.
+  const Vector3d in_robot = from_from_robot.transpose() * (level_from_camera * *centre);
+  return std::atan2(in_robot.x(), in_robot.z());
+}
+
 double Navigator::Curvature(double heading) const {
   // Pure pursuit towards the point at distance ℓ in the direction φ (positive right): κ = 2 sin φ / ℓ to the right,
   // the largest turn (2 / ℓ) for a point beside or behind. Curvature is positive left.
@@ -195,6 +211,7 @@ NavigationStep Navigator::ProcessImage(const cv::Mat& image) {
         step.relocalized = true;
         relocalizations_ += recovering;
         filter_.Reset();
+        previous_ = kInvalidNodeId;
         subgoal_ = planned_path_.found ? found : kInvalidNodeId;
         localized = planned_path_.found;
         step.state = localized ? NavigationState::kNavigating : NavigationState::kNoPath;
@@ -216,6 +233,8 @@ NavigationStep Navigator::ProcessImage(const cv::Mat& image) {
       step.subgoal = subgoal_;
       step.state = NavigationState::kNavigating;
 
+      if (update.advanced > 0) previous_ = update.previous;
+
       // Heading towards the subgoal: eq. (B.4) on the planar geometry of this image and the subgoal's key-image.
       const Comparison comparison = Compare(subgoal_, &step.compared);
       step.similarity = comparison.similarity;
@@ -223,19 +242,19 @@ NavigationStep Navigator::ProcessImage(const cv::Mat& image) {
       // The paper's heading needs only a geometry (it is missing when fewer than 3-4 points correspond), not a
       // match strong enough to advance the subgoal.
       bool reached = false;  // the robot is at the subgoal or past it
+      std::optional<double> heading;  // the measurement the robot steers by
+      bool heading_matches = comparison.matches;  // ... from a geometry strong enough to be a match
       if (comparison.geometry.success) {
-        const double heading = PlanarHeading(comparison.geometry.b_from_a);
-        step.heading = heading;
-        const bool behind = std::abs(heading) > M_PI / 2;
+        step.heading = PlanarHeading(comparison.geometry.b_from_a);
+        const bool behind = std::abs(*step.heading) > M_PI / 2;
         // A subgoal behind that still matches was passed before its successor matched. A heading behind from a
         // weaker geometry (a few chance inliers point anywhere) is no evidence: moving on from it skipped whole
         // stretches of the path in the simulated town. Either would turn the robot round.
         reached = behind && comparison.matches;
-        filter_.Update(behind ? std::nullopt : std::optional<double>(heading));
+        if (!behind) heading = step.heading;
       } else {
         // The subgoal's own place: it matches, but the matches show no parallax.
         reached = comparison.matches && comparison.geometry.failure == TwoViewFailure::kInsufficientParallax;
-        filter_.Update(std::nullopt);
       }
       if (reached && is_goal) {
         at_goal_ = true;
@@ -243,10 +262,36 @@ NavigationStep Navigator::ProcessImage(const cv::Mat& image) {
         // On the way to the next key-image of the shortest path.
         const PlannedPath onwards = PlanPath(graph_, subgoal_, goal_);
         if (onwards.found && onwards.nodes.size() >= 2) {
+          previous_ = subgoal_;
           subgoal_ = step.subgoal = onwards.nodes[1];
           ++step.advanced;
+          heading.reset();
+          step.heading.reset();
+          const Comparison next = Compare(subgoal_, &step.compared);
+          heading_matches = next.matches;
+          if (next.geometry.success) {
+            step.heading = PlanarHeading(next.geometry.b_from_a);
+            if (std::abs(*step.heading) <= M_PI / 2) heading = step.heading;
+          }
+          step.similarity = comparisons_.at(subgoal_).similarity;
         }
       }
+      // A subgoal that gives no heading of its own, or only from a geometry too weak to be a match (a turn: the
+      // subgoal is round a corner, beside or behind the robot; a few chance inliers then point anywhere, often
+      // straight on): the direction of the taught arc to it from the previous subgoal, if that one matches.
+      if (!(heading && heading_matches) && !at_goal_ && previous_ != kInvalidNodeId) {
+        const Comparison anchor = Compare(previous_, &step.compared);
+        const std::optional<double> along =
+            anchor.matches && anchor.geometry.success
+                ? HeadingAlongArc(map_, previous_, subgoal_, anchor.geometry.b_from_a.rotation,
+                                  camera_mount_.level_from_camera)
+                : std::nullopt;
+        if (along) {
+          heading = step.heading = along;
+          step.along_arc = true;
+        }
+      }
+      filter_.Update(heading);
       if (at_goal_) step.state = NavigationState::kAtGoal;
     }
   }

@@ -25,6 +25,11 @@
 // is the goal" would stop where the goal first matches, possibly tens of metres before it with a panoramic camera:
 // the robot drives on until the goal, matching, is more than 90° off ahead (beside or behind) or shows no parallax.
 // A heading behind from a geometry too weak to be a match (a few chance inliers point anywhere) is only ignored.
+// When the subgoal n gives no heading of its own, or one from a geometry too weak to be a match — at a turn n is
+// round the corner, beside or behind the robot, seen across 90° under another light, and a few chance inliers
+// point anywhere, often straight on — the robot heads along the taught arc from the previous subgoal c to n, if c
+// still matches: the arc's direction in c's frame (the map) turned into the robot's frame by the rotation of the
+// current geometry to c (the robot's few metres from c neglected against the arc's length).
 //
 // Bearings are rotated into the level frame of the ground plane estimated from the map's arcs (camera_mount.h), so
 // that the planar model holds for a camera pitched against the ground (a car's camera) across turns.
@@ -54,6 +59,14 @@ namespace retrace {
 
 // The navigator's default matching (see NavigatorOptions::matching).
 WideBaselineOptions NavigationMatchingDefaults();
+
+// The heading (as PlanarHeading: radians, 0 ahead, positive right) from the robot to key-image `to` along the
+// taught arc between key-images `from` and `to` (either direction): `to`'s centre in `from`'s frame, levelled by
+// `level_from_camera`, turned into the robot's frame by the rotation `from_from_robot` (x_from = R x_robot + t, in
+// the level frames) of the robot's geometry to `from`. Exact when the robot stands at `from`; the robot's offset
+// from it is neglected. Empty when no arc links the two.
+std::optional<double> HeadingAlongArc(const Map& map, node_t from, node_t to, const Matrix3d& from_from_robot,
+                                      const Matrix3d& level_from_camera);
 
 struct NavigatorOptions {
   // The graph and its edge lengths (graph_planner.h). A panoramic camera sees a route backwards as well as forwards
@@ -107,6 +120,7 @@ struct NavigationStep {
   bool relocalized = false;      // this image (re)localized the robot
   int compared = 0;              // key-images compared with this image
   std::optional<double> heading;           // to the subgoal from this image (radians, positive right)
+  bool along_arc = false;        // the heading is the taught arc's from the subgoal just passed (round a turn)
   std::optional<double> filtered_heading;  // the recency-weighted heading the robot steers by
   double similarity = 0.0;       // of the image and the subgoal (0 without a geometry)
   int misses = 0;                // images in a row without a heading
@@ -166,6 +180,7 @@ class Navigator {
   HeadingFilter filter_;
 
   node_t subgoal_ = kInvalidNodeId;
+  node_t previous_ = kInvalidNodeId;  // the subgoal before the current one (its arc to it gives a heading)
   bool at_goal_ = false;
   int relocalizations_ = 0;
 

@@ -25,6 +25,7 @@ SubgoalUpdate AdvanceSubgoal(const PlanningGraph& graph, const std::unordered_ma
       if (std::find(update.compared.begin(), update.compared.end(), node) != update.compared.end()) continue;
       update.compared.push_back(node);
       if (matches(node)) {
+        update.previous = update.subgoal;
         update.subgoal = node;
         ++update.advanced;
         moved = true;

@@ -24,6 +24,7 @@ namespace retrace {
 struct SubgoalUpdate {
   node_t subgoal = kInvalidNodeId;  // the new subgoal (the old one when no neighbour nearer the goal matched)
   int advanced = 0;                 // steps taken along the graph
+  node_t previous = kInvalidNodeId; // the subgoal before the last step (invalid when none was taken)
   bool at_goal = false;             // the subgoal is the goal: stop
   std::vector<node_t> compared;     // nodes compared with the observation, in order
 };

@@ -30,12 +30,14 @@ TEST(SubgoalTest, AdvancesToTheMatchingNodeNearestTheGoal) {
   SubgoalUpdate update = AdvanceSubgoal(graph, distance, 0, 4, Matching({0, 1, 2}));
   EXPECT_EQ(update.subgoal, 2);
   EXPECT_EQ(update.advanced, 2);
+  EXPECT_EQ(update.previous, 1);  // the last step was 1 -> 2
   EXPECT_FALSE(update.at_goal);
   EXPECT_EQ(update.compared, (std::vector<node_t>{1, 2, 3}));
   // Nothing nearer matches: the subgoal stays.
   update = AdvanceSubgoal(graph, distance, 2, 4, Matching({0, 1}));
   EXPECT_EQ(update.subgoal, 2);
   EXPECT_EQ(update.advanced, 0);
+  EXPECT_EQ(update.previous, kInvalidNodeId);
   // Everything matches: straight to the goal, which ends navigation.
   update = AdvanceSubgoal(graph, distance, 0, 4, Matching({0, 1, 2, 3, 4}));
   EXPECT_EQ(update.subgoal, 4);
