@@ -275,7 +275,7 @@ void RunRetrieval(const RetrievalArguments& args) {
 }  // namespace
 
 void RegisterBenchCommand(CLI::App& app) {
-  CLI::App* bench = app.add_subcommand("bench", "Measurements that need a map and drives (relocalization at scale)");
+  CLI::App* bench = app.add_subcommand("bench", "Measurements against ground truth: relocalization at scale, retrieval, planar heading");
   bench->require_subcommand(1);
   auto args = std::make_shared<KidnapArguments>();
   CLI::App* cmd = bench->add_subcommand(
@@ -332,6 +332,8 @@ void RegisterBenchCommand(CLI::App& app) {
   rcmd->add_option("--map", retrieval->map, "Map file written by `retrace teach`")->required();
   rcmd->add_option("--sequence", retrieval->sequence, "Drive with KITTI poses.txt")->required();
   rcmd->callback([retrieval]() { RunRetrieval(*retrieval); });
+
+  RegisterBenchHeadingCommand(bench);
 }
 
 }  // namespace retrace

@@ -29,6 +29,7 @@ void RegisterTwoViewCommand(CLI::App& app);
 void RegisterSimCommand(CLI::App& app);
 void RegisterRepeatCommand(CLI::App& app);
 void RegisterBenchCommand(CLI::App& app);
+void RegisterBenchHeadingCommand(CLI::App* bench);  // `bench heading`, added by RegisterBenchCommand
 void RegisterPlanCommand(CLI::App& app);
 
 }  // namespace retrace
