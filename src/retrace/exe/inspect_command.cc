@@ -12,6 +12,7 @@
 
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/exe/commands.h"
+#include "retrace/exe/key_image_places.h"
 #include "retrace/map/map_database.h"
 #include "retrace/nav/graph_drawing.h"
 #include "retrace/teach/map_report.h"
@@ -24,7 +25,7 @@ struct InspectArguments {
   std::filesystem::path map_path;
   bool json = false;
   std::filesystem::path report_dir;
-  std::filesystem::path ground_truth;
+  std::vector<std::filesystem::path> ground_truth;  // per route, in route order
 };
 
 nlohmann::json MapToJson(const Map& map, const std::map<std::string, std::string>& metadata) {
@@ -122,7 +123,14 @@ void RunInspect(const InspectArguments& args) {
   }
   if (!args.report_dir.empty()) {
     MapReportOptions options;
-    if (!args.ground_truth.empty()) options.ground_truth = ReadKittiPoses(args.ground_truth);
+    // The pose plot compares the first route's key-images with its drive; the graph places every route's.
+    KeyImagePlaces places;
+    if (!args.ground_truth.empty()) {
+      places = ReadKeyImagePlaces(map, args.ground_truth);
+      std::error_code ec;
+      const std::filesystem::path& first = args.ground_truth.front();
+      options.ground_truth = ReadKittiPoses(std::filesystem::is_directory(first, ec) ? first / "poses.txt" : first);
+    }
     if (metadata.count("r_p") != 0) options.sigma_p_threshold = MetadataNumber(metadata, "r_p", args.map_path);
     if (metadata.count("min_features") != 0) {
       options.min_features = MetadataNumber(metadata, "min_features", args.map_path);
@@ -134,6 +142,9 @@ void RunInspect(const InspectArguments& args) {
     const std::filesystem::path graph = args.report_dir / "graph.png";
     GraphDrawingOptions drawing;
     drawing.title = "graph of " + args.map_path.filename().string();
+    drawing.positions = places.positions;
+    drawing.x_label = places.x_label;
+    drawing.y_label = places.y_label;
     if (!cv::imwrite(graph.string(), DrawPlanningGraph(map, PlannedPath(), drawing))) {
       throw InputError(graph.string(), "cannot write the graph drawing");
     }
@@ -150,7 +161,9 @@ void RegisterInspectCommand(CLI::App& app) {
   cmd->add_flag("--json", args->json, "Print nodes and arcs as one JSON object");
   cmd->add_option("--report", args->report_dir, "Write plots (features and sigma_p per arc, spacing, key-images, poses, the graph with its similarities)");
   cmd->add_option("--ground-truth", args->ground_truth,
-                  "KITTI poses.txt of the teach sequence: aligns the pose plot to ground truth");
+                  "Ground truth of the teach drives, one per route in route order (KITTI poses.txt or its sequence "
+                  "folder; simulated drives in the town's frame by their scenario.yaml): the pose plot of route 0 and "
+                  "the graph at the key-images' true places");
   cmd->callback([args]() { RunInspect(*args); });
 }
 

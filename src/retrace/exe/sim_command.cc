@@ -19,6 +19,7 @@
 #include "retrace/drive/navigation_loop.h"
 #include "retrace/map/map_database.h"
 #include "retrace/exe/commands.h"
+#include "retrace/exe/key_image_places.h"
 #include "retrace/exe/sequence_input.h"
 #include "retrace/sim/recording.h"
 #include "retrace/sim/scenario_io.h"
@@ -340,38 +341,6 @@ struct NavigateArguments {
   NavigationLoopOptions loop;
 };
 
-// Ground truth of a map's key-images from the recorded teach sequences of its routes: each sequence's poses.txt
-// (its own world frame, the camera at its start) moved into the town frame by its scenario.yaml.
-std::unordered_map<node_t, Vector2d> KeyImagePositionsInTown(const Map& map, const std::vector<std::string>& taught) {
-  std::vector<std::vector<Vector2d>> routes;
-  for (const std::string& folder : taught) {
-    const std::filesystem::path dir(folder);
-    const Scenario scenario = ReadScenario((dir / "scenario.yaml").string());
-    const Rigid3d town_from_world = Simulator(scenario).town_from_world();
-    std::vector<Vector2d> positions;
-    for (const TimedPose& pose : ReadKittiPoses((dir / "poses.txt").string())) {
-      positions.push_back((town_from_world * pose.world_from_cam).translation.head<2>());
-    }
-    routes.push_back(std::move(positions));
-  }
-  std::unordered_map<node_t, Vector2d> positions;
-  for (const MapNode& node : map.nodes()) {
-    if (node.route < 0 || node.route >= static_cast<int>(routes.size())) {
-      throw InputError("--taught", fmt::format("the map has route {} (key-image {}) but {} teach sequences were given",
-                                               node.route, node.id, routes.size()));
-    }
-    const std::vector<Vector2d>& route = routes[node.route];
-    if (node.source_frame < 0 || node.source_frame >= static_cast<int64_t>(route.size())) {
-      throw InputError(taught[node.route], fmt::format("has {} poses, but key-image {} is its frame {}", route.size(),
-                                                       node.id, node.source_frame));
-    }
-    positions[node.id] = route[node.source_frame];
-  }
-  return positions;
-}
-
-// `sim navigate`: the car placed at the start of the scenario's drive (its repeat variant: other light) and driven by
-// the Navigator to a goal key-image (closed loop, Booij 2007 §B.4).
 void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
   const Scenario scenario = ReadScenarioWithOverrides(args.scenario.scenario, args.scenario.Overrides(command));
   Map map = MapDatabase::Open(args.map)->ReadMap(/*load_images=*/true, /*load_signature_features=*/false);
@@ -380,7 +349,13 @@ void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
     throw InputError(args.map, fmt::format("has no key-image {} (--goal; `retrace inspect --json` lists them)", args.goal));
   }
   std::unordered_map<node_t, Vector2d> truth;
-  if (!args.taught.empty()) truth = KeyImagePositionsInTown(map, args.taught);
+  if (!args.taught.empty()) {
+    const KeyImagePlaces places = ReadKeyImagePlaces(map, {args.taught.begin(), args.taught.end()});
+    if (!places.town_frame) {
+      throw InputError(args.taught.front(), "--taught needs the simulator's teach sequences (their scenario.yaml)");
+    }
+    truth = places.positions;
+  }
 
   Simulator simulator(ApplyVariant(scenario, ScenarioVariant::kRepeat));
   const CameraModel& camera = simulator.camera();

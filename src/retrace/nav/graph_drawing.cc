@@ -13,10 +13,13 @@ namespace retrace {
 
 cv::Mat DrawPlanningGraph(const Map& map, const PlannedPath& path, const GraphDrawingOptions& options) {
   // From above: the first key-image's camera frame has x right, y down, z forward; the plot shows x and z.
-  std::unordered_map<node_t, Vector2d> position;
-  for (const KeyImagePose& pose : ChainKeyImagePoses(map)) {
-    const Vector3d& c = pose.world_from_cam.translation;
-    position[pose.node] = Vector2d(c.x(), c.z());
+  const bool given = !options.positions.empty();
+  std::unordered_map<node_t, Vector2d> position = options.positions;
+  if (!given) {
+    for (const KeyImagePose& pose : ChainKeyImagePoses(map)) {
+      const Vector3d& c = pose.world_from_cam.translation;
+      position[pose.node] = Vector2d(c.x(), c.z());
+    }
   }
   std::vector<PlotSeries> series;
   const auto segment = [&](node_t a, node_t b, const cv::Scalar& color, int thickness, const std::string& label) {
@@ -86,10 +89,12 @@ cv::Mat DrawPlanningGraph(const Map& map, const PlannedPath& path, const GraphDr
   PlotOptions plot;
   plot.width = options.width;
   plot.height = options.height;
-  plot.title = fmt::format("{}: {} key-images ({} placed by chaining arcs), {} arcs", options.title,
-                           map.nodes().size(), position.size(), map.arcs().size());
-  plot.x_label = "x (units of the first arc, chained)";
-  plot.y_label = "z (forward of the first key-image)";
+  plot.title = given ? fmt::format("{}: {} key-images at their ground truth, {} arcs", options.title,
+                                   map.nodes().size(), map.arcs().size())
+                     : fmt::format("{}: {} key-images ({} placed by chaining arcs), {} arcs", options.title,
+                                   map.nodes().size(), position.size(), map.arcs().size());
+  plot.x_label = given ? options.x_label : "x (units of the first arc, chained)";
+  plot.y_label = given ? options.y_label : "z (forward of the first key-image)";
   plot.equal_aspect = true;
   return RenderPlot(series, plot);
 }

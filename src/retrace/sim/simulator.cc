@@ -26,6 +26,23 @@ std::vector<Vector2d> ResolveRoute(const Scenario& scenario, const TownLayout& l
   return OffsetPolyline(junctions, layout.lane_offset());
 }
 
+namespace {
+
+// World frame: a level camera on the ground at the route's start, looking along the route.
+Rigid3d TownFromWorldAtStart(const Scenario& scenario, const RoutePath& route) {
+  VehicleState start;
+  start.position = route.Position(0.0);
+  start.heading = route.Heading(0.0);
+  return Vehicle(scenario.vehicle, start).TownFromVehicle() * Vehicle::VehicleFromCamera(0.0, 0.0, 0.0);
+}
+
+}  // namespace
+
+Rigid3d TownFromWorld(const Scenario& scenario) {
+  const TownLayout layout = scenario.scene_file.empty() ? PlanTownLayout(scenario.town) : TownLayout();
+  return TownFromWorldAtStart(scenario, RoutePath(ResolveRoute(scenario, layout), scenario.drive));
+}
+
 Simulator::Simulator(const Scenario& scenario) : scenario_(scenario) {
   // Out-of-range values would exhaust the machine (threads, memory) before anything else noticed them.
   if (const std::optional<ScenarioProblem> problem = scenario.Check()) {
@@ -43,11 +60,7 @@ Simulator::Simulator(const Scenario& scenario) : scenario_(scenario) {
     scene_->Commit();
   }
   route_ = std::make_unique<RoutePath>(ResolveRoute(scenario, layout_), scenario.drive);
-  // World frame: a level camera on the ground at the route's start, looking along the route.
-  VehicleState start;
-  start.position = route_->Position(0.0);
-  start.heading = route_->Heading(0.0);
-  town_from_world_ = Vehicle(scenario.vehicle, start).TownFromVehicle() * Vehicle::VehicleFromCamera(0.0, 0.0, 0.0);
+  town_from_world_ = TownFromWorldAtStart(scenario, *route_);
   if (!scenario.markers.empty()) {
     Material glow;
     glow.emissive = true;

@@ -90,4 +90,8 @@ class Simulator {
 // The waypoints a scenario's route resolves to in `layout` (town frame).
 std::vector<Vector2d> ResolveRoute(const Scenario& scenario, const TownLayout& layout);
 
+// Simulator(scenario).town_from_world() without building the town: the pose of a recorded drive's world frame (its
+// poses.txt) in the town frame (x east, y north, z up).
+Rigid3d TownFromWorld(const Scenario& scenario);
+
 }  // namespace retrace

@@ -142,6 +142,24 @@ TEST(SimulatorTest, RepeatVariantHasOtherSunAndOneMetreLateralOffset) {
   EXPECT_GT(std::abs(cv::mean(a[0].image)[0] - cv::mean(b[0].image)[0]), 2.0);
 }
 
+// The world frame of a recorded drive in the town frame, without building the town, is the simulator's.
+TEST(SimulatorTest, TownFromWorldWithoutTheTownIsTheSimulators) {
+  for (const char* route : {"auto", "junctions", "loop"}) {
+    Scenario scenario = SmallTown();
+    scenario.town.seed = 17;
+    scenario.route.type = route;
+    scenario.route.junctions = {{{2, 0}}, {{2, 1}}, {{1, 1}}};
+    scenario.route.loop_i0 = 0;
+    scenario.route.loop_j0 = 0;
+    scenario.route.loop_i1 = 1;
+    scenario.route.loop_j1 = 1;
+    const Rigid3d expected = Simulator(scenario).town_from_world();
+    const Rigid3d town_from_world = TownFromWorld(scenario);
+    EXPECT_TRUE(town_from_world.rotation.isApprox(expected.rotation, 1e-12)) << route;
+    EXPECT_LT((town_from_world.translation - expected.translation).norm(), 1e-9) << route;
+  }
+}
+
 TEST(SimulatorTest, BicycleModelDrivesCirclesOfRadiusWheelbaseOverTanSteering) {
   VehicleOptions options;
   Vehicle vehicle(options, VehicleState());

@@ -223,11 +223,8 @@ void AddBuilding(Mesh& mesh, const Materials& m, const TownOptions& options, dou
   mesh.AddBox(Vector3f(x0 - 0.2, y0 - 0.2, top), Vector3f(x1 + 0.2, y1 + 0.2, top + 0.5), 4.0f, m.curb);
 }
 
-}  // namespace
-
-TownLayout BuildTown(const TownOptions& options, Scene* scene) {
-  SimRandom rng(options.seed);
-  const Materials m = MakeMaterials(options, scene);
+// The streets' centre lines: the first draws of the town's random sequence.
+TownLayout PlanStreets(const TownOptions& options, SimRandom* rng) {
   TownLayout layout;
   layout.road_width = options.road_width;
   layout.sidewalk_width = options.sidewalk_width;
@@ -235,13 +232,28 @@ TownLayout BuildTown(const TownOptions& options, Scene* scene) {
   layout.street_x.push_back(0.0);
   for (int i = 0; i < options.blocks_x; ++i) {
     layout.street_x.push_back(layout.street_x.back() + 2.0 * hw +
-                              rng.Uniform(options.block_size_min, options.block_size_max));
+                              rng->Uniform(options.block_size_min, options.block_size_max));
   }
   layout.street_y.push_back(0.0);
   for (int j = 0; j < options.blocks_y; ++j) {
     layout.street_y.push_back(layout.street_y.back() + 2.0 * hw +
-                              rng.Uniform(options.block_size_min, options.block_size_max));
+                              rng->Uniform(options.block_size_min, options.block_size_max));
   }
+  return layout;
+}
+
+}  // namespace
+
+TownLayout PlanTownLayout(const TownOptions& options) {
+  SimRandom rng(options.seed);
+  return PlanStreets(options, &rng);
+}
+
+TownLayout BuildTown(const TownOptions& options, Scene* scene) {
+  SimRandom rng(options.seed);
+  const Materials m = MakeMaterials(options, scene);
+  TownLayout layout = PlanStreets(options, &rng);
+  const double hw = options.road_width / 2.0 + options.sidewalk_width;  // street centre to lot edge
   const double ring = 18.0;
   const double min_x = -hw - ring, max_x = layout.street_x.back() + hw + ring;
   const double min_y = -hw - ring, max_y = layout.street_y.back() + hw + ring;

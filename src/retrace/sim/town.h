@@ -62,6 +62,9 @@ struct TownLayout {
   bool OnStreets(const Vector2d& p) const;
 };
 
+// The streets of the town BuildTown builds from `options`, without building it (cheap: a few random draws).
+TownLayout PlanTownLayout(const TownOptions& options);
+
 // Builds the town into `scene` (textures, materials, static meshes, moving objects, sky) and commits it.
 // Throws InputError when the photo folder is given but unreadable or holds no image.
 TownLayout BuildTown(const TownOptions& options, Scene* scene);

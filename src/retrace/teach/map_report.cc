@@ -178,7 +178,8 @@ std::vector<std::filesystem::path> WriteMapReport(const Map& map, const std::fil
   std::vector<Vector3d> chained_positions, true_positions;
   for (const KeyImagePose& pose : chained) {
     const MapNode* node = map.FindNode(pose.node);
-    if (options.ground_truth && node->source_frame >= 0 &&
+    // The ground truth is the first drive's: the key-images of appended routes count frames of their own drives.
+    if (options.ground_truth && node->route == 0 && node->source_frame >= 0 &&
         node->source_frame < static_cast<int64_t>(options.ground_truth->size())) {
       chained_positions.push_back(pose.world_from_cam.translation);
       true_positions.push_back((*options.ground_truth)[node->source_frame].world_from_cam.translation);

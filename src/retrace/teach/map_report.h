@@ -43,7 +43,7 @@ MapStatistics ComputeMapStatistics(const Map& map);
 double RouteLengthMetres(const Map& map, const std::vector<TimedPose>& ground_truth);
 
 struct MapReportOptions {
-  // Ground-truth poses of the teach sequence (indexed by frame), used for the pose plot and bytes per metre.
+  // Ground-truth poses of the (first) teach sequence, indexed by frame: the pose plot of route 0, bytes per metre.
   std::optional<std::vector<TimedPose>> ground_truth;
   // Threshold lines drawn in the plots: r_p for σ_p and n for the features per arc (0 = none).
   double sigma_p_threshold = 0.0;

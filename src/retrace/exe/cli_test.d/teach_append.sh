@@ -80,6 +80,11 @@ c.close()' "$tmp/schema2.db"
     --map "$tmp/schema2.db" --from 0 --to 3
   expect plan-old-map-drive 0 'path from 0 to 3' -- "$bin" plan --map "$tmp/schema2.db" --from 0 --to 3 --cost drive
   expect inspect-old-map 0 'similarity +not stored' -- "$bin" inspect --map "$tmp/schema2.db"
+  # The graph at the key-images' true places needs the ground truth of every route (here one drive for both).
+  expect inspect-truth-per-route 1 "^retrace: error: $k: the map has route 1 .* ground truth of 1 drive" -- "$bin" \
+    inspect --map "$tmp/graph.db" --report "$tmp/graph_report" --ground-truth "$k"
+  expect inspect-truth-graph 0 'graph.png' -- "$bin" inspect --map "$tmp/graph.db" --report "$tmp/graph_report" \
+    --ground-truth "$k" "$k/poses.txt"
   # sim navigate refuses a goal the map does not have and a scenario whose camera did not take the key-images.
   expect navigate-missing-goal 1 "^retrace: error: $tmp/graph.db: has no key-image 99999 \\(--goal" -- "$bin" sim \
     navigate --map "$tmp/graph.db" --goal 99999 --out "$tmp/navigate" --quiet
