@@ -78,6 +78,7 @@ const std::vector<NumericKey>& NumericKeys() {
       {{"vehicle.camera_height", 0.1, 50, false, false, "m"}, [](S s) { return s.vehicle.camera_height; }},
       {{"vehicle.camera_forward", -20, 20, false, false, "m"}, [](S s) { return s.vehicle.camera_forward; }},
       {{"vehicle.camera_tilt_deg", -88, 88, false, false, "degrees"}, [](S s) { return s.vehicle.camera_tilt_deg; }},
+      {{"vehicle.escorts", 0, kMaxEscorts, true, false, ""}, [](S s) -> double { return s.vehicle.escorts; }},
       {{"route.segments", 1, 1000, true, false, ""}, [](S s) -> double { return s.route.segments; }},
       {{"drive.max_speed", 0.5, 50, false, false, "m/s"}, [](S s) { return s.drive.max_speed; }},
       {{"drive.max_lateral_acceleration", 0.1, 20, false, false, "m/s^2"},

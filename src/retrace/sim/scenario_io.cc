@@ -138,12 +138,14 @@ Scenario ParseNode(const YAML::Node& root, const Reader& r) {
     }
   }
   if (const YAML::Node n = root["vehicle"]) {
-    r.CheckMap(n, "vehicle", {"wheelbase", "max_steering_deg", "camera_height", "camera_forward", "camera_tilt_deg"});
+    r.CheckMap(n, "vehicle",
+               {"wheelbase", "max_steering_deg", "camera_height", "camera_forward", "camera_tilt_deg", "escorts"});
     r.Number(n, "vehicle", "wheelbase", &s.vehicle.wheelbase);
     r.Number(n, "vehicle", "max_steering_deg", &s.vehicle.max_steering_deg);
     r.Number(n, "vehicle", "camera_height", &s.vehicle.camera_height);
     r.Number(n, "vehicle", "camera_forward", &s.vehicle.camera_forward);
     r.Number(n, "vehicle", "camera_tilt_deg", &s.vehicle.camera_tilt_deg);
+    r.Integer(n, "vehicle", "escorts", &s.vehicle.escorts);
   }
   if (const YAML::Node n = root["route"]) {
     r.CheckMap(n, "route", {"type", "segments", "loop", "waypoints", "junctions"});
@@ -372,6 +374,9 @@ std::string ScenarioToYaml(const Scenario& s) {
   line(fmt::format("  camera_height: {}      # metres above the ground", s.vehicle.camera_height));
   line(fmt::format("  camera_forward: {}     # metres ahead of the rear axle", s.vehicle.camera_forward));
   line(fmt::format("  camera_tilt_deg: {}      # downward tilt", s.vehicle.camera_tilt_deg));
+  line(fmt::format("  escorts: {}              # people walking with the car 0.6-1 m around the camera (occluders, "
+                   "Booij 2007 B.5.4)",
+                   s.vehicle.escorts));
   line("route:");
   line(fmt::format("  type: {}              # auto (seeded drive with turns), loop (around blocks), crossing "
                    "(figure eight), junctions (through listed junctions), waypoints",

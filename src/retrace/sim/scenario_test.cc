@@ -245,6 +245,25 @@ TEST(ScenarioRangeTest, EveryKeyAcceptsItsBoundsAndRefusesValuesOutsideThem) {
   EXPECT_EQ(ParseProblem("seed: 18446744073709551615\n"), "");
 }
 
+// vehicle.escorts (Booij 2007 §B.5.4's people walking beside the car): none by default, 0..kMaxEscorts, an integer,
+// kept by the repeat variant and by a round trip through YAML.
+TEST(ScenarioRangeTest, EscortsAreACountOfPeopleBesideTheCar) {
+  EXPECT_EQ(Scenario().vehicle.escorts, 0);
+  EXPECT_EQ(ParseScenario("vehicle:\n  escorts: 4\n", "town.yaml").vehicle.escorts, 4);
+  EXPECT_EQ(ParseProblem("vehicle:\n  escorts: -1\n"), "town.yaml: line 2: vehicle.escorts: must be in 0..8, got -1");
+  EXPECT_EQ(ParseProblem("vehicle: {wheelbase: 2.5, escorts: 9}\n"),
+            "town.yaml: line 1: vehicle.escorts: must be in 0..8, got 9");
+  EXPECT_EQ(ParseProblem("vehicle:\n  escorts: 1.5\n"),
+            "town.yaml: line 2: vehicle.escorts: expected an integer, got '1.5'");
+  EXPECT_EQ(ParseProblem("vehicle:\n  escort: 1\n"), "town.yaml: line 2: vehicle.escort: unknown key");
+  Scenario scenario;
+  scenario.vehicle.escorts = 3;
+  EXPECT_EQ(ParseScenario(ScenarioToYaml(scenario), "round trip").vehicle.escorts, 3);
+  EXPECT_EQ(ApplyVariant(scenario, ScenarioVariant::kRepeat).vehicle.escorts, 3);
+  scenario.vehicle.escorts = -2;
+  EXPECT_EQ(scenario.Validate(), "vehicle.escorts: must be in 0..8, got -2");
+}
+
 // The rules that tie keys together, with the key at fault named.
 TEST(ScenarioRangeTest, RulesBetweenKeys) {
   EXPECT_EQ(ParseProblem("town:\n  block_size_min: 60\n"),

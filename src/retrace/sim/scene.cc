@@ -182,6 +182,17 @@ Rigid3d ScriptedPath::PoseAt(double time) const {
   return Rigid3d(r, Vector3d(p.x(), p.y(), 0.0));
 }
 
+Rigid3d CarriedPlacement::PoseAt(double time) const {
+  // One stride: the body swings sideways once and forwards, backwards and up twice (once per step).
+  const double a = 2.0 * M_PI * time / stride_period + phase;
+  const double yaw = yaw_swing_deg * M_PI / 180.0 * std::sin(a);
+  const Vector3d position(spot.x() + 0.5 * sway * std::sin(2.0 * a), spot.y() + sway * std::sin(a),
+                          bob * 0.5 * (1.0 - std::cos(2.0 * a)));
+  Matrix3d r;
+  r << std::cos(yaw), -std::sin(yaw), 0, std::sin(yaw), std::cos(yaw), 0, 0, 0, 1;
+  return Rigid3d(r, position);
+}
+
 Scene::Scene() {
   // One build thread: the per-frame rebuild of the tiny top-level structure must not wake Embree's worker threads,
   // which would spin on the cores the renderer's own threads need.
@@ -268,6 +279,22 @@ void Scene::AddStaticMesh(const Mesh& mesh) {
 
 void Scene::AddMovingObject(const Mesh& mesh, const ScriptedPath& path) {
   if (mesh.num_triangles() == 0) return;
+  AddInstance(mesh).path = path;
+}
+
+void Scene::AddCarriedObject(const Mesh& mesh, const CarriedPlacement& placement) {
+  if (mesh.num_triangles() == 0) return;
+  MovingObject& object = AddInstance(mesh);
+  object.carried = true;
+  object.placement = placement;
+}
+
+size_t Scene::num_carried_objects() const {
+  return static_cast<size_t>(
+      std::count_if(moving_.begin(), moving_.end(), [](const MovingObject& object) { return object.carried; }));
+}
+
+Scene::MovingObject& Scene::AddInstance(const Mesh& mesh) {
   MovingObject object;
   object.prototype = rtcNewScene(device_);
   RTCGeometry geometry = MakeTriangleGeometry(mesh);
@@ -279,11 +306,11 @@ void Scene::AddMovingObject(const Mesh& mesh, const ScriptedPath& path) {
   object.geom_id = rtcAttachGeometry(scene_, object.instance);
   rtcReleaseGeometry(object.instance);
   object.shading = ComputeShading(mesh);
-  object.path = path;
   if (moving_of_geom_.size() <= object.geom_id) moving_of_geom_.resize(object.geom_id + 1, -1);
   moving_of_geom_[object.geom_id] = static_cast<int>(moving_.size());
   moving_.push_back(std::move(object));
   committed_ = false;
+  return moving_.back();
 }
 
 size_t Scene::num_static_triangles() const {
@@ -304,7 +331,8 @@ void Scene::SetTime(double time) {
 void Scene::UpdateTopLevel(double time) {
   time_ = time;
   for (auto& object : moving_) {
-    object.town_from_object = object.path.PoseAt(time);
+    object.town_from_object =
+        object.carried ? town_from_carrier_ * object.placement.PoseAt(time) : object.path.PoseAt(time);
     float xfm[12];
     for (int c = 0; c < 3; ++c) {
       for (int r = 0; r < 3; ++r) xfm[3 * c + r] = static_cast<float>(object.town_from_object.rotation(r, c));

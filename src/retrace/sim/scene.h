@@ -85,6 +85,21 @@ struct ScriptedPath {
   Rigid3d PoseAt(double time) const;
 };
 
+// Where an object carried along with the camera stands at a time (an escort walking beside the car, Booij 2007
+// §B.5.4): a fixed spot of the carrier frame (Scene::SetCarrier: x forward, y left, z up, origin on the ground below
+// the camera) plus the periodic swing of a walk, so that it does not move rigidly with the camera.
+struct CarriedPlacement {
+  Vector2d spot = Vector2d::Zero();  // metres, carrier frame
+  double sway = 0.0;           // amplitude (m) of the sideways swing; the swing forwards and backwards is half of it
+  double bob = 0.0;            // height (m) of the up-and-down motion, twice per stride (never below the ground)
+  double yaw_swing_deg = 0.0;  // amplitude of the turn of the body about the vertical
+  double stride_period = 1.1;  // seconds of one stride (two steps), > 0
+  double phase = 0.0;          // radians into the stride at time 0
+
+  // carrier_from_object at `time`: object x axis along the carrier's (walking with it), z up.
+  Rigid3d PoseAt(double time) const;
+};
+
 // Per-triangle data for shading, precomputed when a mesh enters the scene.
 struct TriangleShading {
   Vector3f p0;
@@ -111,10 +126,17 @@ class Scene {
   void AddStaticMesh(const Mesh& mesh);
   // A rigid object (mesh in its own frame: x forward, y left, z up) that moves along `path`.
   void AddMovingObject(const Mesh& mesh, const ScriptedPath& path);
+  // A rigid object (mesh in its own frame: x forward, y left, z up) carried along with the camera: at every SetTime
+  // it is placed at town_from_carrier * placement.PoseAt(time), with the carrier of the last SetCarrier.
+  void AddCarriedObject(const Mesh& mesh, const CarriedPlacement& placement);
+  // The carrier of the carried objects (town_from_carrier: x forward, y left, z up, origin on the ground), used from
+  // the next SetTime on. Identity until set.
+  void SetCarrier(const Rigid3d& town_from_carrier) { town_from_carrier_ = town_from_carrier; }
 
   // Builds the acceleration structures; called by SetTime when geometry was added since the last build.
   void Commit();
-  // Places the moving objects at `time` (seconds) and updates the acceleration structure.
+  // Places the moving objects at `time` (seconds), the carried ones on the current carrier, and updates the
+  // acceleration structure.
   void SetTime(double time);
   double time() const { return time_; }
 
@@ -137,7 +159,9 @@ class Scene {
   const std::vector<Texture>& textures() const { return textures_; }
   const std::vector<Material>& materials() const { return materials_; }
   size_t num_static_triangles() const;
+  // Moving objects, the carried ones included.
   size_t num_moving_objects() const { return moving_.size(); }
+  size_t num_carried_objects() const;
 
   // Shading data of a hit: `geom_id`/`prim_id` from Embree and `inst_id` (RTC_INVALID_GEOMETRY_ID for static
   // geometry). `town_from_object` receives the placement of a moving object (nullptr for static geometry).
@@ -152,10 +176,13 @@ class Scene {
     RTCGeometry instance = nullptr;
     unsigned geom_id = 0;  // of the instance in the top scene
     std::vector<TriangleShading> shading;
-    ScriptedPath path;
+    ScriptedPath path;            // of an object moving on its own
+    bool carried = false;         // placed on the carrier by `placement` instead of `path`
+    CarriedPlacement placement;
     Rigid3d town_from_object;
   };
   RTCGeometry MakeTriangleGeometry(const Mesh& mesh) const;
+  MovingObject& AddInstance(const Mesh& mesh);
   void UpdateTopLevel(double time);
   static std::vector<TriangleShading> ComputeShading(const Mesh& mesh);
 
@@ -175,6 +202,7 @@ class Scene {
   double time_ = 0.0;
   float top_ = std::numeric_limits<float>::infinity();
   bool committed_ = false;
+  Rigid3d town_from_carrier_;
   Rigid3d identity_;
 };
 

@@ -36,6 +36,16 @@ Rigid3d TownFromWorldAtStart(const Scenario& scenario, const RoutePath& route) {
   return Vehicle(scenario.vehicle, start).TownFromVehicle() * Vehicle::VehicleFromCamera(0.0, 0.0, 0.0);
 }
 
+// The escorts' carrier under a camera (town.h AddEscorts): on the ground `camera_height` below it, x along its line of
+// sight turned level, z up.
+Rigid3d CarrierUnderCamera(const Rigid3d& town_from_cam, double camera_height) {
+  const Vector3d forward = town_from_cam.rotation.col(2);
+  const double yaw = std::atan2(forward.y(), forward.x());
+  Matrix3d r;
+  r << std::cos(yaw), -std::sin(yaw), 0, std::sin(yaw), std::cos(yaw), 0, 0, 0, 1;
+  return Rigid3d(r, town_from_cam.translation - Vector3d(0.0, 0.0, camera_height));
+}
+
 }  // namespace
 
 Rigid3d TownFromWorld(const Scenario& scenario) {
@@ -75,6 +85,11 @@ Simulator::Simulator(const Scenario& scenario) : scenario_(scenario) {
     scene_->AddStaticMesh(markers);
     scene_->Commit();
   }
+  if (scenario.vehicle.escorts > 0) {
+    // Seeded by the drive, not the town: the same people walk with the teach and the repeat drive.
+    AddEscorts(scenario.vehicle.escorts, scenario.seed, scene_.get());
+    scene_->Commit();
+  }
   driver_ = std::make_unique<RouteDriver>(route_.get(), scenario.drive, scenario.vehicle);
   vehicle_ = std::make_unique<Vehicle>(scenario.vehicle, driver_->StartState());
   const std::unique_ptr<CameraModel> camera = scenario.camera.MakeCamera();
@@ -101,6 +116,7 @@ SimFrame Simulator::RenderCurrent() {
   frame.world_from_cam = town_from_world_.Inverse() * frame.town_from_cam;
   frame.vehicle = vehicle_->state();
   frame.progress = driver_->progress();
+  scene_->SetCarrier(CarrierUnderCamera(frame.town_from_cam, scenario_.vehicle.camera_height));
   scene_->SetTime(time_ + scenario_.time_offset);
   const uint64_t noise_seed =
       HashCombine(HashCombine(scenario_.seed, scenario_.drive.wobble_seed + 0x9e37), static_cast<uint64_t>(frame_index_));
@@ -142,9 +158,10 @@ bool Simulator::OffRoute() const {
 }
 
 cv::Mat Simulator::RenderAt(const Rigid3d& world_from_cam, double time, uint64_t noise_seed) {
+  const Rigid3d town_from_cam = town_from_world_ * world_from_cam;
+  scene_->SetCarrier(CarrierUnderCamera(town_from_cam, scenario_.vehicle.camera_height));
   scene_->SetTime(time + scenario_.time_offset);
-  return renderer_->Render(*scene_, town_from_world_ * world_from_cam, scenario_.lighting, scenario_.sensor,
-                           noise_seed);
+  return renderer_->Render(*scene_, town_from_cam, scenario_.lighting, scenario_.sensor, noise_seed);
 }
 
 }  // namespace retrace

@@ -8,6 +8,9 @@
 // written by the simulator are world_from_cam; the first teach pose is near identity (a translation of the camera
 // height upwards, -camera_height along y, plus the camera's forward offset and tilt). Teach and repeat recordings of
 // one scenario share this frame, so their ground truth compares directly.
+//
+// Escorts (vehicle.escorts, sim/town.h AddEscorts) walk with the camera: every rendered frame places them around the
+// camera's pose of that frame, whether the autopilot, a closed-loop controller (Step) or RenderAt set it.
 
 #include <filesystem>
 #include <memory>
@@ -68,7 +71,8 @@ class Simulator {
   bool OffRoute() const;
   static constexpr double kMaxDistanceFromRoute = 20.0;  // metres from the route's lane
 
-  // Renders the world at `time` from any camera pose given in the world frame (for tests and tools).
+  // Renders the world at `time` from any camera pose given in the world frame (for tests and tools); the escorts
+  // (vehicle.escorts) walk around that camera as they do around the car's.
   cv::Mat RenderAt(const Rigid3d& world_from_cam, double time, uint64_t noise_seed = 0);
 
  private:

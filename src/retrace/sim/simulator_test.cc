@@ -231,6 +231,76 @@ TEST(SimulatorTest, SteppingApiDrivesTheCarAndRendersWhatItSees) {
   EXPECT_EQ(cv::norm(c.image, again, cv::NORM_L1), 0.0);
 }
 
+// Pixels of `a` and `b` (grey, same size) that differ by more than 8 grey levels, as a mask.
+cv::Mat Differing(const cv::Mat& a, const cv::Mat& b) {
+  cv::Mat difference;
+  cv::absdiff(a, b, difference);
+  return difference > 8;
+}
+
+double Fraction(const cv::Mat& mask) { return static_cast<double>(cv::countNonZero(mask)) / mask.total(); }
+
+// Escorts (vehicle.escorts, Booij 2007 §B.5.4): people walking with the car close to the camera. In a panorama
+// without noise and shadows, what they change against the same view without them is their bodies: four block a
+// large part of the view (the paper's Figure B.7), both where the car starts (RenderAt) and after it was steered
+// 20 m on through a turn (Step, the closed loop): they walk with the camera rather than stay where they started.
+// One escort stands on the left of the camera, and sways with its stride.
+TEST(SimulatorTest, EscortsWalkBesideTheCameraAndBlockPartOfThePanorama) {
+  Scenario s = SmallTown();
+  s.camera.model = "equirectangular";
+  s.camera.width = 320;
+  s.camera.height = 160;
+  s.town.num_pedestrians = 0;
+  s.town.num_moving_cars = 0;
+  s.sensor.noise_sigma = 0.0;
+  s.render.antialiasing = 1;
+  s.render.shadows = false;
+  Scenario one = s, four = s;
+  one.vehicle.escorts = 1;
+  four.vehicle.escorts = 4;
+  Simulator alone(s), with_one(one), with_four(four);
+  EXPECT_EQ(alone.scene().num_carried_objects(), 0u);
+  EXPECT_EQ(with_four.scene().num_carried_objects(), 4u);
+  EXPECT_EQ(with_four.scene().num_moving_objects(), 4u);
+
+  // At the start.
+  const SimFrame start = alone.Step(0.0, 0.0, 0.0);
+  const cv::Mat blocked_start = Differing(start.image, with_four.RenderAt(start.world_from_cam, start.timestamp));
+  // 20 m on, turning left (the same commands give every simulator the same pose).
+  const SimFrame on = alone.Step(0.05, 5.0, 4.0);
+  const SimFrame on_four = with_four.Step(0.05, 5.0, 4.0);
+  ASSERT_LT((on.town_from_cam.translation - on_four.town_from_cam.translation).norm(), 1e-9);
+  EXPECT_GT((on.town_from_cam.translation - start.town_from_cam.translation).norm(), 19.0);
+  EXPECT_GT(RotationErrorDeg(on.town_from_cam.rotation, start.town_from_cam.rotation), 15.0);
+  const cv::Mat blocked_on = Differing(on.image, on_four.image);
+  std::cout << "four escorts block " << Fraction(blocked_start) << " of the panorama at the start, "
+            << Fraction(blocked_on) << " 20 m on\n";
+  EXPECT_GT(Fraction(blocked_start), 0.12);
+  EXPECT_GT(Fraction(blocked_on), 0.12);
+  EXPECT_NEAR(Fraction(blocked_on), Fraction(blocked_start), 0.03);
+
+  // Escort 0 stands on the camera's left: nearly every pixel it blocks looks left (camera x < 0) and at most 45
+  // degrees up (a body up to 1.9 m tall, 0.6 m away from a camera 1.5 m up).
+  const cv::Mat image_one = with_one.RenderAt(start.world_from_cam, start.timestamp);
+  const cv::Mat blocked_one = Differing(start.image, image_one);
+  EXPECT_GT(Fraction(blocked_one), 0.03);
+  int left = 0, total = 0;
+  for (int v = 0; v < blocked_one.rows; ++v) {
+    for (int u = 0; u < blocked_one.cols; ++u) {
+      if (!blocked_one.at<uint8_t>(v, u)) continue;
+      Vector3d ray;
+      ASSERT_TRUE(alone.camera().Unproject(Vector2d(u, v), &ray));
+      ++total;
+      if (ray.x() < 0.0 && ray.y() > -0.7 * ray.norm()) ++left;
+    }
+  }
+  EXPECT_GT(left, 0.95 * total);
+  // Walking, not rigid: a third of a stride later the same view differs along the body's outline.
+  const double later = Fraction(Differing(image_one, with_one.RenderAt(start.world_from_cam, start.timestamp + 0.35)));
+  EXPECT_GT(later, 0.001);
+  EXPECT_LT(later, Fraction(blocked_one));
+}
+
 TEST(SimulatorTest, ScenarioFileErrorsNameTheKeyAndLine) {
   try {
     ParseScenario("seed: 3\ncamera:\n  model: perspective\n  width: wide\n", "bad.yaml");

@@ -128,16 +128,17 @@ Mesh MakeCar(const Materials& m, int paint) {
   return car;
 }
 
-// A pedestrian in its own frame (x forward, z up), standing on z = `base`.
-Mesh MakePedestrian(const Materials& m, int cloth, float base, float height, uint64_t seed) {
+// A pedestrian in its own frame (x forward, z up), standing on z = `base`: legs of `trousers`, body and arms of
+// `cloth`, a head of `skin` (material indices).
+Mesh MakePedestrian(int cloth, int trousers, int skin, float base, float height, uint64_t seed) {
   Mesh p;
   const float s = height / 1.75f;
-  p.AddBox(Vector3f(-0.1f, -0.2f, base), Vector3f(0.1f, -0.03f, base + 0.85f * s), 1.0f, m.dark_cloth);
-  p.AddBox(Vector3f(-0.1f, 0.03f, base), Vector3f(0.1f, 0.2f, base + 0.85f * s), 1.0f, m.dark_cloth);
+  p.AddBox(Vector3f(-0.1f, -0.2f, base), Vector3f(0.1f, -0.03f, base + 0.85f * s), 1.0f, trousers);
+  p.AddBox(Vector3f(-0.1f, 0.03f, base), Vector3f(0.1f, 0.2f, base + 0.85f * s), 1.0f, trousers);
   p.AddBox(Vector3f(-0.14f, -0.24f, base + 0.85f * s), Vector3f(0.14f, 0.24f, base + 1.5f * s), 0.6f, cloth);
   p.AddBox(Vector3f(-0.06f, -0.3f, base + 0.9f * s), Vector3f(0.06f, -0.24f, base + 1.45f * s), 0.6f, cloth);
   p.AddBox(Vector3f(-0.06f, 0.24f, base + 0.9f * s), Vector3f(0.06f, 0.3f, base + 1.45f * s), 0.6f, cloth);
-  p.AddBlob(Vector3f(0.0f, 0.0f, base + 1.63f * s), Vector3f(0.11f, 0.1f, 0.13f) * s, 1, 0.05f, seed, 0.3f, m.skin);
+  p.AddBlob(Vector3f(0.0f, 0.0f, base + 1.63f * s), Vector3f(0.11f, 0.1f, 0.13f) * s, 1, 0.05f, seed, 0.3f, skin);
   return p;
 }
 
@@ -420,8 +421,8 @@ TownLayout BuildTown(const TownOptions& options, Scene* scene) {
       if (rng.Chance(0.5)) std::reverse(path.points.begin(), path.points.end());
     }
     path.start_offset = rng.Uniform(0.0, 200.0);
-    scene->AddMovingObject(MakePedestrian(m, m.cloths[rng.Int(0, static_cast<int>(m.cloths.size()) - 1)], hs,
-                                          static_cast<float>(rng.Uniform(1.55, 1.9)), rng.Next()),
+    scene->AddMovingObject(MakePedestrian(m.cloths[rng.Int(0, static_cast<int>(m.cloths.size()) - 1)], m.dark_cloth,
+                                          m.skin, hs, static_cast<float>(rng.Uniform(1.55, 1.9)), rng.Next()),
                            path);
   }
   for (int k = 0; k < options.num_moving_cars; ++k) {
@@ -437,6 +438,41 @@ TownLayout BuildTown(const TownOptions& options, Scene* scene) {
   scene->set_sky(SkyType::kProcedural);
   scene->Commit();
   return layout;
+}
+
+Vector2d EscortSpot(int k) {
+  // Beside the camera first, then in front of it beside the line of sight, behind it, straight ahead and behind:
+  // {bearing (degrees, counter-clockwise from ahead), distance (m)}.
+  static constexpr double kSpots[kMaxEscorts][2] = {{90, 0.6},   {-90, 0.6},  {40, 0.75}, {-40, 0.75},
+                                                    {140, 0.75}, {-140, 0.75}, {0, 1.0},  {180, 1.0}};
+  const double bearing = kSpots[k % kMaxEscorts][0] * M_PI / 180.0;
+  const double distance = kSpots[k % kMaxEscorts][1];
+  return distance * Vector2d(std::cos(bearing), std::sin(bearing));
+}
+
+void AddEscorts(int count, uint64_t seed, Scene* scene) {
+  if (count <= 0) return;
+  SimRandom rng(HashCombine(seed, 0xe5c0));
+  Material plain;
+  plain.color = Vector3f(0.75f, 0.55f, 0.45f);
+  const int skin = scene->AddMaterial(plain);
+  plain.color = Vector3f(0.12f, 0.12f, 0.18f);
+  const int trousers = scene->AddMaterial(plain);
+  for (int k = 0; k < std::min(count, kMaxEscorts); ++k) {
+    Material cloth;
+    cloth.texture = scene->AddTexture(Texture(MakeClothTexture(rng.Next())));
+    cloth.color = Vector3f(1.0f, 1.0f, 1.0f);
+    const float height = static_cast<float>(rng.Uniform(1.6, 1.9));
+    const Mesh body = MakePedestrian(scene->AddMaterial(cloth), trousers, skin, 0.0f, height, rng.Next());
+    CarriedPlacement placement;
+    placement.spot = EscortSpot(k);
+    placement.sway = 0.05;
+    placement.bob = 0.03;
+    placement.yaw_swing_deg = 6.0;
+    placement.stride_period = rng.Uniform(1.0, 1.2);
+    placement.phase = rng.Uniform(0.0, 2.0 * M_PI);
+    scene->AddCarriedObject(body, placement);
+  }
 }
 
 std::vector<Vector2d> LoopRouteJunctions(const TownLayout& layout, int i0, int j0, int i1, int j1) {

@@ -69,6 +69,20 @@ TownLayout PlanTownLayout(const TownOptions& options);
 // Throws InputError when the photo folder is given but unreadable or holds no image.
 TownLayout BuildTown(const TownOptions& options, Scene* scene);
 
+// Escorts: people walking with the car close to the camera, the moving occluders of Booij 2007 §B.5.4 ("people
+// walking next to and in front of the robot", at about 20 cm from it, blocking large parts of the panoramic view).
+// Escort k stands at EscortSpot(k) of the carrier frame (Scene::SetCarrier: on the ground below the camera, x along
+// its line of sight) and sways 5 cm sideways, bobs 3 cm and turns 6 degrees with its stride (1.0-1.2 s); height,
+// clothes and phase are seeded. They are carried objects of the scene, never part of the static geometry.
+constexpr int kMaxEscorts = 8;
+// The spot of escort k (0..kMaxEscorts-1), metres in the carrier frame (x ahead, y left): 0.6 m left and right of
+// the camera (k = 0, 1), 0.75 m ahead-left and ahead-right at 40 degrees (2, 3), 0.75 m behind-left and behind-right
+// at 140 degrees (4, 5), 1 m straight ahead (6) and behind (7). Their bodies (0.6 m wide with the arms, 0.3 m deep)
+// do not touch while they sway.
+Vector2d EscortSpot(int k);
+// Adds min(count, kMaxEscorts) escorts to `scene` as carried objects with materials of their own; seeded.
+void AddEscorts(int count, uint64_t seed, Scene* scene);
+
 // Routes through the town as lists of junctions, turned into the right lane by LaneRoute.
 // A loop around the rectangle of blocks [i0, i1] x [j0, j1] (junction indices), counter-clockwise.
 std::vector<Vector2d> LoopRouteJunctions(const TownLayout& layout, int i0, int j0, int i1, int j1);

@@ -34,6 +34,10 @@ struct VehicleOptions {
   double camera_height = 1.5;
   double camera_forward = 1.8;
   double camera_tilt_deg = 5.0;
+  // People walking with the car close to the camera (Booij 2007 §B.5.4's occlusion experiment): 0..kMaxEscorts
+  // escorts at the spots of sim/town.h EscortSpot (0.6 m left and right of the camera, then ahead-left and
+  // ahead-right, ...), moving occluders that block large parts of a panoramic view wherever the car drives.
+  int escorts = 0;
 };
 
 struct VehicleState {
