@@ -54,16 +54,6 @@ PlanningGraph BuildPlanningGraph(const Map& map, const PlanOptions& options) {
   return graph;
 }
 
-namespace {
-
-// Dijkstra (1959) over the reversed edges from the goal: the distance of every node that reaches the goal and the
-// edge it leaves by on a shortest path (a tree rooted at the goal: following it never cycles, even over edges of
-// length 0). Of equally short ways the one found first is kept; edges are relaxed from the smaller node id on.
-struct ShortestPathTree {
-  std::unordered_map<node_t, double> distance;
-  std::unordered_map<node_t, PlanningEdge> next;  // the edge from a node towards the goal
-};
-
 ShortestPathTree ShortestPathsToGoal(const PlanningGraph& graph, node_t goal) {
   ShortestPathTree tree;
   if (!graph.HasNode(goal)) return tree;
@@ -97,17 +87,18 @@ ShortestPathTree ShortestPathsToGoal(const PlanningGraph& graph, node_t goal) {
   return tree;
 }
 
-}  // namespace
-
 std::unordered_map<node_t, double> DistancesToGoal(const PlanningGraph& graph, node_t goal) {
   return ShortestPathsToGoal(graph, goal).distance;
 }
 
 PlannedPath PlanPath(const PlanningGraph& graph, node_t start, node_t goal) {
+  if (!graph.HasNode(start) || !graph.HasNode(goal)) return PlannedPath();
+  return PathFromTree(ShortestPathsToGoal(graph, goal), start, goal);
+}
+
+PlannedPath PathFromTree(const ShortestPathTree& tree, node_t start, node_t goal) {
   PlannedPath path;
-  if (!graph.HasNode(start) || !graph.HasNode(goal)) return path;
-  const ShortestPathTree tree = ShortestPathsToGoal(graph, goal);
-  if (tree.distance.count(start) == 0) return path;
+  if (tree.distance.count(start) == 0 || tree.distance.count(goal) == 0 || tree.distance.at(goal) != 0.0) return path;
   path.nodes.push_back(start);
   for (node_t node = start; node != goal;) {
     const PlanningEdge& edge = tree.next.at(node);

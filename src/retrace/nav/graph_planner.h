@@ -63,8 +63,17 @@ struct PlanningGraph {
 // without similarity.
 PlanningGraph BuildPlanningGraph(const Map& map, const PlanOptions& options);
 
-// Dijkstra (1959) towards `goal`: the shortest distance D_i from every node that can reach the goal (others are
-// absent); D_goal = 0. Booij 2007 §B.4.
+// Dijkstra (1959) over the reversed edges from the goal: the distance of every node that reaches the goal and the
+// edge it leaves by on a shortest path (a tree rooted at the goal: following it never cycles, even over edges of
+// length 0). Of equally short ways the one found first is kept; edges are relaxed from the smaller node id on.
+struct ShortestPathTree {
+  std::unordered_map<node_t, double> distance;    // D_i; absent for nodes that cannot reach the goal
+  std::unordered_map<node_t, PlanningEdge> next;  // the edge from a node towards the goal
+};
+ShortestPathTree ShortestPathsToGoal(const PlanningGraph& graph, node_t goal);
+
+// The shortest distance D_i from every node that can reach the goal (others are absent); D_goal = 0. Booij 2007
+// §B.4.
 std::unordered_map<node_t, double> DistancesToGoal(const PlanningGraph& graph, node_t goal);
 
 struct PlannedPath {
@@ -77,5 +86,7 @@ struct PlannedPath {
 // The shortest path from `start` to `goal` (not found when the goal cannot be reached or a node is not in the
 // graph). Of equally short paths, the one the search found first (deterministic for a given graph).
 PlannedPath PlanPath(const PlanningGraph& graph, node_t start, node_t goal);
+// The same from a tree already grown towards `goal` (its root): no search.
+PlannedPath PathFromTree(const ShortestPathTree& tree, node_t start, node_t goal);
 
 }  // namespace retrace

@@ -172,8 +172,13 @@ TEST(GraphPlannerTest, MatchesFloydWarshallOnRandomGraphs) {
         for (int j = 0; j < n; ++j) d[i][j] = std::min(d[i][j], d[i][k] + d[k][j]);
     for (int goal = 0; goal < n; ++goal) {
       const auto distance = DistancesToGoal(graph, goal);
+      const ShortestPathTree tree = ShortestPathsToGoal(graph, goal);
       for (int i = 0; i < n; ++i) {
         const PlannedPath path = PlanPath(graph, i, goal);
+        // The tree grown once gives the same path without searching again (the Navigator's way).
+        const PlannedPath from_tree = PathFromTree(tree, i, goal);
+        EXPECT_EQ(from_tree.found, path.found);
+        EXPECT_EQ(from_tree.nodes, path.nodes);
         if (d[i][goal] == inf) {
           EXPECT_EQ(distance.count(i), 0u);
           EXPECT_FALSE(path.found);

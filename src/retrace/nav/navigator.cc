@@ -70,7 +70,7 @@ Navigator::Navigator(Map map, const CameraModel& camera, node_t goal, const Navi
                  camera_mount_.rotations, camera_mount_.dropped);
   }
   graph_ = BuildPlanningGraph(map_, options_.planning);
-  distance_to_goal_ = DistancesToGoal(graph_, goal_);
+  paths_to_goal_ = ShortestPathsToGoal(graph_, goal_);
 }
 
 Navigator::KeyImageFeatures Navigator::Describe(const cv::Mat& image) const {
@@ -203,7 +203,7 @@ NavigationStep Navigator::ProcessImage(const cv::Mat& image) {
       const bool recovering = subgoal_ != kInvalidNodeId;
       const node_t found = Localize(&step.compared);
       if (found != kInvalidNodeId) {
-        planned_path_ = PlanPath(graph_, found, goal_);
+        planned_path_ = PathFromTree(paths_to_goal_, found, goal_);
         spdlog::debug("navigator: localized at key-image {} (similarity {:.3f}), {} to the goal", found,
                       comparisons_.at(found).similarity,
                       planned_path_.found ? fmt::format("{} key-images", planned_path_.nodes.size())
@@ -225,7 +225,7 @@ NavigationStep Navigator::ProcessImage(const cv::Mat& image) {
       step.subgoal = subgoal_;
     } else {
       // Dynamic subgoal (Booij 2007 §B.4, subgoal.h).
-      const SubgoalUpdate update = AdvanceSubgoal(graph_, distance_to_goal_, subgoal_, goal_, [&](node_t node) {
+      const SubgoalUpdate update = AdvanceSubgoal(graph_, paths_to_goal_.distance, subgoal_, goal_, [&](node_t node) {
         return Compare(node, &step.compared).matches;
       });
       subgoal_ = update.subgoal;
@@ -260,10 +260,9 @@ NavigationStep Navigator::ProcessImage(const cv::Mat& image) {
         at_goal_ = true;
       } else if (reached) {
         // On the way to the next key-image of the shortest path.
-        const PlannedPath onwards = PlanPath(graph_, subgoal_, goal_);
-        if (onwards.found && onwards.nodes.size() >= 2) {
+        if (const auto onwards = paths_to_goal_.next.find(subgoal_); onwards != paths_to_goal_.next.end()) {
           previous_ = subgoal_;
-          subgoal_ = step.subgoal = onwards.nodes[1];
+          subgoal_ = step.subgoal = onwards->second.to;
           ++step.advanced;
           heading.reset();
           step.heading.reset();
@@ -298,7 +297,9 @@ NavigationStep Navigator::ProcessImage(const cv::Mat& image) {
 
   step.misses = filter_.misses();
   step.filtered_heading = filter_.heading();
-  if (const auto d = distance_to_goal_.find(subgoal_); d != distance_to_goal_.end()) step.distance_to_goal = d->second;
+  if (const auto d = paths_to_goal_.distance.find(subgoal_); d != paths_to_goal_.distance.end()) {
+    step.distance_to_goal = d->second;
+  }
   if (step.state == NavigationState::kNavigating && step.filtered_heading.has_value()) {
     step.curvature = Curvature(*step.filtered_heading);
     step.speed = step.heading.has_value() ? options_.speed : 0.5 * options_.speed;

@@ -149,7 +149,7 @@ class Navigator {
   // The ground plane the bearings are levelled by (a level camera when options.level_camera is off).
   const CameraMount& camera_mount() const { return camera_mount_; }
   // D of every node that reaches the goal.
-  const std::unordered_map<node_t, double>& distances_to_goal() const { return distance_to_goal_; }
+  const std::unordered_map<node_t, double>& distances_to_goal() const { return paths_to_goal_.distance; }
 
  private:
   struct KeyImageFeatures {
@@ -175,7 +175,7 @@ class Navigator {
   NavigatorOptions options_;
   CameraMount camera_mount_;
   PlanningGraph graph_;
-  std::unordered_map<node_t, double> distance_to_goal_;
+  ShortestPathTree paths_to_goal_;  // Dijkstra towards the goal, once: D and the next node of every shortest path
   PlannedPath planned_path_;
   HeadingFilter filter_;
 
