@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <numeric>
 #include <stdexcept>
 
 #include <fmt/format.h>
@@ -141,11 +142,23 @@ node_t Navigator::Localize(int* compared) {
   std::vector<node_t> candidates;
   for (const MapNode& node : map_.nodes()) candidates.push_back(node.id);
   if (options_.localization_candidates > 0 && static_cast<size_t>(options_.localization_candidates) < candidates.size()) {
-    std::vector<GlobalDescriptor> descriptors;
-    for (node_t id : candidates) descriptors.push_back(ComputeGlobalDescriptor(map_.KeyImage(id)));
-    // Recomputed at every localization (rare: the start and recoveries), so that no thumbnails are held.
+    // The key-images' quantised thumbnails (stored with the map's signatures; computed for maps without them or
+    // made at another size), indexed once; the image's thumbnail ranks them.
+    const cv::Mat query = QuantizeGlobalDescriptor(ComputeGlobalDescriptor(current_image_));
+    if (!appearance_index_) {
+      appearance_index_ = std::make_unique<AppearanceIndex>();
+      for (const node_t id : candidates) {
+        cv::Mat thumbnail = map_.Signature(id).appearance;
+        if (thumbnail.size() != query.size() || thumbnail.type() != query.type()) {
+          thumbnail = QuantizeGlobalDescriptor(ComputeGlobalDescriptor(map_.KeyImage(id)));
+        }
+        appearance_index_->Add(thumbnail);
+      }
+    }
+    std::vector<size_t> all(candidates.size());
+    std::iota(all.begin(), all.end(), 0);
     std::vector<node_t> ranked;
-    for (size_t i : RankByGlobalDescriptor(ComputeGlobalDescriptor(current_image_), descriptors)) {
+    for (const size_t i : appearance_index_->Rank(query, all)) {
       ranked.push_back(candidates[i]);
       if (ranked.size() == static_cast<size_t>(options_.localization_candidates)) break;
     }

@@ -47,6 +47,7 @@
 #include <opencv2/core.hpp>
 
 #include "retrace/camera/camera_model.h"
+#include "retrace/feature/global_descriptor.h"
 #include "retrace/feature/wide_baseline.h"
 #include "retrace/geometry/two_view_geometry.h"
 #include "retrace/map/map.h"
@@ -188,6 +189,7 @@ class Navigator {
   KeyImageFeatures current_;  // its features
   std::unordered_map<node_t, Comparison> comparisons_;  // of the current image, by key-image
   std::unordered_map<node_t, KeyImageFeatures> cache_;
+  std::unique_ptr<AppearanceIndex> appearance_index_;  // of every node in map_.nodes() order (localization_candidates)
   std::list<node_t> cache_order_;  // most recently used first
 };
 
