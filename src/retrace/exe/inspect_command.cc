@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -60,16 +61,23 @@ nlohmann::json MapToJson(const Map& map, const std::map<std::string, std::string
   return {{"nodes", nodes}, {"arcs", arcs}, {"scales", scales}, {"metadata", metadata}};
 }
 
+// A finite number written as text, or nothing.
+std::optional<double> ParseNumber(const std::string& text) {
+  char* end = nullptr;
+  const double value = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(value)) return std::nullopt;
+  return value;
+}
+
 // A number stored in the map's metadata; a value that is not one is an error naming the map and the key.
 double MetadataNumber(const std::map<std::string, std::string>& metadata, const std::string& key,
                       const std::filesystem::path& map_path) {
   const std::string& text = metadata.at(key);
-  char* end = nullptr;
-  const double value = std::strtod(text.c_str(), &end);
-  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(value)) {
+  const std::optional<double> value = ParseNumber(text);
+  if (!value) {
     throw InputError(map_path.string(), "metadata " + key + " is not a number: '" + PrintableText(text, 40) + "'");
   }
-  return value;
+  return *value;
 }
 
 void RunInspect(const InspectArguments& args) {
@@ -111,10 +119,13 @@ void RunInspect(const InspectArguments& args) {
     std::cout << fmt::format("  size            {:.1f} kB ({:.1f} kB of key-images, {:.1f} kB of relocalization "
                              "signatures)\n",
                              file_bytes / 1000.0, database->ImageBytes() / 1000.0, database->SignatureBytes() / 1000.0);
-    if (metadata.count("route_length_m") != 0) {
-      const double metres = MetadataNumber(metadata, "route_length_m", args.map_path);
-      if (metres > 0) {
-        std::cout << fmt::format("  route           {:.1f} m, {:.1f} kB/m\n", metres, file_bytes / 1000.0 / metres);
+    // The route's length is for information only (repeat does not read it): a damaged value is shown, not refused.
+    if (const auto length = metadata.find("route_length_m"); length != metadata.end()) {
+      const std::optional<double> metres = ParseNumber(length->second);
+      if (metres && *metres > 0) {
+        std::cout << fmt::format("  route           {:.1f} m, {:.1f} kB/m\n", *metres, file_bytes / 1000.0 / *metres);
+      } else if (!metres) {
+        std::cout << fmt::format("  route           length unreadable: '{}'\n", PrintableText(length->second, 40));
       }
     }
     for (const auto& [key, value] : metadata) {

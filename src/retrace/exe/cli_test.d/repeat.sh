@@ -28,6 +28,11 @@ if [[ -d $data/kitti07 && -f $tmp/repeat_route.db ]]; then
   sqlite3 "$tmp/repeat_bad_meta.db" "UPDATE metadata SET value = 'abc' WHERE key = 'smoothing_sigma_px'" 2>/dev/null &&
     expect repeat-bad-metadata 1 "^retrace: error: .*repeat_bad_meta.db: metadata smoothing_sigma_px is not a number: 'abc'$" -- \
       "$bin" repeat --map "$tmp/repeat_bad_meta.db" --sequence "$k" --every 2 --offset 1 --output "$tmp/r2.csv" --no-progress
+  # The route's length is for information only (repeat does not read it): inspect shows a damaged one, as repeat
+  # uses the map (map_fuzz_test found inspect refusing such a map while repeat used it).
+  cp "$tmp/repeat_route.db" "$tmp/repeat_bad_length.db"
+  sqlite3 "$tmp/repeat_bad_length.db" "UPDATE metadata SET value = 'abc' WHERE key = 'route_length_m'" 2>/dev/null &&
+    expect inspect-bad-route-length 0 "route +length unreadable: 'abc'" -- "$bin" inspect --map "$tmp/repeat_bad_length.db"
 fi
 
 if [[ -d $data/kitti07 && -f $tmp/repeat_route.db ]]; then
