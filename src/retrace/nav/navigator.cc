@@ -11,6 +11,7 @@
 
 #include "retrace/feature/global_descriptor.h"
 #include "retrace/geometry/planar_pose.h"
+#include "retrace/teach/matched_geometry.h"
 
 namespace retrace {
 
@@ -119,13 +120,11 @@ Navigator::Comparison Navigator::Compare(node_t node, int* compared) {
   if (bearings_current.size() >= 3) {
     comparison.geometry =
         EstimatePlanarRelativePose(bearings_current, bearings_key_image, camera_->FocalLength(), options_.geometry);
-    // Booij 2007 §B.2: epipolar-consistent matches over the fewer key-points of the two images. An estimate refused
-    // only for its parallax still counts its matches: the robot stands at the key-image's place.
-    const size_t fewer = std::min(current_.features.size(), key_image.features.size());
-    const bool consistent = comparison.geometry.success ||
-                            comparison.geometry.failure == TwoViewFailure::kInsufficientParallax;
-    if (consistent && fewer > 0) {
-      comparison.similarity = std::min(1.0, static_cast<double>(comparison.geometry.num_inliers) / fewer);
+    // Booij 2007 §B.2 (AppearanceSimilarity). An estimate refused only for its parallax still counts its matches:
+    // the robot stands at the key-image's place.
+    if (comparison.geometry.success || comparison.geometry.failure == TwoViewFailure::kInsufficientParallax) {
+      comparison.similarity = AppearanceSimilarity(comparison.geometry.num_inliers, current_.features.size(),
+                                                   key_image.features.size());
     }
   }
   comparison.matches = comparison.similarity >= options_.min_similarity &&

@@ -53,10 +53,15 @@ MatchedGeometry RelateByMatching(const CameraModel& camera, const MatchableImage
   return result;
 }
 
+double AppearanceSimilarity(int consistent, size_t keypoints_a, size_t keypoints_b) {
+  const size_t fewer = std::min(keypoints_a, keypoints_b);
+  if (fewer == 0 || consistent <= 0) return 0.0;
+  return std::min(1.0, static_cast<double>(consistent) / static_cast<double>(fewer));
+}
+
 double MatchedSimilarity(const MatchedGeometry& matched, const MatchableImage& a, const MatchableImage& b) {
-  const size_t fewer = std::min(a.features.size(), b.features.size());
-  if (!matched.geometry.success || fewer == 0) return 0.0;
-  return std::min(1.0, static_cast<double>(matched.geometry.num_inliers) / static_cast<double>(fewer));
+  if (!matched.geometry.success) return 0.0;
+  return AppearanceSimilarity(matched.geometry.num_inliers, a.features.size(), b.features.size());
 }
 
 TwoViewGeometry EstimateMatchedGeometryNear(const CameraModel& camera, const MatchedGeometry& matched,

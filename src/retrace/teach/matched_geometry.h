@@ -53,8 +53,11 @@ struct MatchedGeometryOptions {
 MatchedGeometry RelateByMatching(const CameraModel& camera, const MatchableImage& a, const MatchableImage& b,
                                  const MatchedGeometryOptions& options);
 
-// Appearance similarity of A and B (Booij 2007 §B.2): the matches consistent with the epipolar geometry over the
-// fewer wide-baseline key-points of the two images, in [0, 1]; 0 when the geometry failed.
+// Appearance similarity (Booij 2007 §B.2): `consistent` matches (those of the epipolar geometry) over the fewer
+// key-points of the two images, in [0, 1]; 0 when either has none.
+double AppearanceSimilarity(int consistent, size_t keypoints_a, size_t keypoints_b);
+
+// AppearanceSimilarity of A and B over their wide-baseline key-points; 0 when the geometry failed.
 double MatchedSimilarity(const MatchedGeometry& matched, const MatchableImage& a, const MatchableImage& b);
 
 // The geometry of the matches of `matched` (between A and B) estimated again with `guess` as the first hypothesis:

@@ -476,11 +476,9 @@ void Teacher::RegisterKeyImage(FrameState* frame, KeyImageReason reason, bool wi
   if (arc) {
     // Booij 2007 §B.2 for a tracked arc: its epipolar-consistent tracked correspondences over the fewer corners
     // tracked from either key-image (MapArc::similarity).
-    const size_t fewer = std::min(features_at_from, subrange_->bearings.size());
-    arc->similarity = frame->matched_similarity
-                          ? *frame->matched_similarity
-                          : fewer == 0 ? 0.0
-                                       : std::min(1.0, static_cast<double>(frame->geometry.num_inliers) / fewer);
+    arc->similarity = frame->matched_similarity ? *frame->matched_similarity
+                                                : AppearanceSimilarity(frame->geometry.num_inliers, features_at_from,
+                                                                       subrange_->bearings.size());
   }
   for (const feature_t id : arc_features) {
     if (const auto it = subrange_->observations.find(id); it != subrange_->observations.end()) {
