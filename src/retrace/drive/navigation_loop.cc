@@ -1,6 +1,8 @@
 #include "retrace/drive/navigation_loop.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -23,7 +25,19 @@ bool NavigationLoopOptions::Check(std::string* error) const {
   return true;
 }
 
+double DistanceToPolyline(const std::vector<Vector2d>& points, const Vector2d& p) {
+  if (points.size() == 1) return (points[0] - p).norm();
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i + 1 < points.size(); ++i) {
+    const Vector2d ab = points[i + 1] - points[i];
+    const double along = ab.squaredNorm() > 0 ? std::clamp((p - points[i]).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0;
+    best = std::min(best, (points[i] + along * ab - p).norm());
+  }
+  return best;
+}
+
 NavigationLoopSummary DriveToGoal(Simulator* simulator, Navigator* navigator, const NavigationLoopOptions& options,
+                                  const std::unordered_map<node_t, Vector2d>& key_image_places,
                                   const std::function<void(const NavigationLoopStep&)>& on_step) {
   std::string error;
   if (!options.Check(&error)) throw std::invalid_argument("NavigationLoopOptions: " + error);
@@ -37,6 +51,13 @@ NavigationLoopSummary DriveToGoal(Simulator* simulator, Navigator* navigator, co
     const Vector2d position = view.town_from_cam.translation.head<2>();
     if (!summary.camera_positions.empty()) summary.path_length_m += (position - summary.camera_positions.back()).norm();
     summary.camera_positions.push_back(position);
+    if (!key_image_places.empty()) {
+      std::vector<Vector2d> plan;
+      for (const node_t node : navigator->planned_path().nodes) {
+        if (const auto place = key_image_places.find(node); place != key_image_places.end()) plan.push_back(place->second);
+      }
+      if (!plan.empty()) summary.max_off_plan_m = std::max(summary.max_off_plan_m, DistanceToPolyline(plan, position));
+    }
     summary.frames_without_heading += step.state == NavigationState::kNavigating && !step.heading.has_value();
 
     NavigationLoopStep loop_step;

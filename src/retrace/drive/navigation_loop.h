@@ -9,6 +9,7 @@
 // end instead (TownLayout OnStreets: inside a block or outside the town), not at Simulator::OffRoute.
 
 #include <functional>
+#include <unordered_map>
 #include <vector>
 
 #include "retrace/nav/navigator.h"
@@ -40,10 +41,18 @@ struct NavigationLoopSummary {
   int frames_without_heading = 0;
   double path_length_m = 0.0;             // driven by the camera
   std::vector<Vector2d> camera_positions;  // per frame, town frame (x east, y north)
+  // With the key-images' true places: the camera's largest distance from the polyline through the places of the
+  // path planned at that frame. A wrong turn leaves it by a street's length. 0 without places.
+  double max_off_plan_m = 0.0;
 };
 
-// Drives `simulator` (at its scenario's start) with `navigator`'s commands. `on_step` (optional) sees every frame.
+// Distance of `p` from the polyline through `points` (from the point when there is one, infinite when none).
+double DistanceToPolyline(const std::vector<Vector2d>& points, const Vector2d& p);
+
+// Drives `simulator` (at its scenario's start) with `navigator`'s commands. `key_image_places` (town frame, may be
+// empty) are the key-images' true places for max_off_plan_m. `on_step` (optional) sees every frame.
 NavigationLoopSummary DriveToGoal(Simulator* simulator, Navigator* navigator, const NavigationLoopOptions& options,
+                                  const std::unordered_map<node_t, Vector2d>& key_image_places = {},
                                   const std::function<void(const NavigationLoopStep&)>& on_step = {});
 
 }  // namespace retrace

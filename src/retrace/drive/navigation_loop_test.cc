@@ -8,10 +8,8 @@
 
 #include "retrace/drive/navigation_loop.h"
 
-#include <algorithm>
 #include <array>
 #include <cmath>
-#include <limits>
 #include <unordered_map>
 #include <vector>
 
@@ -33,6 +31,17 @@ TEST(NavigationLoopOptions, CheckRejectsBadValues) {
   options = NavigationLoopOptions();
   options.max_stopped_frames = 0;
   EXPECT_FALSE(options.Check());
+}
+
+// Known answers: beside a segment, beyond its end, at a corner, a single point.
+TEST(DistanceToPolyline, KnownAnswers) {
+  const std::vector<Vector2d> corner = {Vector2d(0, 0), Vector2d(10, 0), Vector2d(10, 10)};
+  EXPECT_DOUBLE_EQ(DistanceToPolyline(corner, Vector2d(5, 3)), 3.0);
+  EXPECT_DOUBLE_EQ(DistanceToPolyline(corner, Vector2d(-3, -4)), 5.0);
+  EXPECT_DOUBLE_EQ(DistanceToPolyline(corner, Vector2d(14, 5)), 4.0);
+  EXPECT_DOUBLE_EQ(DistanceToPolyline(corner, Vector2d(13, -4)), 5.0);
+  EXPECT_DOUBLE_EQ(DistanceToPolyline({Vector2d(1, 1)}, Vector2d(4, 5)), 5.0);
+  EXPECT_TRUE(std::isinf(DistanceToPolyline({}, Vector2d(0, 0))));
 }
 
 TEST(NavigatorOptions, CheckRejectsBadValues) {
@@ -62,17 +71,6 @@ Scenario StreetScenario(std::vector<std::array<int, 2>> junctions) {
   scenario.route.type = "junctions";
   scenario.route.junctions = std::move(junctions);
   return scenario;
-}
-
-// Distance of p from the polyline through `points`.
-double DistanceToPolyline(const std::vector<Vector2d>& points, const Vector2d& p) {
-  double best = std::numeric_limits<double>::infinity();
-  for (size_t i = 0; i + 1 < points.size(); ++i) {
-    const Vector2d ab = points[i + 1] - points[i];
-    const double along = ab.squaredNorm() > 0 ? std::clamp((p - points[i]).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0;
-    best = std::min(best, (points[i] + along * ab - p).norm());
-  }
-  return points.size() == 1 ? (points[0] - p).norm() : best;
 }
 
 TEST(NavigationLoop, PanoramicCarTurnsWhereNoDriveTurned) {
@@ -129,14 +127,13 @@ TEST(NavigationLoop, PanoramicCarTurnsWhereNoDriveTurned) {
   options.frame_period = 1.0 / scenarios[0].frame_rate;
   options.max_frames = 800;
   std::string steps;  // per frame: subgoal, heading, relocalization (printed on failure)
-  double off_path = 0.0;
-  const NavigationLoopSummary summary = DriveToGoal(&simulator, &navigator, options, [&](const NavigationLoopStep& s) {
-    steps += fmt::format("{}{}{}{} ", s.step->subgoal, s.step->heading ? fmt::format("/{:.2f}", *s.step->heading) : "",
-                         s.step->along_arc ? "A" : "", s.step->relocalized ? "R" : "");
-    std::vector<Vector2d> plan;
-    for (node_t n : navigator.planned_path().nodes) plan.push_back(truth.at(n));
-    if (!plan.empty()) off_path = std::max(off_path, DistanceToPolyline(plan, s.view->town_from_cam.translation.head<2>()));
-  });
+  const NavigationLoopSummary summary =
+      DriveToGoal(&simulator, &navigator, options, truth, [&](const NavigationLoopStep& s) {
+        steps += fmt::format("{}{}{}{} ", s.step->subgoal,
+                             s.step->heading ? fmt::format("/{:.2f}", *s.step->heading) : "",
+                             s.step->along_arc ? "A" : "", s.step->relocalized ? "R" : "");
+      });
+  const double off_path = summary.max_off_plan_m;
   ASSERT_FALSE(summary.camera_positions.empty());
   const Vector2d start_to_goal = goal_position - summary.camera_positions.front();
   const double streets = std::abs(start_to_goal.x()) + std::abs(start_to_goal.y());  // along the two streets

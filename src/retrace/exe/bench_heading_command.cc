@@ -27,6 +27,7 @@
 #include "retrace/geometry/two_view_matching.h"
 #include "retrace/util/error.h"
 #include "retrace/util/progress.h"
+#include "retrace/util/statistics.h"
 #include "retrace/viz/plot.h"
 
 namespace retrace {
@@ -49,12 +50,6 @@ struct PairHeading {
   int inliers = 0;
   double error() const { return std::remainder(estimate - truth, 2 * M_PI); }
 };
-
-double Quantile(std::vector<double> values, double q) {
-  if (values.empty()) return 0.0;
-  std::sort(values.begin(), values.end());
-  return values[std::min(values.size() - 1, static_cast<size_t>(q * values.size()))];
-}
 
 void RunHeadingBench(const HeadingArguments& args) {
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_ERROR);

@@ -46,6 +46,7 @@
 #include "retrace/util/error.h"
 #include "retrace/util/memory_usage.h"
 #include "retrace/util/progress.h"
+#include "retrace/util/statistics.h"
 #include "retrace/viz/plot.h"
 
 namespace retrace {
@@ -447,14 +448,10 @@ void RunRepeat(const RepeatArguments& args) {
                            path_truth.valid ? OptionalNumber(path_truth.heading_error_rad) : "");
     }
     if (!lateral_errors.empty()) {
-      const auto quantile = [](std::vector<double> v, double q) {
-        std::sort(v.begin(), v.end());
-        return v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
-      };
       std::cout << fmt::format("metric path against ground truth: {} frames, |lateral_m error| median {:.3f} m, 95th "
                                "percentile {:.3f} m; |heading error| median {:.2f} deg, 95th percentile {:.2f} deg\n",
-                               lateral_errors.size(), quantile(lateral_errors, 0.5), quantile(lateral_errors, 0.95),
-                               quantile(heading_errors, 0.5) * 180 / M_PI, quantile(heading_errors, 0.95) * 180 / M_PI);
+                               lateral_errors.size(), Quantile(lateral_errors, 0.5), Quantile(lateral_errors, 0.95),
+                               Quantile(heading_errors, 0.5) * 180 / M_PI, Quantile(heading_errors, 0.95) * 180 / M_PI);
     }
     if (!truth) throw InputError(truth_path.string(), "cannot be written");
     std::cout << "per-frame ground truth: " << truth_path.string() << "\n";

@@ -5,7 +5,6 @@
 #include <cmath>
 #include <fstream>
 #include <iostream>
-#include <limits>
 #include <map>
 
 #include <nlohmann/json.hpp>
@@ -389,33 +388,14 @@ void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
   csv << "frame,timestamp,x,y,yaw,state,subgoal,advanced,compared,relocalized,heading,filtered_heading,similarity,"
          "misses,curvature,speed,wheels,ms,true_heading,along_arc\n";
   const auto number = [](std::optional<double> v) { return v ? fmt::format("{:.4f}", *v) : std::string(); };
-  // A wrong turn shows as the car far from the path planned at that frame: the largest distance of the camera from
-  // the polyline through the (true places of the) key-images of the current plan.
-  double max_off_path_m = 0.0;
-  const auto distance_to_plan = [&truth](const std::vector<node_t>& path, const Vector2d& p) {
-    double best = std::numeric_limits<double>::infinity();
-    for (size_t i = 0; i < path.size(); ++i) {
-      const auto a = truth.find(path[i]);
-      const auto b = truth.find(path[std::min(i + 1, path.size() - 1)]);
-      if (a == truth.end() || b == truth.end()) continue;
-      const Vector2d ab = b->second - a->second;
-      const double along = ab.squaredNorm() > 0 ? std::clamp((p - a->second).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0;
-      best = std::min(best, (a->second + along * ab - p).norm());
-    }
-    return best;
-  };
   NavigationLoopSummary summary;
   {
     ProgressBar progress("navigate", 0, !args.quiet);
     int frame = 0;
-    summary = DriveToGoal(&simulator, &navigator, loop, [&](const NavigationLoopStep& s) {
+    summary = DriveToGoal(&simulator, &navigator, loop, truth, [&](const NavigationLoopStep& s) {
       const NavigationStep& n = *s.step;
       const Rigid3d& town_from_cam = s.view->town_from_cam;
       const Vector3d forward = town_from_cam.rotation.col(2);
-      if (!truth.empty() && !navigator.planned_path().nodes.empty()) {
-        const double off = distance_to_plan(navigator.planned_path().nodes, town_from_cam.translation.head<2>());
-        if (std::isfinite(off)) max_off_path_m = std::max(max_off_path_m, off);
-      }
       // The true heading to the subgoal, as the navigator measures it (0 ahead, positive right).
       std::optional<double> true_heading;
       if (const auto t = truth.find(n.subgoal); t != truth.end()) {
@@ -455,13 +435,13 @@ void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
     const Vector2d d = summary.camera_positions.back() - goal_position;
     const Vector2d s = summary.camera_positions.front() - goal_position;
     json["distance_to_goal_m"] = d.norm();
-    json["max_off_path_m"] = max_off_path_m;
+    json["max_off_path_m"] = summary.max_off_plan_m;
     json["street_distance_m"] = std::abs(s.x()) + std::abs(s.y());
     json["length_ratio"] = summary.path_length_m / std::max(1e-9, json["street_distance_m"].get<double>());
     figures = fmt::format("; {:.2f} m from the goal, driven {:.1f} m for a street distance of {:.1f} m ({:+.1f} %), "
                           "at most {:.1f} m from the planned path",
                           d.norm(), summary.path_length_m, json["street_distance_m"].get<double>(),
-                          100.0 * (json["length_ratio"].get<double>() - 1.0), max_off_path_m);
+                          100.0 * (json["length_ratio"].get<double>() - 1.0), summary.max_off_plan_m);
   }
   const std::filesystem::path json_path = out / "summary.json";
   {

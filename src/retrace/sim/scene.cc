@@ -188,9 +188,7 @@ Rigid3d CarriedPlacement::PoseAt(double time) const {
   const double yaw = yaw_swing_deg * M_PI / 180.0 * std::sin(a);
   const Vector3d position(spot.x() + 0.5 * sway * std::sin(2.0 * a), spot.y() + sway * std::sin(a),
                           bob * 0.5 * (1.0 - std::cos(2.0 * a)));
-  Matrix3d r;
-  r << std::cos(yaw), -std::sin(yaw), 0, std::sin(yaw), std::cos(yaw), 0, 0, 0, 1;
-  return Rigid3d(r, position);
+  return Rigid3d(Eigen::AngleAxisd(yaw, Vector3d::UnitZ()).toRotationMatrix(), position);
 }
 
 Scene::Scene() {

@@ -5,6 +5,8 @@
 #include <optional>
 #include <stdexcept>
 
+#include <Eigen/Geometry>
+
 #include "retrace/sim/procedural_texture.h"
 #include "retrace/sim/scene_file.h"
 
@@ -41,9 +43,8 @@ Rigid3d TownFromWorldAtStart(const Scenario& scenario, const RoutePath& route) {
 Rigid3d CarrierUnderCamera(const Rigid3d& town_from_cam, double camera_height) {
   const Vector3d forward = town_from_cam.rotation.col(2);
   const double yaw = std::atan2(forward.y(), forward.x());
-  Matrix3d r;
-  r << std::cos(yaw), -std::sin(yaw), 0, std::sin(yaw), std::cos(yaw), 0, 0, 0, 1;
-  return Rigid3d(r, town_from_cam.translation - Vector3d(0.0, 0.0, camera_height));
+  return Rigid3d(Eigen::AngleAxisd(yaw, Vector3d::UnitZ()).toRotationMatrix(),
+                 town_from_cam.translation - Vector3d(0.0, 0.0, camera_height));
 }
 
 }  // namespace

@@ -1,0 +1,13 @@
+#pragma once
+
+// Order statistics of measurements for the figures retrace prints (medians, percentiles of errors).
+
+#include <vector>
+
+namespace retrace {
+
+// The q-quantile (q in [0, 1]) as the element of rank floor(q n) of the sorted values (the largest for q = 1);
+// 0 for no values.
+double Quantile(std::vector<double> values, double q);
+
+}  // namespace retrace
