@@ -8,6 +8,7 @@
 // image and x*_j its coordinate in the next key-image (the one the robot drives towards). Image x grows to the
 // right, so w < 0 turns left, towards where the next key-image looks.
 
+#include <limits>
 #include <vector>
 
 #include "retrace/util/types.h"
@@ -27,7 +28,10 @@ struct SteeringFeature {
 };
 
 // eq. (10) with gain `gain` (radians per unit of normalised coordinate, Segvic 2009: k); features behind either
-// camera are skipped.
-SteeringCommand SteerByImage(const std::vector<SteeringFeature>& features, double gain);
+// camera, or with a normalised coordinate |x| beyond `max_abs_x` in either (outside the forward field the law is
+// made for: an omnidirectional camera's features beside the robot slide with its forward motion, x = tan of their
+// angle grows without bound, and a lateral offset unbalances them), are skipped.
+SteeringCommand SteerByImage(const std::vector<SteeringFeature>& features, double gain,
+                             double max_abs_x = std::numeric_limits<double>::infinity());
 
 }  // namespace retrace

@@ -59,6 +59,8 @@ NavigationLoopSummary DriveToGoal(Simulator* simulator, Navigator* navigator, co
       if (!plan.empty()) summary.max_off_plan_m = std::max(summary.max_off_plan_m, DistanceToPolyline(plan, position));
     }
     summary.frames_without_heading += step.state == NavigationState::kNavigating && !step.heading.has_value();
+    summary.image_steering_frames += step.image_steering;
+    summary.replans = navigator->replans();
 
     NavigationLoopStep loop_step;
     loop_step.view = &view;

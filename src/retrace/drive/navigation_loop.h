@@ -39,6 +39,8 @@ struct NavigationLoopSummary {
   bool left_streets = false;   // drove into a block or out of the town
   int relocalizations = 0;     // recoveries after max_misses images without a heading (not the first localization)
   int frames_without_heading = 0;
+  int image_steering_frames = 0;  // steered by eq. (10) on a taught arc of the plan (the localizer beneath)
+  int replans = 0;                // plans made again because the localizer tracked an arc off the plan
   double path_length_m = 0.0;             // driven by the camera
   std::vector<Vector2d> camera_positions;  // per frame, town frame (x east, y north)
   // With the key-images' true places: the camera's largest distance from the polyline through the places of the

@@ -17,6 +17,7 @@
 #include "retrace/drive/closed_loop.h"
 #include "retrace/drive/navigation_loop.h"
 #include "retrace/map/map_database.h"
+#include "retrace/repeat/map_loading.h"
 #include "retrace/exe/commands.h"
 #include "retrace/exe/key_image_places.h"
 #include "retrace/exe/sequence_input.h"
@@ -342,7 +343,9 @@ struct NavigateArguments {
 
 void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
   const Scenario scenario = ReadScenarioWithOverrides(args.scenario.scenario, args.scenario.Overrides(command));
-  Map map = MapDatabase::Open(args.map)->ReadMap(/*load_images=*/true, /*load_signature_features=*/false);
+  // Key-images read on demand, and the tracking settings teach stored (the localizer beneath the navigator).
+  MapForLocalizer loaded = LoadMapForLocalizer(args.map, args.navigator.localizer);
+  Map& map = loaded.map;
   const node_t goal = static_cast<node_t>(args.goal);
   if (args.goal < 0 || map.FindNode(goal) == nullptr) {
     throw InputError(args.map, fmt::format("has no key-image {} (--goal; `retrace inspect --json` lists them)", args.goal));
@@ -364,6 +367,7 @@ void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
                                            any_key_image.cols, any_key_image.rows, camera.width(), camera.height()));
   }
   NavigatorOptions options = args.navigator;
+  options.localizer = loaded.options;
   options.planning.cost = args.cost == "drive" ? PlanOptions::Cost::kDrive : PlanOptions::Cost::kAppearance;
   // An omnidirectional camera sees a route backwards too (the paper's undirected graph); a perspective one only
   // ahead.
@@ -386,7 +390,7 @@ void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
   std::ofstream csv(csv_path);
   if (!csv) throw InputError(csv_path.string(), "cannot be written");
   csv << "frame,timestamp,x,y,yaw,state,subgoal,advanced,compared,relocalized,heading,filtered_heading,similarity,"
-         "misses,curvature,speed,wheels,ms,true_heading,along_arc\n";
+         "misses,curvature,speed,wheels,ms,true_heading,along_arc,localizer,arc,on_plan,image_steering,replanned\n";
   const auto number = [](std::optional<double> v) { return v ? fmt::format("{:.4f}", *v) : std::string(); };
   NavigationLoopSummary summary;
   {
@@ -409,9 +413,12 @@ void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
                          std::atan2(forward.y(), forward.x()), NavigationStateName(n.state),
                          n.subgoal == kInvalidNodeId ? std::string() : std::to_string(n.subgoal), n.advanced,
                          n.compared, n.relocalized ? 1 : 0)
-          << fmt::format("{},{},{:.4f},{},{:.5f},{:.3f},{:.5f},{:.1f},{},{}\n", number(n.heading),
+          << fmt::format("{},{},{:.4f},{},{:.5f},{:.3f},{:.5f},{:.1f},{},{},", number(n.heading),
                          number(n.filtered_heading), n.similarity, n.misses, n.curvature, n.speed, s.wheels,
-                         1000.0 * n.seconds, number(true_heading), n.along_arc ? 1 : 0);
+                         1000.0 * n.seconds, number(true_heading), n.along_arc ? 1 : 0)
+          << fmt::format("{},{},{},{},{}\n", LocalizerStateName(n.localizer_state),
+                         n.arc == kInvalidArcId ? std::string() : std::to_string(n.arc), n.on_plan ? 1 : 0,
+                         n.image_steering ? 1 : 0, n.replanned ? 1 : 0);
       progress.Advance(1, n.subgoal == kInvalidNodeId ? std::string(NavigationStateName(n.state))
                                                       : fmt::format("subgoal {}", n.subgoal));
     });
@@ -426,6 +433,8 @@ void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
                       {"path_length_m", summary.path_length_m},
                       {"relocalizations", summary.relocalizations},
                       {"frames_without_heading", summary.frames_without_heading},
+                      {"image_steering_frames", summary.image_steering_frames},
+                      {"replans", summary.replans},
                       {"stalled", summary.stalled},
                       {"left_streets", summary.left_streets},
                       {"planned_path", navigator.planned_path().nodes}};
@@ -631,6 +640,9 @@ void RegisterSimCommand(CLI::App& app) {
   navigate->add_option("--min-similarity", nav_args->navigator.min_similarity,
                        "Similarity S at which a key-image matches the image (Booij 2007: 0.05)")
       ->capture_default_str();
+  navigate->add_flag("--heading-only{false}", nav_args->navigator.follow_taught_arcs,
+                     "Steer by the heading alone (Booij 2007), without the Segvic localizer beneath: no image "
+                     "steering on the plan's taught arcs, no replanning off the plan");
   navigate->add_option("--max-frames", nav_args->loop.max_frames, "Give up after this many frames")->capture_default_str();
   navigate->add_flag("--quiet", nav_args->quiet, "No progress bar");
   navigate->callback([navigate, nav_args]() { RunNavigate(*navigate, *nav_args); });

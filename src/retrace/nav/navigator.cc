@@ -40,6 +40,10 @@ bool NavigatorOptions::Check(std::string* error) const {
   }
   if (!(look_ahead > 0 && look_ahead <= 1000)) return fail(fmt::format("look_ahead must be in (0, 1000] m, got {}", look_ahead));
   if (!(speed > 0 && speed <= 50)) return fail(fmt::format("speed must be in (0, 50] m/s, got {}", speed));
+  if (follow_taught_arcs && !localizer.Check(&part)) return fail("localizer: " + part);
+  if (!(image_steering_gain >= 0 && image_steering_gain <= 100)) {
+    return fail(fmt::format("image_steering_gain must be in [0, 100] 1/m, got {}", image_steering_gain));
+  }
   if (max_cached_key_images < 1) {
     return fail(fmt::format("max_cached_key_images must be >= 1, got {}", max_cached_key_images));
   }
@@ -73,6 +77,66 @@ Navigator::Navigator(Map map, const CameraModel& camera, node_t goal, const Navi
   }
   graph_ = BuildPlanningGraph(map_, options_.planning);
   paths_to_goal_ = ShortestPathsToGoal(graph_, goal_);
+  // The localizer keeps its own copy of the map (the key-images are shared).
+  if (options_.follow_taught_arcs && !map_.arcs().empty()) {
+    localizer_ = std::make_unique<Localizer>(map_, *camera_, options_.localizer);
+  }
+}
+
+void Navigator::SetPlan(node_t start) {
+  planned_path_ = PathFromTree(paths_to_goal_, start, goal_);
+  if (localizer_) localizer_->SetPlannedArcs(planned_path_.found ? planned_path_.arcs : std::vector<arc_t>());
+  // The plan's places: its key-images and those linked to them (two images of one place, where drives overlap),
+  // each with its position along the plan.
+  planned_places_.clear();
+  if (!planned_path_.found) return;
+  for (size_t i = 0; i < planned_path_.nodes.size(); ++i) planned_places_.emplace(planned_path_.nodes[i], i);
+  for (size_t i = 0; i < planned_path_.nodes.size(); ++i) {
+    const node_t node = planned_path_.nodes[i];
+    for (const MapArc* arc : map_.ArcsFrom(node)) {
+      if (arc->kind == "join" || arc->kind == "loop") planned_places_.emplace(arc->to, i);
+    }
+    for (const MapArc* arc : map_.ArcsTo(node)) {
+      if (arc->kind == "join" || arc->kind == "loop") planned_places_.emplace(arc->from, i);
+    }
+  }
+}
+
+std::optional<double> Navigator::FollowLocalizer(const cv::Mat& image, NavigationStep* step) {
+  Frame frame;
+  frame.index = frame.source_index = frames_++;
+  frame.image = image;
+  const FrameResult result = localizer_->ProcessFrame(frame);
+  step->localizer_state = result.state;
+  step->localizer_confidence = result.confidence;
+  if (result.state != LocalizerState::kTracking) return std::nullopt;
+  step->arc = result.arc;
+  const MapArc* arc = map_.FindArc(result.arc);
+  if (arc == nullptr || at_goal_ || subgoal_ == kInvalidNodeId || !planned_path_.found) return std::nullopt;
+  // On the plan in the arc's taught direction: from a place of the plan to a later one (the plan's own arc, or one
+  // of another drive over the same street).
+  const auto from = planned_places_.find(arc->from);
+  const auto to = planned_places_.find(arc->to);
+  if (from != planned_places_.end() && to != planned_places_.end()) {
+    step->on_plan = from->second < to->second;
+    // Image steering along a driven arc (a link between two drives joins two views of one place: no line to keep).
+    const bool link = arc->kind == "join" || arc->kind == "loop";
+    if (step->on_plan && !link && result.steering_valid) return result.steering;
+    return std::nullopt;
+  }
+  if (from != planned_places_.end() || to != planned_places_.end() || paths_to_goal_.distance.count(arc->to) == 0) {
+    return std::nullopt;
+  }
+  // Another branch than the plan's: plan again from the key-image the robot drives towards.
+  spdlog::info("navigator: the localizer tracks arc {} ({} -> {}, confidence {:.3f}) off the plan: planning again "
+               "from key-image {}", arc->id, arc->from, arc->to, result.confidence, arc->to);
+  SetPlan(arc->to);
+  previous_ = arc->from;
+  subgoal_ = arc->to;
+  filter_.Reset();
+  ++replans_;
+  step->replanned = true;
+  return std::nullopt;
 }
 
 Navigator::KeyImageFeatures Navigator::Describe(const cv::Mat& image) const {
@@ -204,6 +268,8 @@ NavigationStep Navigator::ProcessImage(const cv::Mat& image) {
   comparisons_.clear();
   current_image_ = image;
   current_ = Describe(image);
+  // The localizer first: it may find the robot off the plan and replan before the subgoal is updated.
+  const std::optional<double> image_steering = localizer_ ? FollowLocalizer(image, &step) : std::nullopt;
 
   if (at_goal_) {
     step.state = NavigationState::kAtGoal;
@@ -215,7 +281,7 @@ NavigationStep Navigator::ProcessImage(const cv::Mat& image) {
       const bool recovering = subgoal_ != kInvalidNodeId;
       const node_t found = Localize(&step.compared);
       if (found != kInvalidNodeId) {
-        planned_path_ = PathFromTree(paths_to_goal_, found, goal_);
+        SetPlan(found);
         spdlog::debug("navigator: localized at key-image {} (similarity {:.3f}), {} to the goal", found,
                       comparisons_.at(found).similarity,
                       planned_path_.found ? fmt::format("{} key-images", planned_path_.nodes.size())
@@ -312,7 +378,14 @@ NavigationStep Navigator::ProcessImage(const cv::Mat& image) {
   if (const auto d = paths_to_goal_.distance.find(subgoal_); d != paths_to_goal_.distance.end()) {
     step.distance_to_goal = d->second;
   }
-  if (step.state == NavigationState::kNavigating && step.filtered_heading.has_value()) {
+  if (step.state == NavigationState::kNavigating && image_steering.has_value()) {
+    // On a taught arc of the plan: Segvic 2009 eq. (10), w < 0 turns left (curvature positive left), limited to the
+    // sharpest turn the heading law commands (2 / ℓ: a point beside the robot).
+    const double max_curvature = 2.0 / options_.look_ahead;
+    step.curvature = std::clamp(-options_.image_steering_gain * *image_steering, -max_curvature, max_curvature);
+    step.speed = options_.speed;
+    step.image_steering = true;
+  } else if (step.state == NavigationState::kNavigating && step.filtered_heading.has_value()) {
     step.curvature = Curvature(*step.filtered_heading);
     step.speed = step.heading.has_value() ? options_.speed : 0.5 * options_.speed;
   }

@@ -31,6 +31,16 @@
 // still matches: the arc's direction in c's frame (the map) turned into the robot's frame by the rotation of the
 // current geometry to c (the robot's few metres from c neglected against the arc's length).
 //
+// Beneath it runs the localizer of repeat (Segvic 2009, repeat/localizer.h; NavigatorOptions::follow_taught_arcs),
+// fed every image. Its belief is told the plan's arcs, so that at a junction it expects the branch the plan chose
+// (PlaceBelief::SetPlannedArcs). Where it tracks an arc between two places of the plan (key-images of the plan or
+// linked to them) whose taught direction is the plan's (a driven arc, not a link), the robot steers by the image as in repeat (eq. (10): κ = −g · w) instead of
+// by the heading, and so keeps to the taught line between key-images. Where it tracks, confidently, an arc none of
+// whose key-images is a place of the plan (a key-image of it, or one linked to such by a join or loop: where drives
+// overlap, the localizer may follow either), the robot took another branch (it takes one arc to tell that from an
+// overshoot at a junction, whose first arc still starts on the plan): the navigator replans from that arc's end (its
+// key-image becomes the subgoal, the shortest path from it the plan).
+//
 // Bearings are rotated into the level frame of the ground plane estimated from the map's arcs (camera_mount.h), so
 // that the planar model holds for a camera pitched against the ground (a car's camera) across turns.
 //
@@ -55,6 +65,7 @@
 #include "retrace/nav/camera_mount.h"
 #include "retrace/nav/heading_filter.h"
 #include "retrace/nav/subgoal.h"
+#include "retrace/repeat/localizer.h"
 
 namespace retrace {
 
@@ -100,6 +111,14 @@ struct NavigatorOptions {
   // model assumes. Off: the camera is taken as level (Booij's upright panoramic camera).
   bool level_camera = true;
   CameraMountOptions camera_mount;
+  // Run the Segvic localizer beneath (see above): image steering on the plan's taught arcs, the belief following the
+  // plan's branch, replanning when it tracks off the plan. Off: the heading alone steers (Booij 2007).
+  bool follow_taught_arcs = true;
+  // Its options; the tracking settings must be teach's (LoadMapForLocalizer reads them from the map).
+  LocalizerOptions localizer;
+  // g of κ = −g · w, eq. (10)'s w (radians) turned into a curvature (1/m): PathTrackingOptions::image_gain, whose
+  // 0.37 reproduces front wheels at −w on a car of 2.7 m wheelbase.
+  double image_steering_gain = 0.37;
 
   bool Check(std::string* error = nullptr) const;
 };
@@ -128,6 +147,14 @@ struct NavigationStep {
   double curvature = 0.0;        // steering command (1/m, positive left)
   double speed = 0.0;            // speed command (m/s)
   double distance_to_goal = 0.0;  // D of the subgoal (graph units of the plan's cost)
+  // The localizer beneath (follow_taught_arcs): its state, the arc it tracks (invalid unless tracking), and what the
+  // navigator made of it.
+  LocalizerState localizer_state = LocalizerState::kRelocalizing;
+  arc_t arc = kInvalidArcId;
+  double localizer_confidence = 0.0;
+  bool on_plan = false;         // the arc runs between places of the plan, in the plan's direction
+  bool image_steering = false;  // the curvature is eq. (10)'s (else the heading's)
+  bool replanned = false;       // the arc was off the plan: planned again from its end
   double seconds = 0.0;          // processing time of this image
 };
 
@@ -147,6 +174,8 @@ class Navigator {
   // The path planned to the goal from the key-image of the last (re)localization.
   const PlannedPath& planned_path() const { return planned_path_; }
   int relocalizations() const { return relocalizations_; }
+  // Plans made again because the localizer tracked an arc off the plan.
+  int replans() const { return replans_; }
   // The ground plane the bearings are levelled by (a level camera when options.level_camera is off).
   const CameraMount& camera_mount() const { return camera_mount_; }
   // D of every node that reaches the goal.
@@ -169,6 +198,11 @@ class Navigator {
   // The key-image that matches the current image best (kInvalidNodeId when none does).
   node_t Localize(int* compared);
   double Curvature(double heading) const;
+  // The localizer's view of this image: on the plan or off it (and then replans). Fills the step's localizer fields;
+  // returns eq. (10)'s w when the robot is to steer by the image.
+  std::optional<double> FollowLocalizer(const cv::Mat& image, NavigationStep* step);
+  // The plan from `start` (PathFromTree), told to the localizer's belief.
+  void SetPlan(node_t start);
 
   Map map_;
   std::unique_ptr<CameraModel> camera_;
@@ -178,12 +212,17 @@ class Navigator {
   PlanningGraph graph_;
   ShortestPathTree paths_to_goal_;  // Dijkstra towards the goal, once: D and the next node of every shortest path
   PlannedPath planned_path_;
+  // Its key-images and those linked to them (join, loop), with the position along it of the key-image of the plan.
+  std::unordered_map<node_t, size_t> planned_places_;
   HeadingFilter filter_;
 
   node_t subgoal_ = kInvalidNodeId;
   node_t previous_ = kInvalidNodeId;  // the subgoal before the current one (its arc to it gives a heading)
   bool at_goal_ = false;
   int relocalizations_ = 0;
+  int replans_ = 0;
+  std::unique_ptr<Localizer> localizer_;  // follow_taught_arcs
+  size_t frames_ = 0;
 
   cv::Mat current_image_;     // the image being processed
   KeyImageFeatures current_;  // its features

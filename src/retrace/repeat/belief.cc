@@ -5,6 +5,7 @@
 #include <deque>
 #include <limits>
 #include <string>
+#include <unordered_set>
 
 namespace retrace {
 namespace {
@@ -46,6 +47,9 @@ bool PlaceBeliefOptions::Check(std::string* error) const {
   if (!(min_confidence > 0) || !(min_confidence <= 1)) return fail("min_confidence must be in (0, 1]");
   if (!(min_inlier_probability > 0) || !(min_inlier_probability < 1)) {
     return fail("min_inlier_probability must be in (0, 1)");
+  }
+  if (!(planned_branch_probability > 0) || !(planned_branch_probability < 1)) {
+    return fail("planned_branch_probability must be in (0, 1)");
   }
   return true;
 }
@@ -130,10 +134,28 @@ PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : op
       arcs_.push_back(extension);
     }
   }
+  SetPlannedArcs({});
   mass_.assign(arcs_.size() * options_.bins_per_arc, 0.0);
   scratch_.assign(mass_.size(), 0.0);
   diff_.assign(arcs_.size() * (options_.bins_per_arc + 1), 0.0);
   Reset();
+}
+
+void PlaceBelief::SetPlannedArcs(const std::vector<arc_t>& arcs) {
+  const std::unordered_set<arc_t> planned(arcs.begin(), arcs.end());
+  for (ArcNode& arc : arcs_) {
+    const size_t n = arc.successors.size();
+    size_t on_plan = 0;
+    for (const int s : arc.successors) on_plan += arcs_[s].virtual_of < 0 && planned.count(arcs_[s].id) != 0;
+    arc.successor_shares.assign(n, n == 0 ? 0.0 : 1.0 / n);
+    if (on_plan == 0 || on_plan == n) continue;
+    const double p = options_.planned_branch_probability;
+    for (size_t i = 0; i < n; ++i) {
+      const int s = arc.successors[i];
+      const bool is_planned = arcs_[s].virtual_of < 0 && planned.count(arcs_[s].id) != 0;
+      arc.successor_shares[i] = is_planned ? p / on_plan : (1.0 - p) / (n - on_plan);
+    }
+  }
 }
 
 void PlaceBelief::Reset() {
@@ -253,8 +275,8 @@ void PlaceBelief::DepositUniform(std::vector<double>* target, int index, double 
 void PlaceBelief::Deposit(std::vector<double>* target, int index, double along, double low, double high, double mass,
                           int depth) const {
   // The camera at `along` moves by a distance uniform in [low, high] (common units): the part of that range that
-  // stays on this arc is spread over it, the rest continues into the following (preceding) arcs, split equally at
-  // a junction; past a virtual arc (beyond a route's end or before its start) it leaves the map.
+  // stays on this arc is spread over it, the rest continues into the following (preceding) arcs, split at a
+  // junction by the successors' shares (equally, or towards the planned branch) and equally among predecessors; past a virtual arc (beyond a route's end or before its start) it leaves the map.
   const ArcNode& arc = arcs_[index];
   const double from = along + low / arc.length;
   const double to = along + high / arc.length;
@@ -282,8 +304,10 @@ void PlaceBelief::Deposit(std::vector<double>* target, int index, double along, 
       // The range past the end, measured from the end, in common units.
       const double rest_low = (std::max(from, 1.0) - 1.0) * arc.length;
       const double rest_high = (to - 1.0) * arc.length;
-      const double share = mass * beyond / arc.successors.size();
-      for (const int next : arc.successors) Deposit(target, next, 0.0, rest_low, rest_high, share, depth + 1);
+      for (size_t i = 0; i < arc.successors.size(); ++i) {
+        Deposit(target, arc.successors[i], 0.0, rest_low, rest_high, mass * beyond * arc.successor_shares[i],
+                depth + 1);
+      }
     }
   }
   if (before > 0.0) {

@@ -13,7 +13,8 @@
 //
 // Each frame:
 //  1. Predict (motion model): every bin's mass moves by the camera's displacement d along the graph, continuing into
-//     the following arcs past an arc's end (into each of them, equally, at a junction) and into the previous ones
+//     the following arcs past an arc's end (into each of them, equally, at a junction — or, when a plan is set,
+//     `planned_branch_probability` of it into the planned branch, see SetPlannedArcs) and into the previous ones
 //     before its start. Past a route's last key-image the camera is on a virtual arc continuing the last arc (and
 //     before the first on one preceding it), which counts as the route's last (first) arc; past that virtual arc it is
 //     off the map (a mass of its own, which placements do not explain). With the speed v known (common units per frame,
@@ -92,6 +93,13 @@ struct PlaceBeliefOptions {
   int speed_memory_frames = 5;
   // Per frame, this fraction of the mass is spread uniformly over the map (kidnapping, a wrong belief).
   double jump_probability = 1e-3;
+  // At a junction of a planned route (SetPlannedArcs), the probability that the camera continues into the planned
+  // branch: the robot is steered along the plan, and takes another branch only when that steering fails (a missed
+  // turn, an overshoot). A prior, not a gate: the placements of two or three frames on the other branch outweigh it
+  // (an absolute pose's likelihood ratio between two branches is many orders of magnitude), which is how the
+  // localizer notices a branch the plan did not choose. Without a plan, or at a junction where the plan takes all
+  // or none of the branches, the mass is split equally.
+  double planned_branch_probability = 0.9;
   // Bins holding less than this fraction of the largest bin's mass are not moved by the motion model (the uniform
   // floor the jumps leave; moving it changes nothing that matters, and it is most of the bins of a large map).
   double static_fraction = 1e-4;
@@ -130,6 +138,10 @@ class PlaceBelief {
   void Reset();
   // Uniform over `arc` (a start arc the user gives), speed unknown.
   void ResetTo(arc_t arc);
+  // The arcs of a planned route (navigation, nav/navigator.h): at a junction the motion model sends
+  // planned_branch_probability of the mass into the planned branches (arcs continued past their end only; backward
+  // motion stays equal). An empty list forgets the plan.
+  void SetPlannedArcs(const std::vector<arc_t>& arcs);
   // Motion model over `frames` frames (1 per processed frame).
   void Predict(int frames = 1);
   // Bayes update with this frame's measurements (none: the prediction stands) and the estimate of this frame.
@@ -166,6 +178,7 @@ class PlaceBelief {
     int virtual_of = -1;
     std::vector<int> virtual_children;
     std::vector<int> successors, predecessors;  // indices
+    std::vector<double> successor_shares;       // of the mass continuing past the end, per successor (sum 1)
     std::vector<arc_t> successor_ids, predecessor_ids;
   };
   int Index(arc_t arc) const;

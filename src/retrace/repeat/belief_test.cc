@@ -1,5 +1,7 @@
 #include "retrace/repeat/belief.h"
 
+#include <utility>
+
 #include <gtest/gtest.h>
 
 #include "retrace/repeat/linear_map_testing.h"
@@ -127,6 +129,52 @@ TEST(PlaceBelief, AtAJunctionTheMassSpreadsIntoEveryOutgoingArc) {
   EXPECT_TRUE(belief.estimate().tracking);
 }
 
+// The junction of the previous test with a plan through the right branch (arc 3): the prediction follows the plan,
+// and placements on the branch not planned (the robot went the other way) overrule it within a few frames.
+TEST(PlaceBelief, AtAJunctionAPlanSendsTheMassIntoThePlannedBranch) {
+  Map map = LinearMap(2);
+  for (node_t id : {3, 4}) {
+    MapNode node;
+    node.id = id;
+    node.source_frame = 30;
+    map.AddNode(node);
+  }
+  for (const auto& [id, to] : {std::pair<arc_t, node_t>{2, 3}, {3, 4}}) {
+    MapArc arc;
+    arc.id = id;
+    arc.from = 2;
+    arc.to = to;
+    map.AddArc(arc);
+  }
+  PlaceBeliefOptions options;
+  PlaceBelief belief(map, options);
+  belief.SetPlannedArcs({0, 1, 3});
+  for (int t = 0; t < 4; ++t) Frame(&belief, t + 1, {Pose(1, 0.3 + 0.2 * t)});
+  for (int t = 4; t < 6; ++t) Frame(&belief, t + 1, {});
+  const double branches = belief.Mass(2) + belief.Mass(3);
+  ASSERT_GT(branches, 0.8);
+  // planned_branch_probability of what went past the junction, up to the jumps spread over the map.
+  EXPECT_NEAR(belief.Mass(3) / branches, options.planned_branch_probability, 0.01);
+  EXPECT_EQ(belief.estimate().arc, 3);
+  EXPECT_FALSE(belief.estimate().tracking);  // no evidence: a prior does not make a place
+  // The robot took the other branch: its placements there win.
+  int first_tracking = -1;
+  for (int t = 0; t < 5 && first_tracking < 0; ++t) {
+    Frame(&belief, 7 + t, {Pose(2, 0.5 + 0.1 * t)});
+    if (belief.estimate().tracking) first_tracking = t;
+  }
+  EXPECT_GE(first_tracking, 0);
+  EXPECT_LE(first_tracking, 2);
+  EXPECT_EQ(belief.estimate().arc, 2);
+  // Forgetting the plan splits equally again.
+  PlaceBelief unplanned(map, options);
+  unplanned.SetPlannedArcs({0, 1, 3});
+  unplanned.SetPlannedArcs({});
+  for (int t = 0; t < 4; ++t) Frame(&unplanned, t + 1, {Pose(1, 0.3 + 0.2 * t)});
+  for (int t = 4; t < 6; ++t) Frame(&unplanned, t + 1, {});
+  EXPECT_NEAR(unplanned.Mass(2), unplanned.Mass(3), 1e-9);
+}
+
 TEST(PlaceBelief, OneWrongPlacementDoesNotMoveItButConsistentEvidenceDoes) {
   PlaceBelief belief(LinearMap(30));
   for (int t = 0; t < 5; ++t) Frame(&belief, t + 1, {Pose(4, 0.1 + 0.1 * t)});
@@ -215,6 +263,10 @@ TEST(PlaceBelief, OptionsAreChecked) {
   options = PlaceBeliefOptions();
   options.jump_probability = 0.0;
   EXPECT_FALSE(options.Check());
+  options = PlaceBeliefOptions();
+  options.planned_branch_probability = 1.0;  // a plan the robot could never leave
+  EXPECT_FALSE(options.Check());
+  options.jump_probability = 0.0;
   EXPECT_THROW(PlaceBelief(LinearMap(2), options), std::invalid_argument);
 }
 

@@ -86,6 +86,9 @@ bool LocalizerOptions::Check(std::string* error) const {
   }
   if (relocalization_frame_keypoints < 8) return fail("relocalization_frame_keypoints must be >= 8");
   if (relocalization_max_samples < 1) return fail("relocalization_max_samples must be >= 1");
+  if (!(steering_half_field_deg > 0 && steering_half_field_deg < 90)) {
+    return fail("steering_half_field_deg must be in (0, 90)");
+  }
   return true;
 }
 
@@ -734,7 +737,8 @@ void Localizer::Localize(FrameResult* result) {
       if (target == node_b.bearings.end() || !camera_->Unproject(f.warp.position, &now)) continue;
       features.push_back({now, target->second});
     }
-    const SteeringCommand command = SteerByImage(features, options_.steering_gain);
+    const SteeringCommand command =
+        SteerByImage(features, options_.steering_gain, std::tan(options_.steering_half_field_deg * M_PI / 180.0));
     result->steering = command.angle;
     result->steering_valid = command.valid;
   }

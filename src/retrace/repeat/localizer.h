@@ -168,6 +168,11 @@ struct LocalizerOptions {
   int max_bad_frames = 3;
   // k of Segvic 2009, eq. (10), radians of steering per unit of normalised image coordinate.
   double steering_gain = 1.0;
+  // ... over the features within this angle of the optical axis (horizontally, in the current image and in key-image
+  // b): eq. (10) is a law on a forward-looking camera's image. 45° keeps every feature of the perspective cameras
+  // used (kitti07 and the simulated car: half fields of view of 41° and 40°) and a forward field of an
+  // omnidirectional one, whose features beside the robot move with its forward motion rather than its heading.
+  double steering_half_field_deg = 45.0;
   // Bootstrap / relocalization: fewest geometrically verified wide-baseline matches with the best key-image, with
   // SIFT (binary_relocalization false) ...
   int min_bootstrap_inliers = 30;
@@ -353,6 +358,11 @@ class Localizer {
   // Bootstrap the first frame against this arc's key-images only (Segvic 2009 §3.3: the user gives the start
   // arc). Without it, or after a loss, the localizer finds the arc itself by retrieval over all key-images.
   void SetStartArc(arc_t arc);
+
+  // The arcs of a route the robot is steered along (navigation, nav/navigator.h): at a junction the belief expects
+  // the planned branch (PlaceBelief::SetPlannedArcs, PlaceBeliefOptions::planned_branch_probability); evidence on
+  // another branch still wins. Empty: no plan.
+  void SetPlannedArcs(const std::vector<arc_t>& arcs) { belief_.SetPlannedArcs(arcs); }
 
   // Processes the next frame (8-bit gray, camera-sized; throws InputError otherwise).
   FrameResult ProcessFrame(const Frame& frame);
