@@ -44,6 +44,8 @@ NavigationLoopSummary DriveToGoal(Simulator* simulator, Navigator* navigator, co
   const double wheelbase = simulator->scenario().vehicle.wheelbase;
   NavigationLoopSummary summary;
   int stopped_in_a_row = 0;
+  double off_plan_sum = 0.0;
+  int off_plan_frames = 0;
   SimFrame view = simulator->Step(0.0, 0.0, 0.0);
   for (int i = 0; i < options.max_frames; ++i) {
     const NavigationStep step = navigator->ProcessImage(view.image);
@@ -56,7 +58,12 @@ NavigationLoopSummary DriveToGoal(Simulator* simulator, Navigator* navigator, co
       for (const node_t node : navigator->planned_path().nodes) {
         if (const auto place = key_image_places.find(node); place != key_image_places.end()) plan.push_back(place->second);
       }
-      if (!plan.empty()) summary.max_off_plan_m = std::max(summary.max_off_plan_m, DistanceToPolyline(plan, position));
+      if (!plan.empty()) {
+        const double off_plan = DistanceToPolyline(plan, position);
+        summary.max_off_plan_m = std::max(summary.max_off_plan_m, off_plan);
+        off_plan_sum += off_plan;
+        ++off_plan_frames;
+      }
     }
     summary.frames_without_heading += step.state == NavigationState::kNavigating && !step.heading.has_value();
     summary.image_steering_frames += step.image_steering;
@@ -80,6 +87,7 @@ NavigationLoopSummary DriveToGoal(Simulator* simulator, Navigator* navigator, co
     if (summary.stalled) break;
     view = simulator->Step(loop_step.wheels, step.speed, options.frame_period);
   }
+  if (off_plan_frames > 0) summary.mean_off_plan_m = off_plan_sum / off_plan_frames;
   return summary;
 }
 

@@ -46,6 +46,7 @@ struct NavigationLoopSummary {
   // With the key-images' true places: the camera's largest distance from the polyline through the places of the
   // path planned at that frame. A wrong turn leaves it by a street's length. 0 without places.
   double max_off_plan_m = 0.0;
+  double mean_off_plan_m = 0.0;  // ... and its mean over the frames (how closely the car keeps to the taught line)
 };
 
 // Distance of `p` from the polyline through `points` (from the point when there is one, infinite when none).

@@ -343,6 +343,9 @@ struct NavigateArguments {
 
 void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
   const Scenario scenario = ReadScenarioWithOverrides(args.scenario.scenario, args.scenario.Overrides(command));
+  std::string error;
+  // The options first: a bad one is the command line's fault, not the map's.
+  if (!args.navigator.Check(&error)) throw InputError("sim navigate options", error);
   // Key-images read on demand, and the tracking settings teach stored (the localizer beneath the navigator).
   MapForLocalizer loaded = LoadMapForLocalizer(args.map, args.navigator.localizer);
   Map& map = loaded.map;
@@ -373,7 +376,6 @@ void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
   // ahead.
   options.planning.directed = args.graph == "directed" ||
                               (args.graph == "auto" && camera.type() == CameraModelType::kPerspective);
-  std::string error;
   if (!options.Check(&error)) throw InputError("sim navigate options", error);
   NavigationLoopOptions loop = args.loop;
   loop.frame_period = 1.0 / scenario.frame_rate;
@@ -445,6 +447,7 @@ void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
     const Vector2d s = summary.camera_positions.front() - goal_position;
     json["distance_to_goal_m"] = d.norm();
     json["max_off_path_m"] = summary.max_off_plan_m;
+    json["mean_off_path_m"] = summary.mean_off_plan_m;
     json["street_distance_m"] = std::abs(s.x()) + std::abs(s.y());
     json["length_ratio"] = summary.path_length_m / std::max(1e-9, json["street_distance_m"].get<double>());
     figures = fmt::format("; {:.2f} m from the goal, driven {:.1f} m for a street distance of {:.1f} m ({:+.1f} %), "
@@ -643,6 +646,10 @@ void RegisterSimCommand(CLI::App& app) {
   navigate->add_flag("--heading-only{false}", nav_args->navigator.follow_taught_arcs,
                      "Steer by the heading alone (Booij 2007), without the Segvic localizer beneath: no image "
                      "steering on the plan's taught arcs, no replanning off the plan");
+  navigate->add_option("--planned-branch-probability", nav_args->navigator.localizer.belief.planned_branch_probability,
+                       "At a junction, the probability the localizer's belief gives the plan's branch, (0, 1); 0.5 of "
+                       "two branches: no preference")
+      ->capture_default_str();
   navigate->add_option("--max-frames", nav_args->loop.max_frames, "Give up after this many frames")->capture_default_str();
   navigate->add_flag("--quiet", nav_args->quiet, "No progress bar");
   navigate->callback([navigate, nav_args]() { RunNavigate(*navigate, *nav_args); });

@@ -85,9 +85,12 @@ c.close()' "$tmp/schema2.db"
     inspect --map "$tmp/graph.db" --report "$tmp/graph_report" --ground-truth "$k"
   expect inspect-truth-graph 0 'graph.png' -- "$bin" inspect --map "$tmp/graph.db" --report "$tmp/graph_report" \
     --ground-truth "$k" "$k/poses.txt"
-  # sim navigate refuses a goal the map does not have and a scenario whose camera did not take the key-images.
+  # sim navigate refuses a goal the map does not have, a bad option and a scenario whose camera did not take the
+  # key-images.
   expect navigate-missing-goal 1 "^retrace: error: $tmp/graph.db: has no key-image 99999 \\(--goal" -- "$bin" sim \
     navigate --map "$tmp/graph.db" --goal 99999 --out "$tmp/navigate" --quiet
+  expect navigate-bad-branch-probability 1 "^retrace: error: sim navigate options: localizer: .*planned_branch_probability must be in \\(0, 1\\)" \
+    -- "$bin" sim navigate --map "$tmp/graph.db" --goal 0 --out "$tmp/navigate" --planned-branch-probability 1 --quiet
   expect navigate-camera-mismatch 1 "graph.db: key-images are 320x97 but the scenario's camera is 64x48" -- "$bin" \
     sim navigate --map "$tmp/graph.db" --goal 0 --out "$tmp/navigate" --width 64 --height 48 --quiet
 fi
