@@ -395,11 +395,15 @@ void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
          "misses,curvature,speed,wheels,ms,true_heading,along_arc,localizer,arc,on_plan,image_steering,replanned\n";
   const auto number = [](std::optional<double> v) { return v ? fmt::format("{:.4f}", *v) : std::string(); };
   NavigationLoopSummary summary;
+  std::vector<Vector2d> image_steered, replanned;  // where the car steered by eq. (10), where it replanned
   {
     ProgressBar progress("navigate", 0, !args.quiet);
     int frame = 0;
     summary = DriveToGoal(&simulator, &navigator, loop, truth, [&](const NavigationLoopStep& s) {
       const NavigationStep& n = *s.step;
+      const Vector2d position = s.view->town_from_cam.translation.head<2>();
+      if (n.image_steering) image_steered.push_back(position);
+      if (n.replanned) replanned.push_back(position);
       const Rigid3d& town_from_cam = s.view->town_from_cam;
       const Vector3d forward = town_from_cam.rotation.col(2);
       // The true heading to the subgoal, as the navigator measures it (0 ahead, positive right).
@@ -501,6 +505,24 @@ void RunNavigate(const CLI::App& command, const NavigateArguments& args) {
     driven.y.push_back(p.y());
   }
   top_view.push_back(driven);
+  const auto points = [](const std::vector<Vector2d>& positions, const std::string& label, cv::Scalar color,
+                         int thickness) {
+    PlotSeries series;
+    series.label = label;
+    series.style = PlotSeries::Style::kPoints;
+    series.color = color;
+    series.thickness = thickness;
+    for (const Vector2d& p : positions) {
+      series.x.push_back(p.x());
+      series.y.push_back(p.y());
+    }
+    return series;
+  };
+  if (!image_steered.empty()) {
+    top_view.push_back(points(image_steered, "steered by the image (eq. (10), on a taught arc of the plan)",
+                              cv::Scalar(230, 160, 0), 2));
+  }
+  if (!replanned.empty()) top_view.push_back(points(replanned, "replanned (off the plan)", cv::Scalar(0, 0, 220), 8));
   PlotOptions top;
   top.title = "navigation to a goal (seen from above, town frame)";
   top.x_label = "east (m)";

@@ -14,6 +14,12 @@
 #include "retrace/teach/matched_geometry.h"
 
 namespace retrace {
+namespace {
+
+// Two images of one place (a loop closed by teach, a join between two drives), not a stretch driven.
+bool IsLink(const MapArc& arc) { return arc.kind == "join" || arc.kind == "loop"; }
+
+}  // namespace
 
 WideBaselineOptions NavigationMatchingDefaults() {
   WideBaselineOptions options;
@@ -94,10 +100,10 @@ void Navigator::SetPlan(node_t start) {
   for (size_t i = 0; i < planned_path_.nodes.size(); ++i) {
     const node_t node = planned_path_.nodes[i];
     for (const MapArc* arc : map_.ArcsFrom(node)) {
-      if (arc->kind == "join" || arc->kind == "loop") planned_places_.emplace(arc->to, i);
+      if (IsLink(*arc)) planned_places_.emplace(arc->to, i);
     }
     for (const MapArc* arc : map_.ArcsTo(node)) {
-      if (arc->kind == "join" || arc->kind == "loop") planned_places_.emplace(arc->from, i);
+      if (IsLink(*arc)) planned_places_.emplace(arc->from, i);
     }
   }
 }
@@ -119,9 +125,8 @@ std::optional<double> Navigator::FollowLocalizer(const cv::Mat& image, Navigatio
   const auto to = planned_places_.find(arc->to);
   if (from != planned_places_.end() && to != planned_places_.end()) {
     step->on_plan = from->second < to->second;
-    // Image steering along a driven arc (a link between two drives joins two views of one place: no line to keep).
-    const bool link = arc->kind == "join" || arc->kind == "loop";
-    if (step->on_plan && !link && result.steering_valid) return result.steering;
+    // Image steering along a driven arc (a link joins two views of one place: no line to keep).
+    if (step->on_plan && !IsLink(*arc) && result.steering_valid) return result.steering;
     return std::nullopt;
   }
   if (from != planned_places_.end() || to != planned_places_.end() || paths_to_goal_.distance.count(arc->to) == 0) {
