@@ -276,7 +276,8 @@ void PlaceBelief::Deposit(std::vector<double>* target, int index, double along, 
                           int depth) const {
   // The camera at `along` moves by a distance uniform in [low, high] (common units): the part of that range that
   // stays on this arc is spread over it, the rest continues into the following (preceding) arcs, split at a
-  // junction by the successors' shares (equally, or towards the planned branch) and equally among predecessors; past a virtual arc (beyond a route's end or before its start) it leaves the map.
+  // junction by the successors' shares (equally, or towards the planned branch) and equally among predecessors;
+  // past a virtual arc (beyond a route's end or before its start) it leaves the map.
   const ArcNode& arc = arcs_[index];
   const double from = along + low / arc.length;
   const double to = along + high / arc.length;
