@@ -407,11 +407,15 @@ class Localizer {
     std::vector<double> size_ratios;                   // key-point size in the frame / in the key-image
   };
   // Verifies `candidates` by wide-baseline matching, the most similar in appearance to `image` first (see
-  // LocalizerOptions::retrieval_shortlist); every candidate tried is added to `tried`.
+  // LocalizerOptions::retrieval_shortlist), screened as MatchKeyImages when `screening`; every candidate tried is
+  // added to `tried`.
   std::vector<MatchedKeyImage> RetrieveKeyImages(const cv::Mat& image, const WideBaselineFeatures& current,
-                                                 const std::vector<node_t>& candidates, std::vector<node_t>* tried);
+                                                 const std::vector<node_t>& candidates, std::vector<node_t>* tried,
+                                                 bool screening);
+  // Verifies each candidate by a relative pose on the matches; `screening` (retrieval over the whole map) bounds
+  // the samples by what finds a model of min_inliers inliers (relocalization.cc).
   std::vector<MatchedKeyImage> MatchKeyImages(const WideBaselineFeatures& current,
-                                              const std::vector<node_t>& candidates);
+                                              const std::vector<node_t>& candidates, bool screening = false);
   // The key-images of the arcs up to `arcs` arcs before and after `arc`, nearest first.
   std::vector<node_t> NodesNear(arc_t arc, int arcs) const;
   bool Bootstrap(const Frame& frame, FrameResult* result);

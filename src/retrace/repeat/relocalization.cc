@@ -19,7 +19,8 @@ using internal::Median;
 
 
 std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBaselineFeatures& current,
-                                                                 const std::vector<node_t>& candidates) {
+                                                                 const std::vector<node_t>& candidates,
+                                                                 bool screening) {
   std::vector<MatchedKeyImage> verified;
   const int min_inliers =
       options_.binary_relocalization ? options_.min_binary_inliers : options_.min_bootstrap_inliers;
@@ -45,8 +46,20 @@ std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBase
       bearings_current.push_back(bc);
       used.push_back(&m);
     }
+    // Screening a candidate of the whole map: it needs min_inliers inliers among these N matches, so a sample of 5 is all
+    // inliers with probability at least (min_inliers / N)^5 when it can pass, and as many samples as find such a model
+    // with the RANSAC's confidence are enough — fewer than the budget for the 30-60 matches a key-image of another
+    // place gives (their full budget was most of a lost frame's time). Noisy minimal samples make that count
+    // optimistic (LO-RANSAC's observation): the key-images verified to locate features take the full budget.
+    TwoViewOptions geometry_options = relocalization_geometry_;
+    if (screening && !bearings_key.empty()) {
+      const int enough = internal::RequiredIterations(static_cast<double>(min_inliers) / bearings_key.size(), 5,
+                                                      geometry_options.ransac.confidence);
+      geometry_options.ransac.max_iterations = std::max(geometry_options.ransac.min_iterations,
+                                                        std::min(geometry_options.ransac.max_iterations, enough));
+    }
     candidate.geometry =
-        EstimateRelativePose(bearings_key, bearings_current, camera_->FocalLength(), relocalization_geometry_);
+        EstimateRelativePose(bearings_key, bearings_current, camera_->FocalLength(), geometry_options);
     // A frame taken (almost) where the key-image was shows no parallax: the rotation-only fit still verifies it.
     const bool verified_geometry = candidate.geometry.success ||
                                    candidate.geometry.failure == TwoViewFailure::kInsufficientParallax;
@@ -67,7 +80,7 @@ std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBase
 std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::Mat& image,
                                                                     const WideBaselineFeatures& current,
                                                                     const std::vector<node_t>& candidates,
-                                                                    std::vector<node_t>* tried) {
+                                                                    std::vector<node_t>* tried, bool screening) {
   // Rank by appearance: an exhaustive scan of the quantised thumbnails (about 0.3 µs per key-image).
   std::vector<size_t> entries;
   entries.reserve(candidates.size());
@@ -83,7 +96,7 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
   std::vector<MatchedKeyImage> verified;
   for (size_t i = 0; i < budget; ++i) {
     tried->push_back(ranked[i]);
-    std::vector<MatchedKeyImage> one = MatchKeyImages(current, {ranked[i]});
+    std::vector<MatchedKeyImage> one = MatchKeyImages(current, {ranked[i]}, screening);
     spdlog::debug("repeat: retrieval candidate {} (rank {} of {}): {}", ranked[i], i, ranked.size(),
                   one.empty() ? std::string("not verified") : fmt::format("{} inliers", one.front().geometry.num_inliers));
     if (one.empty()) continue;
@@ -144,7 +157,9 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
       for (const MapNode& node : map_.nodes()) candidates.push_back(node.id);
       global = true;
     }
-    verified = RetrieveKeyImages(frame.image, current, candidates, &tried);
+    // Over the whole map most candidates are other places, and a lost robot's frame rate depends on how fast they
+    // are refused (screening, MatchKeyImages); near where it was lost a candidate is likely the place: full budget.
+    verified = RetrieveKeyImages(frame.image, current, candidates, &tried, /*screening=*/global);
     candidate_count = candidates.size();
   }
   result->key_images_matched = static_cast<int>(tried.size());
