@@ -72,6 +72,8 @@ struct MapArc {
   double sigma_p = 0.0;  // conservative reprojection error bound σ_p of W_k (Segvic 2009, eq. (6)), pixels
   std::vector<ArcPoint> points;
   std::string kind = "tracking";  // how the arc was made: tracking | matching | gap | loop | join
+  // A link (loop, join): two images of one place related by wide-baseline matching, not a stretch driven.
+  bool IsLink() const { return kind == "loop" || kind == "join"; }
   // Appearance similarity of the two key-images (Booij 2007 §B.2): epipolar-consistent correspondences over the
   // fewer features found in either image, in [0, 1]. For an arc made by tracking, the correspondences are the
   // tracked inliers of W_k and the features the corners tracked from each key-image; for an arc made by

@@ -304,7 +304,9 @@ TEST(MapDatabase, SignaturesRoundTrip) {
     ASSERT_EQ(read.keypoints.size(), node.signature.keypoints.size());
     for (size_t i = 0; i < read.keypoints.size(); ++i) EXPECT_EQ(read.keypoints[i].pt, node.signature.keypoints[i].pt);
     EXPECT_EQ(read.descriptors.rows, node.signature.descriptors.rows);
-    if (!read.keypoints.empty()) EXPECT_EQ(cv::norm(read.descriptors, node.signature.descriptors, cv::NORM_INF), 0.0);
+    if (!read.keypoints.empty()) {
+      EXPECT_EQ(cv::norm(read.descriptors, node.signature.descriptors, cv::NORM_INF), 0.0);
+    }
   }
   ExpectInputError([&] { lazy->ReadKeyImage(42); }, path, "node 42 is missing");
   EXPECT_TRUE(lazy->ReadSignature(42).empty());

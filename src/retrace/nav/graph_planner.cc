@@ -30,7 +30,7 @@ PlanningGraph BuildPlanningGraph(const Map& map, const PlanOptions& options) {
   PlanningGraph graph;
   for (const MapNode& node : map.nodes()) graph.edges[node.id];
   for (const MapArc& arc : map.arcs()) {
-    const bool link = arc.kind == "loop" || arc.kind == "join";
+    const bool link = arc.IsLink();
     double length = 0.0;
     if (options.cost == PlanOptions::Cost::kAppearance) {
       if (!arc.similarity) {

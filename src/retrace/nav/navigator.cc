@@ -14,12 +14,6 @@
 #include "retrace/teach/matched_geometry.h"
 
 namespace retrace {
-namespace {
-
-// Two images of one place (a loop closed by teach, a join between two drives), not a stretch driven.
-bool IsLink(const MapArc& arc) { return arc.kind == "join" || arc.kind == "loop"; }
-
-}  // namespace
 
 WideBaselineOptions NavigationMatchingDefaults() {
   WideBaselineOptions options;
@@ -83,9 +77,9 @@ Navigator::Navigator(Map map, const CameraModel& camera, node_t goal, const Navi
   }
   graph_ = BuildPlanningGraph(map_, options_.planning);
   paths_to_goal_ = ShortestPathsToGoal(graph_, goal_);
-  // The localizer keeps its own copy of the map (the key-images are shared).
+  // The localizer takes the map (a copy would duplicate its features and signatures); map() reads it from there.
   if (options_.follow_taught_arcs && !map_.arcs().empty()) {
-    localizer_ = std::make_unique<Localizer>(map_, *camera_, options_.localizer);
+    localizer_ = std::make_unique<Localizer>(std::move(map_), *camera_, options_.localizer);
   }
 }
 
@@ -99,11 +93,11 @@ void Navigator::SetPlan(node_t start) {
   for (size_t i = 0; i < planned_path_.nodes.size(); ++i) planned_places_.emplace(planned_path_.nodes[i], i);
   for (size_t i = 0; i < planned_path_.nodes.size(); ++i) {
     const node_t node = planned_path_.nodes[i];
-    for (const MapArc* arc : map_.ArcsFrom(node)) {
-      if (IsLink(*arc)) planned_places_.emplace(arc->to, i);
+    for (const MapArc* arc : map().ArcsFrom(node)) {
+      if (arc->IsLink()) planned_places_.emplace(arc->to, i);
     }
-    for (const MapArc* arc : map_.ArcsTo(node)) {
-      if (IsLink(*arc)) planned_places_.emplace(arc->from, i);
+    for (const MapArc* arc : map().ArcsTo(node)) {
+      if (arc->IsLink()) planned_places_.emplace(arc->from, i);
     }
   }
 }
@@ -117,7 +111,7 @@ std::optional<double> Navigator::FollowLocalizer(const cv::Mat& image, Navigatio
   step->localizer_confidence = result.confidence;
   if (result.state != LocalizerState::kTracking) return std::nullopt;
   step->arc = result.arc;
-  const MapArc* arc = map_.FindArc(result.arc);
+  const MapArc* arc = map().FindArc(result.arc);
   if (arc == nullptr || at_goal_ || subgoal_ == kInvalidNodeId || !planned_path_.found) return std::nullopt;
   // On the plan in the arc's taught direction: from a place of the plan to a later one (the plan's own arc, or one
   // of another drive over the same street).
@@ -126,7 +120,7 @@ std::optional<double> Navigator::FollowLocalizer(const cv::Mat& image, Navigatio
   if (from != planned_places_.end() && to != planned_places_.end()) {
     step->on_plan = from->second < to->second;
     // Image steering along a driven arc (a link joins two views of one place: no line to keep).
-    if (step->on_plan && !IsLink(*arc) && result.steering_valid) return result.steering;
+    if (step->on_plan && !arc->IsLink() && result.steering_valid) return result.steering;
     return std::nullopt;
   }
   if (from != planned_places_.end() || to != planned_places_.end() || paths_to_goal_.distance.count(arc->to) == 0) {
@@ -170,7 +164,7 @@ const Navigator::KeyImageFeatures& Navigator::FeaturesOf(node_t node) {
     cache_order_.pop_back();
   }
   cache_order_.push_front(node);
-  return cache_.emplace(node, Describe(map_.KeyImage(node))).first->second;
+  return cache_.emplace(node, Describe(map().KeyImage(node))).first->second;
 }
 
 Navigator::Comparison Navigator::Compare(node_t node, int* compared) {
@@ -208,7 +202,7 @@ Navigator::Comparison Navigator::Compare(node_t node, int* compared) {
 
 node_t Navigator::Localize(int* compared) {
   std::vector<node_t> candidates;
-  for (const MapNode& node : map_.nodes()) candidates.push_back(node.id);
+  for (const MapNode& node : map().nodes()) candidates.push_back(node.id);
   if (options_.localization_candidates > 0 && static_cast<size_t>(options_.localization_candidates) < candidates.size()) {
     // The key-images' quantised thumbnails (stored with the map's signatures; computed for maps without them or
     // made at another size), indexed once; the image's thumbnail ranks them.
@@ -216,9 +210,9 @@ node_t Navigator::Localize(int* compared) {
     if (!appearance_index_) {
       appearance_index_ = std::make_unique<AppearanceIndex>();
       for (const node_t id : candidates) {
-        cv::Mat thumbnail = map_.Signature(id).appearance;
+        cv::Mat thumbnail = map().Signature(id).appearance;
         if (thumbnail.size() != query.size() || thumbnail.type() != query.type()) {
-          thumbnail = QuantizeGlobalDescriptor(ComputeGlobalDescriptor(map_.KeyImage(id)));
+          thumbnail = QuantizeGlobalDescriptor(ComputeGlobalDescriptor(map().KeyImage(id)));
         }
         appearance_index_->Add(thumbnail);
       }
@@ -365,7 +359,7 @@ NavigationStep Navigator::ProcessImage(const cv::Mat& image) {
         const Comparison anchor = Compare(previous_, &step.compared);
         const std::optional<double> along =
             anchor.matches && anchor.geometry.success
-                ? HeadingAlongArc(map_, previous_, subgoal_, anchor.geometry.b_from_a.rotation,
+                ? HeadingAlongArc(map(), previous_, subgoal_, anchor.geometry.b_from_a.rotation,
                                   camera_mount_.level_from_camera)
                 : std::nullopt;
         if (along) {

@@ -34,8 +34,8 @@
 // Beneath it runs the localizer of repeat (Segvic 2009, repeat/localizer.h; NavigatorOptions::follow_taught_arcs),
 // fed every image. Its belief is told the plan's arcs, so that at a junction it expects the branch the plan chose
 // (PlaceBelief::SetPlannedArcs). Where it tracks an arc between two places of the plan (key-images of the plan or
-// linked to them) whose taught direction is the plan's (a driven arc, not a link), the robot steers by the image as in repeat (eq. (10): κ = −g · w) instead of
-// by the heading, and so keeps to the taught line between key-images. Where it tracks, confidently, an arc none of
+// linked to them) whose taught direction is the plan's (a driven arc, not a link), the robot steers by the image as
+// in repeat (eq. (10): κ = −g · w) instead of by the heading, and so keeps to the taught line between key-images. Where it tracks, confidently, an arc none of
 // whose key-images is a place of the plan (a key-image of it, or one linked to such by a join or loop: where drives
 // overlap, the localizer may follow either), the robot took another branch (it takes one arc to tell that from an
 // overshoot at a junction, whose first arc still starts on the plan): the navigator replans from that arc's end (its
@@ -57,6 +57,7 @@
 #include <opencv2/core.hpp>
 
 #include "retrace/camera/camera_model.h"
+#include "retrace/control/path_tracking.h"
 #include "retrace/feature/global_descriptor.h"
 #include "retrace/feature/wide_baseline.h"
 #include "retrace/geometry/two_view_geometry.h"
@@ -116,9 +117,9 @@ struct NavigatorOptions {
   bool follow_taught_arcs = true;
   // Its options; the tracking settings must be teach's (LoadMapForLocalizer reads them from the map).
   LocalizerOptions localizer;
-  // g of κ = −g · w, eq. (10)'s w (radians) turned into a curvature (1/m): PathTrackingOptions::image_gain, whose
-  // 0.37 reproduces front wheels at −w on a car of 2.7 m wheelbase.
-  double image_steering_gain = 0.37;
+  // g of κ = −g · w, eq. (10)'s w (radians) turned into a curvature (1/m): the path tracker's fallback gain
+  // (PathTrackingOptions::image_gain, which reproduces front wheels at −w on a car of 2.7 m wheelbase).
+  double image_steering_gain = PathTrackingOptions().image_gain;
 
   bool Check(std::string* error = nullptr) const;
 };
@@ -168,7 +169,8 @@ class Navigator {
   // One camera image (8-bit gray, the key-images' size): the subgoal, heading and command.
   NavigationStep ProcessImage(const cv::Mat& image);
 
-  const Map& map() const { return map_; }
+  // The map (held by the localizer beneath when there is one).
+  const Map& map() const { return localizer_ ? localizer_->map() : map_; }
   node_t goal() const { return goal_; }
   node_t subgoal() const { return subgoal_; }
   // The path planned to the goal from the key-image of the last (re)localization.
@@ -204,7 +206,7 @@ class Navigator {
   // The plan from `start` (PathFromTree), told to the localizer's belief.
   void SetPlan(node_t start);
 
-  Map map_;
+  Map map_;  // moved into the localizer when there is one: read through map()
   std::unique_ptr<CameraModel> camera_;
   node_t goal_;
   NavigatorOptions options_;

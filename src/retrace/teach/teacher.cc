@@ -1205,7 +1205,7 @@ void Teacher::JoinRoutes() {
       description.clear();
       for (const bool after : {true, false}) {
         for (const MapArc* arc : after ? map_.ArcsFrom(a_id) : map_.ArcsTo(a_id)) {
-          if (arc->kind == "loop" || arc->kind == "join") continue;
+          if (arc->IsLink()) continue;
           const node_t other = after ? arc->to : arc->from;
           const Rigid3d a_from_other = after ? arc->to_from_from.Inverse() : arc->to_from_from;
           const WitnessVerdict verdict = WeighWitness(
@@ -1235,7 +1235,7 @@ void Teacher::JoinRoutes() {
       for (const MapArc* arc : map_.ArcsFrom(a_id)) arcs.push_back(arc);
       const double radius_px = options_.join_point_radius_px * camera_->width() / options_.reference_width;
       for (const MapArc* arc : arcs) {
-        if (arc->kind == "loop" || arc->kind == "join") continue;
+        if (arc->IsLink()) continue;
         const bool into = arc->to == a_id;
         std::unordered_map<feature_t, double> depth_at_a;
         for (const ArcPoint& p : arc->points) {

@@ -260,7 +260,9 @@ void ExpectDisconnectedAndRight(const Street& street, int every, bool premise = 
   unchecked.reject_undetermined_direction = false;
   std::cout << "without the tests: ";
   const Outcome without = Examine(street, Teach(street, every, unchecked));
-  if (premise) EXPECT_GE(without.wrong_arcs.size(), 1u) << "the premise: without the tests, teach writes wrong arcs";
+  if (premise) {
+    EXPECT_GE(without.wrong_arcs.size(), 1u) << "the premise: without the tests, teach writes wrong arcs";
+  }
 
   const Outcome outcome = Examine(street, Teach(street, every, TeachOptions()));
   EXPECT_EQ(Join(outcome.wrong_arcs), "");
