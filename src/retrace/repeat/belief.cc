@@ -509,33 +509,58 @@ void PlaceBelief::ComputeEstimate() {
     }
   }
   if (best < 0) return;
+  // Posterior mean and spread of the position on arc k: its own bins, its virtual extensions and the tolerated bins
+  // of its neighbours, in its arc lengths.
+  const auto mean_on = [&](int k, double* along, double* sigma) {
+    double sum = 0.0, sum_x = 0.0, sum_xx = 0.0;
+    const auto add = [&](int j, int i, double offset) {
+      const double m = mass_[j * bins + i];
+      const double x = (offset + (i + 0.5) / bins * arcs_[j].length) / arcs_[k].length;
+      sum += m;
+      sum_x += m * x;
+      sum_xx += m * x * x;
+    };
+    for (int i = 0; i < bins; ++i) add(k, i, 0.0);
+    for (const int s : arcs_[k].successors) {
+      const bool extension = arcs_[s].virtual_of >= 0;
+      for (int i = 0; i < bins && (extension || (i + 0.5) / bins < options_.node_tolerance); ++i) {
+        add(s, i, arcs_[k].length);
+      }
+    }
+    for (const int p : arcs_[k].predecessors) {
+      const bool extension = arcs_[p].virtual_of >= 0;
+      for (int i = bins - 1; i >= 0 && (extension || (i + 0.5) / bins > 1.0 - options_.node_tolerance); --i) {
+        add(p, i, -arcs_[p].length);
+      }
+    }
+    *along = sum > 0 ? sum_x / sum : 0.5;
+    *sigma = sum > 0 ? std::sqrt(std::max(0.0, sum_xx / sum - *along * *along)) : 1.0;
+  };
+  double along = 0.5, sigma = 1.0;
+  mean_on(best, &along, &sigma);
+  // Near a node both arcs meeting there are correct within the tolerance, and their confidences are nearly equal;
+  // the larger then picks the arc the camera is leaving even when the mass has crossed the node (the report one
+  // arc behind a camera that is in fact past the tolerance). When the posterior mean lies beyond the arc's end
+  // (before its start), the arc on that side holding the most mass is reported instead, if it is trusted as well
+  // (confidence at least min_confidence); in every other case the largest confidence decides.
+  if (along > 1.0 || along < 0.0) {
+    const std::vector<int>& side = along > 1.0 ? arcs_[best].successors : arcs_[best].predecessors;
+    int across = -1;
+    for (const int j : side) {
+      if (arcs_[j].virtual_of >= 0) continue;
+      if (across < 0 || MassAt(j) > MassAt(across)) across = j;
+    }
+    const double across_confidence = across >= 0 ? ConfidenceAt(across) : 0.0;
+    if (across >= 0 && across_confidence >= options_.min_confidence) {
+      best = across;
+      best_confidence = across_confidence;
+      mean_on(best, &along, &sigma);
+    }
+  }
   estimate_.arc = arcs_[best].id;
   estimate_.confidence = best_confidence;
-  // Posterior mean and spread of the position on the arc: its own bins, its virtual extensions and the tolerated
-  // bins of its neighbours, in its arc lengths.
-  double sum = 0.0, sum_x = 0.0, sum_xx = 0.0;
-  const auto add = [&](int j, int i, double offset) {
-    const double m = mass_[j * bins + i];
-    const double x = (offset + (i + 0.5) / bins * arcs_[j].length) / arcs_[best].length;
-    sum += m;
-    sum_x += m * x;
-    sum_xx += m * x * x;
-  };
-  for (int i = 0; i < bins; ++i) add(best, i, 0.0);
-  for (const int s : arcs_[best].successors) {
-    const bool extension = arcs_[s].virtual_of >= 0;
-    for (int i = 0; i < bins && (extension || (i + 0.5) / bins < options_.node_tolerance); ++i) {
-      add(s, i, arcs_[best].length);
-    }
-  }
-  for (const int p : arcs_[best].predecessors) {
-    const bool extension = arcs_[p].virtual_of >= 0;
-    for (int i = bins - 1; i >= 0 && (extension || (i + 0.5) / bins > 1.0 - options_.node_tolerance); --i) {
-      add(p, i, -arcs_[p].length);
-    }
-  }
-  estimate_.along = sum > 0 ? sum_x / sum : 0.5;
-  estimate_.sigma = sum > 0 ? std::sqrt(std::max(0.0, sum_xx / sum - estimate_.along * estimate_.along)) : 1.0;
+  estimate_.along = along;
+  estimate_.sigma = sigma;
 }
 
 std::optional<double> PlaceBelief::Distance(const GraphPlace& from, const GraphPlace& to, int max_arcs) const {

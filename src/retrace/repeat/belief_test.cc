@@ -212,6 +212,23 @@ TEST(PlaceBelief, NearANodeTheNeighbouringArcCountsForTheConfidence) {
   EXPECT_GT(estimate.confidence, 0.95);
 }
 
+TEST(PlaceBelief, PastANodeTheArcAheadIsReported) {
+  // Arc 4 is three times as long as arc 3 (the scale stored at node 4): a camera 0.1 of arc 3 past node 4 is within
+  // the node tolerance of both arcs, whose confidences are then nearly equal. The arc holding the posterior mean is
+  // reported, not the one the camera has left.
+  PlaceBelief belief(LinearMap(10, {1.0, 1.0, 1.0, 3.0}));
+  for (int t = 0; t < 6; ++t) Frame(&belief, t + 1, {Pose(3, 0.1 + 0.2 * t, 0.15)});  // the last at 1.1 on arc 3's line
+  const PlaceEstimate& estimate = belief.estimate();
+  EXPECT_TRUE(estimate.tracking);
+  // Arc 3's confidence is the larger (its tolerance reaches 0.45 of its lengths into arc 4, arc 4's only 0.15 back
+  // into arc 3), but the mass is past node 4.
+  EXPECT_GT(belief.Confidence(3), belief.Confidence(4));
+  EXPECT_GT(belief.Mass(4), belief.Mass(3));
+  EXPECT_EQ(estimate.arc, 4);
+  EXPECT_NEAR(estimate.along, 0.1 / 3.0, 0.03);  // 0.1 arc lengths of arc 3 past node 4
+  EXPECT_NEAR(estimate.confidence, belief.Confidence(4), 1e-12);
+}
+
 TEST(PlaceBelief, PastTheRoutesEndTheCameraIsOnItsLastArc) {
   // The repeat drive goes on past the last key-image: placements beyond the last arc's end are evidence for the
   // last arc (the topological truth's convention), at positions beyond 1.

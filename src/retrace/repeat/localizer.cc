@@ -333,6 +333,17 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
     } else {
       result.state = LocalizerState::kLost;
     }
+  } else if (estimate.tracking && Arc(estimate.arc) != nullptr) {
+    // The tracks were given up in this frame after their placement was accepted: the frame has its own evidence
+    // and the belief is confident, so it is reported on the belief's arc (the next frame relocalizes).
+    const ArcData* arc = Arc(estimate.arc);
+    result.state = LocalizerState::kTracking;
+    result.arc = estimate.arc;
+    result.node_from = arc->arc->from;
+    result.node_to = arc->arc->to;
+    result.position_valid = true;
+    result.position_on_arc = estimate.along;
+    result.position_sigma = estimate.sigma;
   } else {
     result.state = state_;
   }

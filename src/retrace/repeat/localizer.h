@@ -59,7 +59,9 @@
 // What is reported follows the belief: `tracking` on the current arc only when the belief's confidence that the
 // camera is on it (or within the node tolerance of its ends) reaches PlaceBeliefOptions::min_confidence and this
 // frame gave the belief evidence it accepts; otherwise `lost`, with no arc. The confidence is reported every frame.
-// Lost is an answer, never a confident wrong place.
+// Lost is an answer, never a confident wrong place. A frame whose tracks are given up after their placement was
+// accepted is reported on the belief's arc when the belief is confident (its tracks are gone; the next frame
+// relocalizes).
 //
 // The tracks are given up when fewer than `min_features` of the current arc are tracked in a frame without evidence,
 // or no current geometry or absolute pose is usable for `max_bad_frames` frames in a row; the same frame is then
