@@ -17,6 +17,7 @@
 #include "retrace/drive/closed_loop.h"
 #include "retrace/drive/navigation_loop.h"
 #include "retrace/map/map_database.h"
+#include "retrace/repeat/evaluation.h"
 #include "retrace/repeat/map_loading.h"
 #include "retrace/exe/commands.h"
 #include "retrace/exe/key_image_places.h"
@@ -198,6 +199,10 @@ struct DriveArguments {
   std::string control = "path";
   double camera_height = -1;  // default: the scenario's vehicle
   double camera_forward = -1;
+  // Where the drive starts: this arc (-1: the first arc of the taught route, where the scenario's repeat starts), or
+  // found by retrieval over the whole map (no_start_arc, a robot that does not know where it was put down).
+  arc_t start_arc = kInvalidArcId;
+  bool no_start_arc = false;
   ClosedLoopOptions drive;
 };
 
@@ -226,13 +231,29 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
                                            key_image.width, key_image.height, camera.width(), camera.height()));
   }
   Localizer localizer(std::move(loaded.map), camera, loaded.options);
+  // A teach-and-repeat robot repeats its route from where the route starts (Segvic 2009 §3.3): the localizer is
+  // told the start arc, as `repeat --start-arc`.
+  if (!args.no_start_arc) {
+    arc_t start_arc = args.start_arc;
+    if (start_arc == kInvalidArcId) {
+      const std::vector<arc_t> route = RouteArcs(localizer.map());
+      if (!route.empty()) start_arc = route.front();
+    }
+    if (start_arc != kInvalidArcId) {
+      if (localizer.map().FindArc(start_arc) == nullptr) {
+        throw InputError(args.map, fmt::format("--start-arc {}: the map has no such arc", start_arc));
+      }
+      localizer.SetStartArc(start_arc);
+    }
+  }
 
   std::filesystem::create_directories(args.out);
   const std::filesystem::path csv_path = std::filesystem::path(args.out) / "drive.csv";
   std::ofstream csv(csv_path);
   if (!csv) throw InputError(csv_path.string(), "cannot be written");
   csv << "frame,timestamp,x,z,heading,state,arc,tracked,steering,wheels,deviation,along,ms,mode,curvature,speed,"
-         "lateral_m,heading_error_rad,true_lateral_m,true_heading_error_rad\n";
+         "lateral_m,heading_error_rad,true_lateral_m,true_heading_error_rad,confidence,evidence,belief_arc,"
+         "position_on_arc\n";
   PlotSeries driven, lost, path;
   driven.label = "driven (tracking)";
   driven.style = PlotSeries::Style::kPoints;
@@ -262,10 +283,12 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
                          step.view->timestamp, c.x(), c.z(), std::atan2(forward.x(), forward.z()),
                          LocalizerStateName(r.state), r.arc, r.tracked, r.steering_valid ? r.steering : 0.0,
                          step.wheels, number(step.deviation), number(step.along), 1000.0 * r.seconds)
-          << fmt::format(",{},{:.5f},{:.3f},{},{},{},{}\n", SteeringModeName(step.command.mode),
+          << fmt::format(",{},{:.5f},{:.3f},{},{},{},{}", SteeringModeName(step.command.mode),
                          step.command.curvature, step.command.speed, r.path.valid ? number(r.path.lateral_m) : "",
                          r.path.valid ? number(r.path.heading_error_rad) : "", number(step.true_lateral),
-                         number(step.true_heading_error));
+                         number(step.true_heading_error))
+          << fmt::format(",{:.5f},{:d},{},{}\n", r.confidence, r.evidence, r.belief_arc,
+                         r.position_valid ? number(r.position_on_arc) : "");
       PlotSeries& where = r.state == LocalizerState::kTracking ? driven : lost;
       where.x.push_back(c.x());
       where.y.push_back(c.z());
@@ -629,6 +652,11 @@ void RegisterSimCommand(CLI::App& app) {
   drive->add_option("--max-deviation", args->drive.max_deviation,
                     "Stop when farther than this from the taught path, (0, 1000] m (with --taught-poses)")
       ->capture_default_str();
+  drive->add_option("--start-arc", args->start_arc,
+                    "Arc the repeat starts on (default: the first arc of the taught route, where the scenario's "
+                    "repeat starts)");
+  drive->add_flag("--no-start-arc", args->no_start_arc,
+                  "Find the start by retrieval over the whole map instead (a robot put down anywhere)");
   drive->add_flag("--quiet", args->quiet, "No progress bar");
   drive->callback([drive, args]() { RunDrive(*drive, *args); });
 

@@ -330,20 +330,19 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
       result.position_valid = true;
       result.position_on_arc = *along;
       result.position_sigma = estimate.sigma * belief_.ArcLength(estimate.arc) / belief_.ArcLength(arc_);
+    } else if (estimate.tracking && IsNeighbour(arc_, estimate.arc)) {
+      // Near a node the belief may be confident in the neighbouring arc (its tolerance reaches back over the node)
+      // and not in the tracked one, which the camera has not left yet (eq. (9)): a short last arc of a route, whose
+      // tolerance is a few centimetres, leaves a camera standing just before its first key-image `lost` with over a
+      // hundred features tracked. The belief's arc is reported.
+      ReportBeliefArc(estimate, &result);
     } else {
       result.state = LocalizerState::kLost;
     }
   } else if (estimate.tracking && Arc(estimate.arc) != nullptr) {
     // The tracks were given up in this frame after their placement was accepted: the frame has its own evidence
     // and the belief is confident, so it is reported on the belief's arc (the next frame relocalizes).
-    const ArcData* arc = Arc(estimate.arc);
-    result.state = LocalizerState::kTracking;
-    result.arc = estimate.arc;
-    result.node_from = arc->arc->from;
-    result.node_to = arc->arc->to;
-    result.position_valid = true;
-    result.position_on_arc = estimate.along;
-    result.position_sigma = estimate.sigma;
+    ReportBeliefArc(estimate, &result);
   } else {
     result.state = state_;
   }
@@ -381,6 +380,25 @@ void Localizer::ReleaseUnusedKeyImages() {
 int Localizer::NumCachedKeyImages() const {
   return static_cast<int>(std::count_if(nodes_.begin(), nodes_.end(),
                                         [](const auto& entry) { return entry.second->HasDerivedData(); }));
+}
+
+bool Localizer::IsNeighbour(arc_t arc, arc_t other) const {
+  const auto& successors = belief_.Successors(arc);
+  const auto& predecessors = belief_.Predecessors(arc);
+  return std::find(successors.begin(), successors.end(), other) != successors.end() ||
+         std::find(predecessors.begin(), predecessors.end(), other) != predecessors.end();
+}
+
+void Localizer::ReportBeliefArc(const PlaceEstimate& estimate, FrameResult* result) const {
+  const ArcData* arc = Arc(estimate.arc);
+  result->state = LocalizerState::kTracking;
+  result->arc = estimate.arc;
+  result->node_from = arc->arc->from;
+  result->node_to = arc->arc->to;
+  result->confidence = estimate.confidence;
+  result->position_valid = true;
+  result->position_on_arc = estimate.along;
+  result->position_sigma = estimate.sigma;
 }
 
 std::optional<double> Localizer::AlongCurrentArc() const {

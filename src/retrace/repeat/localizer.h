@@ -59,9 +59,10 @@
 // What is reported follows the belief: `tracking` on the current arc only when the belief's confidence that the
 // camera is on it (or within the node tolerance of its ends) reaches PlaceBeliefOptions::min_confidence and this
 // frame gave the belief evidence it accepts; otherwise `lost`, with no arc. The confidence is reported every frame.
-// Lost is an answer, never a confident wrong place. A frame whose tracks are given up after their placement was
-// accepted is reported on the belief's arc when the belief is confident (its tracks are gone; the next frame
-// relocalizes).
+// Lost is an answer, never a confident wrong place. The belief's own arc is reported instead when it is confident
+// there and not in the current arc: near a node, in the neighbouring arc the camera has not reached yet by eq. (9)
+// (a route's short last arc), and in a frame whose tracks are given up after their placement was accepted (the
+// next frame relocalizes).
 //
 // The tracks are given up when fewer than `min_features` of the current arc are tracked in a frame without evidence,
 // or no current geometry or absolute pose is usable for `max_bad_frames` frames in a row; the same frame is then
@@ -441,6 +442,10 @@ class Localizer {
   // The belief's most likely position expressed on the current arc (arc lengths, beyond [0, 1] when the mode lies
   // on a neighbouring arc); none when the mode is out of the belief's reach of the current arc.
   std::optional<double> AlongCurrentArc() const;
+  // Whether `other` continues `arc` past its end or before its start (the belief's graph).
+  bool IsNeighbour(arc_t arc, arc_t other) const;
+  // Fills `result` as `tracking` on the belief's arc and position (estimate.tracking holds).
+  void ReportBeliefArc(const PlaceEstimate& estimate, FrameResult* result) const;
   // Resumes the untracked features of the three arcs predicted by their transfers (prudence, eqs. (7), (8)).
   struct RolePredictor;
   void ResumePredicted(const std::array<RolePredictor, 3>& roles, const ArcPosition& position, FrameResult* result);

@@ -93,6 +93,9 @@ c.close()' "$tmp/schema2.db"
     -- "$bin" sim navigate --map "$tmp/graph.db" --goal 0 --out "$tmp/navigate" --planned-branch-probability 1 --quiet
   expect navigate-camera-mismatch 1 "graph.db: key-images are 320x97 but the scenario's camera is 64x48" -- "$bin" \
     sim navigate --map "$tmp/graph.db" --goal 0 --out "$tmp/navigate" --width 64 --height 48 --quiet
+  # sim drive starts on the route's first arc unless told another; an arc the map does not have is refused.
+  expect drive-bad-start-arc 1 "^retrace: error: $tmp/graph.db: --start-arc 99999: the map has no such arc" -- \
+    "$bin" sim drive --map "$tmp/graph.db" --out "$tmp/drive" --width 320 --height 97 --start-arc 99999 --quiet
 fi
 # two-view --planar --json: the heading (eq. B.4 in retrace's axes: atan2(c_x, c_z) of B's centre c in A's camera
 # frame) in the simulator with a level camera on flat ground (the planar model's setting), in the left turn of the
