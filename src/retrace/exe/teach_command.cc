@@ -104,8 +104,12 @@ void RunTeach(const TeachArguments& args) {
 
   // The map is built in <map>.incomplete and moved onto <map> only when teach succeeded (map_database.h); an
   // appended drive is added to a copy of the map there.
+  // The key-images' codec error is measured as the tracker will see them (its smoothing, map_database.h).
+  MapDatabaseOptions storage = args.storage;
+  storage.error_smoothing_px = args.options.smoothing_sigma_px;
+  storage.error_reference_width = args.options.reference_width;
   std::unique_ptr<StagedMap> staged =
-      args.append ? StagedMap::BeginAppend(args.map) : StagedMap::Begin(args.map, args.storage, args.overwrite);
+      args.append ? StagedMap::BeginAppend(args.map) : StagedMap::Begin(args.map, storage, args.overwrite);
   MapDatabase* database = staged->database();
   // The map appended to, with its key-images (the drive is linked to them).
   std::optional<Map> existing;
@@ -277,7 +281,12 @@ void RegisterTeachCommand(CLI::App& app) {
   cmd->add_option("--max-corners", args->options.max_corners, "Corners tracked per subrange")->capture_default_str();
   cmd->add_option("--image-format", args->storage.image_format, "Key-image codec in the map: .jpg, .png or .webp")
       ->capture_default_str();
-  cmd->add_option("--image-quality", args->storage.image_quality, "Quality of lossy key-image codecs (1-100)")
+  cmd->add_option("--image-quality", args->storage.image_quality,
+                  "Highest quality of lossy key-image codecs (1-100)")
+      ->capture_default_str();
+  cmd->add_option("--max-image-error", args->storage.max_image_error,
+                  "Each key-image at the lowest quality whose error after the tracker's smoothing is at most this "
+                  "(grey levels RMS; 0: always --image-quality)")
       ->capture_default_str();
   cmd->add_flag("--no-loop-closing", [args](int64_t) { args->options.close_loop = false; },
                 "Do not try to close the loop between the first and last key-image");

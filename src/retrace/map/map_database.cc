@@ -15,6 +15,7 @@
 
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
 #include "retrace/util/error.h"
@@ -83,14 +84,49 @@ void SyncPath(const std::filesystem::path& path, bool directory) {
 }
 
 std::vector<uint8_t> EncodeImage(const cv::Mat& image, const MapDatabaseOptions& options, const std::string& source) {
-  std::vector<int> params;
-  if (options.image_format == ".jpg") params = {cv::IMWRITE_JPEG_QUALITY, options.image_quality};
-  if (options.image_format == ".webp") params = {cv::IMWRITE_WEBP_QUALITY, options.image_quality};
-  std::vector<uint8_t> bytes;
-  if (!cv::imencode(options.image_format, image, bytes, params)) {
-    throw InputError(source, "cannot encode key-image as " + options.image_format);
+  const bool lossy = options.image_format == ".jpg" || options.image_format == ".webp";
+  const auto encode = [&](int quality) {
+    std::vector<int> params;
+    if (options.image_format == ".jpg") params = {cv::IMWRITE_JPEG_QUALITY, quality};
+    if (options.image_format == ".webp") params = {cv::IMWRITE_WEBP_QUALITY, quality};
+    std::vector<uint8_t> bytes;
+    if (!cv::imencode(options.image_format, image, bytes, params)) {
+      throw InputError(source, "cannot encode key-image as " + options.image_format);
+    }
+    return bytes;
+  };
+  std::vector<uint8_t> best = encode(options.image_quality);
+  if (!lossy || !(options.max_image_error > 0) || image.type() != CV_8UC1) return best;
+  // The error as the tracker sees it: RMS grey levels between the smoothed image and its smoothed decoding.
+  const double sigma = options.error_smoothing_px * image.cols / options.error_reference_width;
+  const auto smoothed = [sigma](const cv::Mat& gray) {
+    cv::Mat out;
+    gray.convertTo(out, CV_32F);
+    if (sigma > 0) cv::GaussianBlur(out, out, cv::Size(), sigma, sigma, cv::BORDER_REFLECT);
+    return out;
+  };
+  const cv::Mat original = smoothed(image);
+  const auto within_budget = [&](const std::vector<uint8_t>& bytes) {
+    const cv::Mat decoded = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+    if (decoded.size() != image.size()) return false;
+    const double rms = cv::norm(smoothed(decoded), original, cv::NORM_L2) / std::sqrt(static_cast<double>(image.total()));
+    return rms <= options.max_image_error;
+  };
+  if (!within_budget(best)) return best;
+  // Bisection on the quality (the error grows as the quality falls), to within 2 quality steps.
+  constexpr int kLowestQuality = 20;
+  int low = kLowestQuality - 1, high = options.image_quality;  // high is within the budget, low is not known to be
+  while (high - low > 2) {
+    const int middle = (low + high) / 2;
+    std::vector<uint8_t> bytes = encode(middle);
+    if (within_budget(bytes)) {
+      high = middle;
+      best = std::move(bytes);
+    } else {
+      low = middle;
+    }
   }
-  return bytes;
+  return best;
 }
 
 // A key-image's signature (map.h) as stored in table signatures: key-points as three little-endian uint16 each
@@ -188,6 +224,10 @@ bool MapDatabaseOptions::Check(std::string* error) const {
     return fail("image_format must be .png, .jpg or .webp, not '" + image_format + "'");
   }
   if (image_quality < 1 || image_quality > 100) return fail("image_quality must be in 1..100");
+  if (!(max_image_error >= 0) || !std::isfinite(max_image_error)) return fail("max_image_error must be >= 0");
+  if (!(error_smoothing_px >= 0) || !std::isfinite(error_smoothing_px) || error_reference_width <= 0) {
+    return fail("error_smoothing_px must be >= 0 and error_reference_width > 0");
+  }
   return true;
 }
 

@@ -8,6 +8,7 @@
 #include <random>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
 
 #include "retrace/util/error.h"
 #include "retrace/util/testing.h"
@@ -120,6 +121,53 @@ TEST(MapDatabase, LossyImagesAreSmallerAndClose) {
   }
   const Map map = MapDatabase::Open(dir / "route.db")->ReadMap();
   EXPECT_LT(cv::norm(map.nodes()[0].image, smooth, cv::NORM_L1) / smooth.total(), 1.0);  // mean error, grey levels
+}
+
+TEST(MapDatabase, LossyQualityKeepsTheErrorTheTrackerSeesWithinTheBudget) {
+  // A textured 1280x384 key-image (kitti07's size, blurred noise) seen by a tracker that smooths by 0.7 px per 320
+  // px of width (2.8 px here): a lower quality than 90 keeps the smoothed error within 0.6 grey levels.
+  cv::Mat texture = RandomImage(384, 1280, 3);
+  cv::GaussianBlur(texture, texture, cv::Size(), 1.5);
+  MapNode node = MakeNode(0, 0);
+  node.image = texture;
+  const auto smoothed_error = [&](const cv::Mat& decoded) {
+    cv::Mat a, b;
+    texture.convertTo(a, CV_32F);
+    decoded.convertTo(b, CV_32F);
+    cv::GaussianBlur(a, a, cv::Size(), 2.8, 2.8, cv::BORDER_REFLECT);
+    cv::GaussianBlur(b, b, cv::Size(), 2.8, 2.8, cv::BORDER_REFLECT);
+    return cv::norm(a, b, cv::NORM_L2) / std::sqrt(static_cast<double>(texture.total()));
+  };
+  const auto dir = testing::MakeTempDir("map_quality");
+  MapDatabaseOptions fixed;
+  fixed.max_image_error = 0.0;  // always quality 90
+  int64_t fixed_bytes = 0, budget_bytes = 0;
+  {
+    auto db = MapDatabase::Create(dir / "fixed.db", fixed);
+    db->WriteNode(node);
+    fixed_bytes = db->ImageBytes();
+  }
+  {
+    auto db = MapDatabase::Create(dir / "budget.db");  // default: 0.6 grey levels
+    db->WriteNode(node);
+    budget_bytes = db->ImageBytes();
+  }
+  EXPECT_LT(budget_bytes, fixed_bytes * 3 / 4);
+  const Map map = MapDatabase::Open(dir / "budget.db")->ReadMap();
+  const double error = smoothed_error(map.nodes()[0].image);
+  EXPECT_LE(error, 0.6);
+  EXPECT_GT(error, smoothed_error(MapDatabase::Open(dir / "fixed.db")->ReadMap().nodes()[0].image));
+  // A budget no quality meets: quality 90, as without one.
+  MapDatabaseOptions strict;
+  strict.max_image_error = 1e-6;
+  {
+    auto db = MapDatabase::Create(dir / "strict.db", strict);
+    db->WriteNode(node);
+    EXPECT_EQ(db->ImageBytes(), fixed_bytes);
+  }
+  MapDatabaseOptions bad;
+  bad.max_image_error = -1.0;
+  EXPECT_FALSE(bad.Check());
 }
 
 // Expects `f` to throw InputError whose message contains the path and `problem`.
