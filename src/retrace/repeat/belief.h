@@ -37,9 +37,11 @@
 //     ≥ `min_inlier_probability`.
 //  3. Estimate: the reported arc is the one with the largest confidence, the probability that the camera is on it
 //     or within `node_tolerance` of its ends on a neighbouring arc (the topological truth tolerates ±1 arc near a
-//     node, design §9, so this is the probability that the report is correct). The state is `tracking` only when
-//     the confidence is at least `min_confidence` and the frame has its own evidence; otherwise the localizer
-//     reports `lost`.
+//     node, design §9, so this is the probability that the report is correct) — or, when the posterior mean has
+//     crossed that arc's end (start), the arc across holding the most mass if its confidence reaches
+//     `min_confidence` too (near a node both are nearly equally likely correct, and the largest confidence alone
+//     favoured the arc the camera was leaving). The state is `tracking` only when the confidence is at least
+//     `min_confidence` and the frame has its own evidence; otherwise the localizer reports `lost`.
 //
 // Measurements of one frame from the same tracked features are not independent; the localizer therefore gives the
 // belief one placement per frame from its tracked features (the most accurate one) and the bootstrap's key-image
