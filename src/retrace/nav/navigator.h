@@ -35,11 +35,11 @@
 // fed every image. Its belief is told the plan's arcs, so that at a junction it expects the branch the plan chose
 // (PlaceBelief::SetPlannedArcs). Where it tracks an arc between two places of the plan (key-images of the plan or
 // linked to them) whose taught direction is the plan's (a driven arc, not a link), the robot steers by the image as
-// in repeat (eq. (10): κ = −g · w) instead of by the heading, and so keeps to the taught line between key-images. Where it tracks, confidently, an arc none of
-// whose key-images is a place of the plan (a key-image of it, or one linked to such by a join or loop: where drives
-// overlap, the localizer may follow either), the robot took another branch (it takes one arc to tell that from an
-// overshoot at a junction, whose first arc still starts on the plan): the navigator replans from that arc's end (its
-// key-image becomes the subgoal, the shortest path from it the plan).
+// in repeat (eq. (10): κ = −g · w) instead of by the heading, and so keeps to the taught line between key-images.
+// Where it tracks, confidently, an arc none of whose key-images is a place of the plan (a key-image of it, or one
+// linked to such by a join or loop: where drives overlap, the localizer may follow either), the robot took another
+// branch (it takes one arc to tell that from an overshoot at a junction, whose first arc still starts on the plan):
+// the navigator replans from that arc's end (its key-image becomes the subgoal, the shortest path from it the plan).
 //
 // Bearings are rotated into the level frame of the ground plane estimated from the map's arcs (camera_mount.h), so
 // that the planar model holds for a camera pitched against the ground (a car's camera) across turns.

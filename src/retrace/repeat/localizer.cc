@@ -322,27 +322,21 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
     const std::optional<double> along = AlongCurrentArc();
     const bool confident = result.confidence >= options_.belief.min_confidence && estimate.evidence && along;
     if (confident) {
-      const ArcData* arc = Arc(arc_);
-      result.state = LocalizerState::kTracking;
-      result.arc = arc_;
-      result.node_from = arc->arc->from;
-      result.node_to = arc->arc->to;
-      result.position_valid = true;
-      result.position_on_arc = *along;
-      result.position_sigma = estimate.sigma * belief_.ArcLength(estimate.arc) / belief_.ArcLength(arc_);
+      ReportTracking(arc_, *along, estimate.sigma * belief_.ArcLength(estimate.arc) / belief_.ArcLength(arc_),
+                     result.confidence, &result);
     } else if (estimate.tracking && IsNeighbour(arc_, estimate.arc)) {
       // Near a node the belief may be confident in the neighbouring arc (its tolerance reaches back over the node)
       // and not in the tracked one, which the camera has not left yet (eq. (9)): a short last arc of a route, whose
       // tolerance is a few centimetres, leaves a camera standing just before its first key-image `lost` with over a
       // hundred features tracked. The belief's arc is reported.
-      ReportBeliefArc(estimate, &result);
+      ReportTracking(estimate.arc, estimate.along, estimate.sigma, estimate.confidence, &result);
     } else {
       result.state = LocalizerState::kLost;
     }
   } else if (estimate.tracking && Arc(estimate.arc) != nullptr) {
     // The tracks were given up in this frame after their placement was accepted: the frame has its own evidence
     // and the belief is confident, so it is reported on the belief's arc (the next frame relocalizes).
-    ReportBeliefArc(estimate, &result);
+    ReportTracking(estimate.arc, estimate.along, estimate.sigma, estimate.confidence, &result);
   } else {
     result.state = state_;
   }
@@ -389,16 +383,17 @@ bool Localizer::IsNeighbour(arc_t arc, arc_t other) const {
          std::find(predecessors.begin(), predecessors.end(), other) != predecessors.end();
 }
 
-void Localizer::ReportBeliefArc(const PlaceEstimate& estimate, FrameResult* result) const {
-  const ArcData* arc = Arc(estimate.arc);
+void Localizer::ReportTracking(arc_t arc_id, double along, double sigma, double confidence,
+                               FrameResult* result) const {
+  const ArcData* arc = Arc(arc_id);
   result->state = LocalizerState::kTracking;
-  result->arc = estimate.arc;
+  result->arc = arc_id;
   result->node_from = arc->arc->from;
   result->node_to = arc->arc->to;
-  result->confidence = estimate.confidence;
+  result->confidence = confidence;
   result->position_valid = true;
-  result->position_on_arc = estimate.along;
-  result->position_sigma = estimate.sigma;
+  result->position_on_arc = along;
+  result->position_sigma = sigma;
 }
 
 std::optional<double> Localizer::AlongCurrentArc() const {

@@ -444,8 +444,8 @@ class Localizer {
   std::optional<double> AlongCurrentArc() const;
   // Whether `other` continues `arc` past its end or before its start (the belief's graph).
   bool IsNeighbour(arc_t arc, arc_t other) const;
-  // Fills `result` as `tracking` on the belief's arc and position (estimate.tracking holds).
-  void ReportBeliefArc(const PlaceEstimate& estimate, FrameResult* result) const;
+  // Fills `result` as `tracking` on `arc` at `along` (arc lengths, standard deviation `sigma`) with `confidence`.
+  void ReportTracking(arc_t arc, double along, double sigma, double confidence, FrameResult* result) const;
   // Resumes the untracked features of the three arcs predicted by their transfers (prudence, eqs. (7), (8)).
   struct RolePredictor;
   void ResumePredicted(const std::array<RolePredictor, 3>& roles, const ArcPosition& position, FrameResult* result);
