@@ -169,6 +169,21 @@ Localizer::Localizer(Map map, const CameraModel& camera, const LocalizerOptions&
         break;
       }
     }
+    // The camera is placed between the bisecting planes of the arc's nodes where the drive goes on through them
+    // along exactly one driven arc (placement.h); at a route's end, a junction, or on a link, the paper's plane.
+    const auto only_driven = [&arc](const std::vector<const MapArc*>& arcs) -> const Rigid3d* {
+      const MapArc* found = nullptr;
+      for (const MapArc* other : arcs) {
+        if (other->IsLink() || other->id == arc.id || (other->from == arc.to && other->to == arc.from)) continue;
+        if (found != nullptr) return nullptr;
+        found = other;
+      }
+      return found != nullptr ? &found->to_from_from : nullptr;
+    };
+    if (!arc.IsLink()) {
+      data->bounds =
+          BisectingBounds(arc.to_from_from, only_driven(map_.ArcsTo(arc.from)), only_driven(map_.ArcsFrom(arc.to)));
+    }
     arcs_[arc.id] = std::move(data);
   }
 }
@@ -595,8 +610,8 @@ void Localizer::Localize(FrameResult* result) {
   // The camera placed on the arc through each current geometry ...
   Placements placements;
   ArcPosition position_a, position_b;
-  if (transfer_a) position_a = LocateOnArc(transfer_a->current_from_a(), arc->arc->to_from_from);
-  if (transfer_b) position_b = LocateOnArc(transfer_b->current_from_a(), arc->arc->to_from_from);
+  if (transfer_a) position_a = LocateOnArc(transfer_a->current_from_a(), arc->arc->to_from_from, arc->bounds);
+  if (transfer_b) position_b = LocateOnArc(transfer_b->current_from_a(), arc->arc->to_from_from, arc->bounds);
   if (position_a.valid) {
     result->position_via_from = position_a.along;
     placements.from = GeometryMeasurement(arc_, position_a, options_.placement);
@@ -616,10 +631,11 @@ void Localizer::Localize(FrameResult* result) {
                             pose.covariance_valid ? std::optional<Matrix3d>(pose.centre_covariance) : std::nullopt};
       result->sigma_p_pose = pose.sigma_p;
       result->pose_inliers = pose.num_inliers;
-      const ArcPosition position_pose = LocateOnArc(pose.cam_from_world, arc->arc->to_from_from);
+      const ArcPosition position_pose = LocateOnArc(pose.cam_from_world, arc->arc->to_from_from, arc->bounds);
       if (position_pose.valid) result->position_via_pose = position_pose.along;
       if (position_pose.valid && pose.sigma_p < max_sigma_p_px_) {
-        placements.pose = PoseMeasurement(arc_, position_pose, pose, arc->arc->to_from_from, options_.placement);
+        placements.pose =
+            PoseMeasurement(arc_, position_pose, pose, arc->arc->to_from_from, options_.placement, arc->bounds);
       }
     }
   }
@@ -632,17 +648,19 @@ void Localizer::Localize(FrameResult* result) {
       if (neighbour == nullptr || !options_.place_by_absolute_pose) continue;
       const AbsolutePose pose = EstimatePoseInArc(*neighbour);
       if (!pose.success || !(pose.sigma_p < max_sigma_p_px_) || pose.num_inliers <= best_inliers) continue;
-      const ArcPosition placed = LocateOnArc(pose.cam_from_world, neighbour->arc->to_from_from);
+      const ArcPosition placed = LocateOnArc(pose.cam_from_world, neighbour->arc->to_from_from, neighbour->bounds);
       if (!placed.valid) continue;
       best_inliers = pose.num_inliers;
       placements.neighbour =
-          PoseMeasurement(neighbour->arc->id, placed, pose, neighbour->arc->to_from_from, options_.placement);
+          PoseMeasurement(neighbour->arc->id, placed, pose, neighbour->arc->to_from_from, options_.placement,
+                          neighbour->bounds);
     }
     if (!placements.neighbour) {
       for (const auto& [neighbour, transfer] :
            {std::pair{next, &transfer_next}, std::pair{previous, &transfer_previous}}) {
         if (neighbour == nullptr || !transfer->has_value()) continue;
-        const ArcPosition placed = LocateOnArc((*transfer)->current_from_a(), neighbour->arc->to_from_from);
+        const ArcPosition placed =
+            LocateOnArc((*transfer)->current_from_a(), neighbour->arc->to_from_from, neighbour->bounds);
         if (!placed.valid) continue;
         placements.neighbour = GeometryMeasurement(neighbour->arc->id, placed, options_.placement);
         break;

@@ -24,7 +24,8 @@
 //  3. placements (placement.h): the camera is placed on the arc by its absolute pose in the arc's reconstruction
 //     (P3P on the tracked features whose points Q the arc stores, σ_p gated like the current geometries; its standard
 //     deviation along the arc from the pose's covariance), and by W_t:a and W_t:b brought into the arc's frame and
-//     scale (decomposed point transfer, §4.4). They are measurements of the belief: the absolute pose (far more
+//     scale (decomposed point transfer, §4.4), each between the planes that bound the arc at its key-images (the
+//     bisecting planes of a turn, placement.h). They are measurements of the belief: the absolute pose (far more
 //     accurate, README), else the current geometry with the lower σ_p, else the camera placed in a neighbouring arc's
 //     frame, plus the key-image a bootstrap verified in this frame. The belief is predicted by the motion model and
 //     updated with them; its mode, on the current arc, is the camera's position;
@@ -49,8 +50,9 @@
 //  8. steering (eq. (10), control/steering.h): w = k * mean(x_t - x*) over the current arc's features, x the
 //     horizontal normalised coordinate in the current image and x* in key-image b;
 //  9. topological transition (eq. (9)) on the belief: in a frame with evidence, the tracked location moves to the
-//     arc holding the belief's mode when the mode has passed the plane through b's centre perpendicular to the
-//     arc (along > 1), or lies more than `backward_margin` behind a — over several arcs in one frame when the
+//     arc holding the belief's mode when the mode has passed the plane through b's centre that ends the arc (the
+//     bisecting plane of the two arcs meeting at b where the route goes on through b, placement.h; along > 1), or
+//     lies more than `backward_margin` behind a — over several arcs in one frame when the
 //     camera passed several key-images. After a transition the features of no arc around the new location are
 //     dropped and the references are redefined (§5.2.2): the new current arc's features are re-aligned against the
 //     key-image now approached, the arc just left against the key-image just passed; a feature whose new

@@ -37,6 +37,8 @@ struct Localizer::ArcData {
   std::unordered_map<feature_t, Vector3d> points;
   arc_t previous = kInvalidArcId;
   arc_t next = kInvalidArcId;
+  // The planes at its key-images between which the camera is placed on it (placement.h).
+  ArcBounds bounds;
 };
 
 struct Localizer::CurrentGeometry {

@@ -10,15 +10,83 @@ Vector3d CameraCentre(const Rigid3d& cam_from_world) {
   return -cam_from_world.rotation.transpose() * cam_from_world.translation;
 }
 
-ArcPosition LocateOnArc(const Rigid3d& current_from_a, const Rigid3d& arc_b_from_a) {
+namespace {
+
+// The arc's unit direction of travel in its own frame (a at the origin): C_b / |C_b|.
+Vector3d ArcDirection(const Rigid3d& arc_b_from_a) { return CameraCentre(arc_b_from_a).normalized(); }
+
+// A bound's normal, or the arc's direction where the bound keeps the perpendicular plane.
+Vector3d NormalOr(const Vector3d& normal, const Vector3d& direction) {
+  return normal.squaredNorm() > 0 ? normal : direction;
+}
+
+// Between the planes, s_a − s_b below this (arc lengths): the camera is near where the two planes meet, about a turn
+// radius beside the route, and `along` between them means nothing there.
+constexpr double kMinPlaneSeparation = 0.25;
+
+// `along` of the camera centre `c_t` on the arc from the origin to `c_b` (arc frame) bounded by `bounds`, and its
+// gradient with respect to `c_t` (header: between the planes s_a / (s_a − s_b); before a's plane and past b's the
+// distance from that plane along the arc, s / (d · n), which continues the arc's own scale; beyond where the planes
+// meet, or with them, the chord projection).
+struct AlongAndGradient {
+  double along = 0.0;
+  Vector3d gradient = Vector3d::Zero();
+};
+AlongAndGradient AlongBetweenPlanes(const Vector3d& c_t, const Vector3d& c_b, const ArcBounds& bounds) {
+  const double length = c_b.norm();
+  const Vector3d direction = c_b / length;
+  const Vector3d n_a = NormalOr(bounds.normal_at_from, direction);
+  const Vector3d n_b = NormalOr(bounds.normal_at_to, direction);
+  const double s_a = c_t.dot(n_a) / length;
+  const double s_b = (c_t - c_b).dot(n_b) / length;
+  if (s_a >= 0.0 && s_b <= 0.0 && s_a - s_b >= kMinPlaneSeparation) {
+    const double separation = s_a - s_b;
+    return {s_a / separation, (s_a * n_b - s_b * n_a) / (separation * separation * length)};
+  }
+  if (s_a >= 0.0 && s_b > 0.0) {
+    const double cosine = direction.dot(n_b);
+    return {1.0 + s_b / cosine, n_b / (cosine * length)};
+  }
+  if (s_a < 0.0 && s_b <= 0.0) {
+    const double cosine = direction.dot(n_a);
+    return {s_a / cosine, n_a / (cosine * length)};
+  }
+  return {c_t.dot(direction) / length, direction / length};
+}
+
+}  // namespace
+
+ArcBounds BisectingBounds(const Rigid3d& arc_b_from_a, const Rigid3d* previous_a_from_z, const Rigid3d* next_c_from_b,
+                          double max_turn_deg) {
+  ArcBounds bounds;
+  const Vector3d direction = ArcDirection(arc_b_from_a);
+  if (!direction.allFinite()) return bounds;
+  const double min_cosine = std::cos(max_turn_deg * M_PI / 180.0);
+  const auto bisect = [&](const Vector3d& other) -> Vector3d {
+    // The normal of the plane equidistant from the two arcs' lines through their common node.
+    if (!other.allFinite() || other.dot(direction) < min_cosine) return Vector3d::Zero();
+    return (other + direction).normalized();
+  };
+  if (previous_a_from_z != nullptr) {
+    // Direction z -> a in z's frame is C_a = -Rᵀt; in a's frame R C_a = -t.
+    bounds.normal_at_from = bisect(-previous_a_from_z->translation.normalized());
+  }
+  if (next_c_from_b != nullptr) {
+    // Direction b -> c in b's frame is C_c = -R_qᵀ t_q; in a's frame R_kᵀ C_c.
+    bounds.normal_at_to = bisect(arc_b_from_a.rotation.transpose() * CameraCentre(*next_c_from_b).normalized());
+  }
+  return bounds;
+}
+
+ArcPosition LocateOnArc(const Rigid3d& current_from_a, const Rigid3d& arc_b_from_a, const ArcBounds& bounds) {
   ArcPosition position;
   const Vector3d c_t = CameraCentre(current_from_a);
   const Vector3d c_b = CameraCentre(arc_b_from_a);
   const double length_sq = c_b.squaredNorm();
   if (!c_t.allFinite() || !(length_sq > 0)) return position;
   position.valid = true;
-  position.along = c_t.dot(c_b) / length_sq;
   const double length = std::sqrt(length_sq);
+  position.along = AlongBetweenPlanes(c_t, c_b, bounds).along;
   position.distance_to_from = c_t.norm() / length;
   position.distance_to_to = (c_t - c_b).norm() / length;
   return position;
@@ -36,8 +104,8 @@ ArcPosition AlongArc(double along) {
 ResumptionPolicy DecideResumption(const ArcPosition& position, double next_arc_ratio, double previous_arc_ratio) {
   ResumptionPolicy policy;
   if (!position.valid) return policy;
-  policy.next = position.distance_to_to < next_arc_ratio;              // Segvic 2009, eq. (7)
-  policy.previous = position.distance_to_from < previous_arc_ratio;    // Segvic 2009, eq. (8)
+  policy.next = position.distance_to_to < next_arc_ratio;            // Segvic 2009, eq. (7)
+  policy.previous = position.distance_to_from < previous_arc_ratio;  // Segvic 2009, eq. (8)
   return policy;
 }
 
@@ -48,18 +116,20 @@ bool GeometryUsable(const TwoViewGeometry& geometry, double max_sigma_p_px) {
 int DecideTransition(const ArcPosition& position, double backward_margin) {
   if (!position.valid) return 0;
   // Segvic 2009, eq. (9). With the camera centre C_t in the arc's frame (a at the origin, b at C_b), the plane
-  // through C_b perpendicular to the direction of travel C_b - C_a is passed when (C_t - C_b) . C_b > 0, i.e.
-  // along = C_t . C_b / |C_b|^2 > 1.
+  // through C_b that ends the arc (normal n_b) is passed when s_b = (C_t - C_b) . n_b > 0, i.e. along > 1 (for the
+  // paper's plane, n_b = C_b / |C_b|: along = C_t . C_b / |C_b|^2 > 1).
   if (position.along > 1.0) return +1;
   if (position.along < -backward_margin) return -1;
   return 0;
 }
 
-double AlongSigma(const Matrix3d& centre_covariance, const Rigid3d& arc_b_from_a) {
+double AlongSigma(const Matrix3d& centre_covariance, const Rigid3d& arc_b_from_a, const Vector3d& centre,
+                  const ArcBounds& bounds) {
   const Vector3d c_b = CameraCentre(arc_b_from_a);
   const double length_sq = c_b.squaredNorm();
   if (!(length_sq > 0)) return std::numeric_limits<double>::infinity();
-  const double variance = c_b.dot(centre_covariance * c_b) / (length_sq * length_sq);
+  const Vector3d gradient = AlongBetweenPlanes(centre, c_b, bounds).gradient;
+  const double variance = gradient.dot(centre_covariance * gradient);
   return variance >= 0 ? std::sqrt(variance) : std::numeric_limits<double>::infinity();
 }
 
@@ -78,10 +148,10 @@ bool PlacementModel::Check(std::string* error) const {
 }
 
 PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const AbsolutePose& pose,
-                                 const Rigid3d& arc_b_from_a, const PlacementModel& model) {
+                                 const Rigid3d& arc_b_from_a, const PlacementModel& model, const ArcBounds& bounds) {
   double sigma = model.pose_sigma_floor;
   if (pose.covariance_valid) {
-    const double fitted = AlongSigma(pose.centre_covariance, arc_b_from_a);
+    const double fitted = AlongSigma(pose.centre_covariance, arc_b_from_a, CameraCentre(pose.cam_from_world), bounds);
     sigma = std::isfinite(fitted) ? std::hypot(fitted, model.pose_sigma_floor) : 1.0;
   }
   return {arc, position.along, sigma, model.pose_outlier_probability};

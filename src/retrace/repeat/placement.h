@@ -4,11 +4,27 @@
 //
 // Every estimate of the current camera in an arc's frame — its absolute pose in the arc's reconstruction, or a
 // current geometry W_t:a / W_t:b brought into the arc's frame and scale by the decomposed point transfer (§4.4) —
-// places it on the arc: `along` is the projection of its centre on the arc (0 at the arc's first key-image a, 1 at
-// its second b). The paper's decisions read that position: prudence (eqs. (7), (8)) and the topological transition
-// (eq. (9)). retrace also turns each placement into a measurement of the place belief (belief.h) with a standard
-// deviation and an outlier probability (PlacementModel): the absolute pose's from its covariance, the decomposed
-// placements' from how far they were measured to lie from the truth.
+// places it on the arc: `along` is where its centre lies between the planes that bound the arc (below; 0 at the
+// arc's first key-image a, 1 at its second b). The paper's decisions read that position: prudence (eqs. (7), (8)) and
+// the topological transition (eq. (9)). retrace also turns each placement into a measurement of the place belief
+// (belief.h) with a standard deviation and an outlier probability (PlacementModel): the absolute pose's from its
+// covariance, the decomposed placements' from how far they were measured to lie from the truth.
+//
+// The planes that bound an arc. Eq. (9) ends arc (a, b) at the plane through b perpendicular to the arc; the next
+// arc (b, c) starts at the plane through b perpendicular to IT. In a turn the two planes differ by the turn's angle,
+// and a camera driving beside the taught path meets them at different times: with a lateral offset d and a turn of θ
+// at b, d·tan(θ/2) apart (3 m outside a 30° turn: 0.8 m, a third of an arc of 2.4 m). Its projection on (a, b) then
+// says `along` > 1 while its projection on (b, c) still says < 0, or the other way round on the inside, and the
+// placements of two neighbouring arcs disagree about the same camera. retrace therefore bounds each arc at the
+// BISECTING planes of its nodes (ArcBounds): at b, the plane through b whose normal is the mean of the two arcs' unit
+// directions, which is the set of points at equal distance from the two arcs' lines — where the nearest taught
+// segment, the topological truth of repeat/evaluation.h, changes from (a, b) to (b, c). With s_a, s_b the signed
+// distances of the camera centre from the planes at a and b (arc lengths), `along` is s_a / (s_a − s_b) between
+// them: 0 on a's plane, 1 on b's. Before a's plane and past b's it is the distance from that plane measured along
+// the arc, s / (d · n) (d the arc's direction, n the plane's normal): the arc's own scale carries on, so a camera
+// that passed several key-images in one frame is placed several arc lengths ahead. Far beside a turn, where the two
+// planes meet (s_a < 0 < s_b), and with the paper's planes (a straight route, a route's end, a junction, a link) it
+// is the projection of the centre on the arc. On the taught path all of these agree at both key-images.
 
 #include "retrace/geometry/absolute_pose.h"
 #include "retrace/geometry/two_view_geometry.h"
@@ -28,8 +44,24 @@ struct ArcPosition {
   double distance_to_from = 0.0;  // |C_t - C_a| (arc lengths)
   double distance_to_to = 0.0;    // |C_t - C_b|
 };
-// `current_from_a`: the current camera in the arc's frame and scale (PointTransfer::current_from_a()).
-ArcPosition LocateOnArc(const Rigid3d& current_from_a, const Rigid3d& arc_b_from_a);
+// The planes at an arc's two key-images, in the arc's frame (a's camera frame): unit normals pointing along the
+// direction of travel, through C_a and C_b. Default: both perpendicular to the arc (eq. (9) as the paper).
+struct ArcBounds {
+  Vector3d normal_at_from = Vector3d::Zero();  // zero: the arc's own direction
+  Vector3d normal_at_to = Vector3d::Zero();
+};
+// The bisecting planes of arc (a, b) given the arc before it, z -> a (`previous_a_from_z`, its to_from_from), and
+// the arc after it, b -> c (`next_c_from_b`); null for a route's end, a junction or a link (two images of one place
+// have no direction of travel), which keep the perpendicular plane. A reversal (the two directions more than
+// `max_turn_deg` apart) keeps it too: the bisector of a hairpin runs along the road.
+ArcBounds BisectingBounds(const Rigid3d& arc_b_from_a, const Rigid3d* previous_a_from_z, const Rigid3d* next_c_from_b,
+                          double max_turn_deg = 120.0);
+
+// `current_from_a`: the current camera in the arc's frame and scale (PointTransfer::current_from_a()). `along` is
+// measured between the planes of `bounds` (see above); where the camera is so far beside a sharp turn that the two
+// planes meet before it (the denominator s_a − s_b below a quarter of the arc), the chord projection is used.
+ArcPosition LocateOnArc(const Rigid3d& current_from_a, const Rigid3d& arc_b_from_a,
+                        const ArcBounds& bounds = ArcBounds());
 // A position known only along the arc (the belief's): distances measured along it.
 ArcPosition AlongArc(double along);
 
@@ -45,13 +77,16 @@ ResumptionPolicy DecideResumption(const ArcPosition& position, double next_arc_r
 bool GeometryUsable(const TwoViewGeometry& geometry, double max_sigma_p_px);
 
 // Topological transition (Segvic 2009 §5.2.2, eq. (9)): forward (+1) when the camera centre has passed the plane
-// through b's centre perpendicular to the arc's direction of travel, i.e. its projection on the arc lies beyond b
-// (along > 1); backward (-1) when it lies more than `backward_margin` arc lengths behind a; else 0.
+// through b's centre that ends the arc (perpendicular to the arc's direction of travel in the paper, the bisecting
+// plane with ArcBounds), i.e. along > 1; backward (-1) when it lies more than `backward_margin` arc lengths behind a;
+// else 0.
 int DecideTransition(const ArcPosition& position, double backward_margin);
 
-// Standard deviation (arc lengths) of the position along the arc given the covariance of the camera centre in the
-// arc's frame and unit: σ² = dᵀ Σ d / |C_b|², d the arc's unit direction.
-double AlongSigma(const Matrix3d& centre_covariance, const Rigid3d& arc_b_from_a);
+// Standard deviation (arc lengths) of the position along the arc given the covariance of the camera centre C in the
+// arc's frame and unit: σ² = gᵀ Σ g with g the gradient of `along` at C — d / |C_b| for the perpendicular planes (d
+// the arc's unit direction), (s_a n_b − s_b n_a) / (s_a − s_b)² between bisecting planes.
+double AlongSigma(const Matrix3d& centre_covariance, const Rigid3d& arc_b_from_a,
+                  const Vector3d& centre = Vector3d::Zero(), const ArcBounds& bounds = ArcBounds());
 
 // How reliable each kind of placement is, as a measurement of the place belief.
 struct PlacementModel {
@@ -79,7 +114,8 @@ struct PlacementModel {
 
 // The measurements of the belief from one placement on `arc`.
 PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const AbsolutePose& pose,
-                                 const Rigid3d& arc_b_from_a, const PlacementModel& model);
+                                 const Rigid3d& arc_b_from_a, const PlacementModel& model,
+                                 const ArcBounds& bounds = ArcBounds());
 PlaceMeasurement GeometryMeasurement(arc_t arc, const ArcPosition& position, const PlacementModel& model);
 // The camera is at key-image `node` of `arc` (its start or its end), picked among `candidates` key-images.
 PlaceMeasurement KeyImageMeasurement(const MapArc& arc, node_t node, int candidates, const PlacementModel& model);

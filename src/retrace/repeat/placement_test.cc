@@ -73,6 +73,131 @@ TEST(DecideTransition, FiresExactlyWhenTheCameraCrossesThePlaneThroughB) {
   EXPECT_EQ(DecideTransition(ArcPosition(), margin), 0);
 }
 
+// A route turning left by `turn` degrees at every key-image, key-images 1 apart, seen from above (x right, z
+// forward, y down; a left turn is a negative yaw of the travel direction about y). Key-image k's camera looks along
+// the route. Returns the pose of key-image k in the frame of key-image 0 as cam_from_world.
+Rigid3d TurningKeyImage(int k, double turn) {
+  Vector3d centre = Vector3d::Zero();
+  double heading = 0.0;  // degrees, yaw of the travel direction
+  for (int i = 0; i < k; ++i) {
+    centre += Yaw(heading) * Vector3d::UnitZ();
+    heading -= turn;
+  }
+  return CamFromWorld(centre, Yaw(heading));
+}
+
+TEST(BisectingBounds, ThePlaneBetweenTwoArcsIsTheSameForBoth) {
+  // Three arcs 0 -> 1 -> 2 -> 3 of a route turning 30 degrees at every node. A camera 0.8 arc lengths beside node 2
+  // on its bisecting plane: arc (1, 2) says along = 1 exactly when arc (2, 3) says along = 0, whichever side of the
+  // route it is on; the perpendicular planes of the paper disagree there.
+  const double turn = 30.0;
+  const Rigid3d k1 = TurningKeyImage(1, turn), k2 = TurningKeyImage(2, turn), k3 = TurningKeyImage(3, turn);
+  const Rigid3d k0 = TurningKeyImage(0, turn);
+  const Rigid3d one_from_zero = k1 * k0.Inverse();
+  const Rigid3d two_from_one = k2 * k1.Inverse();
+  const Rigid3d three_from_two = k3 * k2.Inverse();
+  const ArcBounds arc_12 = BisectingBounds(two_from_one, &one_from_zero, &three_from_two);
+  const ArcBounds arc_23 = BisectingBounds(three_from_two, &two_from_one, nullptr);
+  ASSERT_GT(arc_12.normal_at_to.norm(), 0.5);
+  EXPECT_EQ(arc_23.normal_at_to.norm(), 0.0);  // the route's end: the paper's plane
+  const Vector3d node2 = CameraCentre(k2);
+  const Vector3d bisector_normal =
+      (node2 - CameraCentre(k1)).normalized() + (CameraCentre(k3) - node2).normalized();
+  const Vector3d across = bisector_normal.cross(Vector3d::UnitY()).normalized();  // in the plane, horizontal
+  for (const double offset : {-0.8, 0.0, 0.8}) {
+    const Vector3d on_plane = node2 + offset * across;
+    // The camera (any heading) in the frames of key-images 1 and 2.
+    const Rigid3d camera = CamFromWorld(on_plane, Yaw(-45));
+    const ArcPosition on_12 = LocateOnArc(camera * k1.Inverse(), two_from_one, arc_12);
+    const ArcPosition on_23 = LocateOnArc(camera * k2.Inverse(), three_from_two, arc_23);
+    ASSERT_TRUE(on_12.valid && on_23.valid);
+    EXPECT_NEAR(on_12.along, 1.0, 1e-9) << offset;
+    EXPECT_NEAR(on_23.along, 0.0, 1e-9) << offset;
+    // The paper's planes: outside the turn (offset < 0, right of a left turn) arc (1, 2) is left too early and arc
+    // (2, 3) entered too late, inside the other way round, by the offset's component along each chord (the chords
+    // are 15 degrees from the bisecting plane's normal).
+    const double chord_12 = LocateOnArc(camera * k1.Inverse(), two_from_one).along;
+    const double chord_23 = LocateOnArc(camera * k2.Inverse(), three_from_two).along;
+    EXPECT_NEAR(chord_12 - 1.0, -offset * std::sin(15.0 * M_PI / 180.0), 1e-9) << offset;
+    EXPECT_NEAR(chord_23, offset * std::sin(15.0 * M_PI / 180.0), 1e-9) << offset;
+  }
+  // On the taught path the bisecting planes place the camera as the paper's at both key-images, and in between
+  // within the cosine of the half-turn.
+  for (const double along : {0.0, 0.25, 0.5, 0.75, 1.0}) {
+    const Vector3d on_path = CameraCentre(k1) + along * (node2 - CameraCentre(k1));
+    const double bisecting = LocateOnArc(CamFromWorld(on_path) * k1.Inverse(), two_from_one, arc_12).along;
+    EXPECT_NEAR(bisecting, along, 0.02) << along;
+    if (along == 0.0 || along == 1.0) {
+      EXPECT_NEAR(bisecting, along, 1e-9);
+    }
+  }
+}
+
+TEST(BisectingBounds, BeyondTheArcTheArcsScaleCarriesOn) {
+  // kitti07 taught on every 4th frame passes two or three key-images between frames: a camera on the route three
+  // key-images past b is placed about three arc lengths ahead (the bisecting fraction alone grows without bound
+  // there, as the planes converge), and `along` is continuous across both planes.
+  const double turn = 30.0;
+  const Rigid3d k0 = TurningKeyImage(0, turn), k1 = TurningKeyImage(1, turn), k2 = TurningKeyImage(2, turn),
+                k3 = TurningKeyImage(3, turn), k5 = TurningKeyImage(5, turn);
+  const Rigid3d one_from_zero = k1 * k0.Inverse(), two_from_one = k2 * k1.Inverse(), three_from_two = k3 * k2.Inverse();
+  const ArcBounds bounds = BisectingBounds(two_from_one, &one_from_zero, &three_from_two);
+  const auto along = [&](const Vector3d& centre_in_world) {
+    return LocateOnArc(CamFromWorld(centre_in_world) * k1.Inverse(), two_from_one, bounds).along;
+  };
+  // Key-image 5 lies 3 arcs past b along a curve turning 30 degrees per arc: its distance along arc (1, 2)'s
+  // direction, measured from b's plane, is between the chord's cosine-shortened length and 3.
+  const double ahead = along(CameraCentre(k5));
+  EXPECT_GT(ahead, 2.0);
+  EXPECT_LT(ahead, 4.0);
+  // Continuity across b's plane and a's plane, beside the route on both sides.
+  const Vector3d node1 = CameraCentre(k1), node2 = CameraCentre(k2), node3 = CameraCentre(k3);
+  const Vector3d normal_b = ((node2 - node1).normalized() + (node3 - node2).normalized()).normalized();
+  const Vector3d normal_a = ((node1 - CameraCentre(k0)).normalized() + (node2 - node1).normalized()).normalized();
+  for (const double offset : {-0.6, 0.6}) {
+    const Vector3d beside_b = node2 + offset * normal_b.cross(Vector3d::UnitY()).normalized();
+    EXPECT_NEAR(along(beside_b - 1e-7 * normal_b), 1.0, 1e-5) << offset;
+    EXPECT_NEAR(along(beside_b + 1e-7 * normal_b), 1.0, 1e-5) << offset;
+    const Vector3d beside_a = node1 + offset * normal_a.cross(Vector3d::UnitY()).normalized();
+    EXPECT_NEAR(along(beside_a - 1e-7 * normal_a), 0.0, 1e-5) << offset;
+    EXPECT_NEAR(along(beside_a + 1e-7 * normal_a), 0.0, 1e-5) << offset;
+  }
+}
+
+TEST(BisectingBounds, StraightRoutesAndReversalsKeepThePapersPlane) {
+  const Rigid3d step = CamFromWorld(Vector3d(0.0, 0.0, 1.0));
+  const ArcBounds straight = BisectingBounds(step, &step, &step);
+  EXPECT_NEAR((straight.normal_at_from - Vector3d::UnitZ()).norm(), 0.0, 1e-12);
+  EXPECT_NEAR((straight.normal_at_to - Vector3d::UnitZ()).norm(), 0.0, 1e-12);
+  const Vector3d centre(0.3, 0.1, 0.4);
+  EXPECT_NEAR(LocateOnArc(CamFromWorld(centre), step, straight).along, 0.4, 1e-12);
+  // The next arc goes back the way it came (a turning point): no bisector.
+  const Rigid3d back = CamFromWorld(Vector3d(0.0, 0.0, -1.0), Yaw(180));
+  EXPECT_EQ(BisectingBounds(step, nullptr, &back).normal_at_to.norm(), 0.0);
+}
+
+TEST(AlongSigma, FollowsTheGradientBetweenBisectingPlanes) {
+  // Numerical gradient of LocateOnArc against the analytic one in AlongSigma, beside a 30-degree turn.
+  const double turn = 30.0;
+  const Rigid3d k0 = TurningKeyImage(0, turn), k1 = TurningKeyImage(1, turn), k2 = TurningKeyImage(2, turn),
+                k3 = TurningKeyImage(3, turn);
+  const Rigid3d one_from_zero = k1 * k0.Inverse(), two_from_one = k2 * k1.Inverse(), three_from_two = k3 * k2.Inverse();
+  const ArcBounds bounds = BisectingBounds(two_from_one, &one_from_zero, &three_from_two);
+  const auto along = [&](const Vector3d& c) { return LocateOnArc(CamFromWorld(c), two_from_one, bounds).along; };
+  // Between the planes, past b's, behind a's (centres in key-image 1's frame).
+  for (const Vector3d& centre : {Vector3d(0.7, 0.05, 0.6), Vector3d(-0.4, 0.0, 2.2), Vector3d(0.3, -0.1, -0.5)}) {
+    for (int axis = 0; axis < 3; ++axis) {
+      Matrix3d covariance = Matrix3d::Zero();
+      covariance(axis, axis) = 1.0;
+      const double h = 1e-6;
+      const double numeric =
+          (along(centre + h * Vector3d::Unit(axis)) - along(centre - h * Vector3d::Unit(axis))) / (2 * h);
+      EXPECT_NEAR(AlongSigma(covariance, two_from_one, centre, bounds), std::abs(numeric), 1e-6)
+          << centre.transpose() << " axis " << axis;
+    }
+  }
+}
+
 TEST(DecideResumption, FollowsEquationsSevenAndEight) {
   const SyntheticArc arc;
   const auto policy_at = [&](double along) {

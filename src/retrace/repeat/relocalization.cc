@@ -200,13 +200,16 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
       if (data->arc->to == k && (in == nullptr || data->arc->id < in->id)) in = data->arc;
     }
     if (out != nullptr && in != nullptr) {
-      // The camera is beyond k on the outgoing arc when it lies in front of the plane through k perpendicular
-      // to that arc's direction; W_t:k without parallax means "at k" (either arc is right).
+      // The camera is beyond k on the outgoing arc when it lies in front of the plane through k that starts that
+      // arc (its bisecting plane at k, placement.h; in k's frame, the outgoing arc's own); W_t:k without parallax
+      // means "at k" (either arc is right).
       bool beyond = true;
       if (best->geometry.success) {
         const Vector3d c_t = CameraCentre(best->geometry.b_from_a);  // in k's frame
-        const Vector3d c_next = CameraCentre(out->to_from_from);      // next key-image centre in k's frame
-        beyond = c_t.dot(c_next) >= 0.0;
+        const Vector3d& bisecting = Arc(out->id)->bounds.normal_at_from;
+        const Vector3d normal =
+            bisecting.squaredNorm() > 0 ? bisecting : Vector3d(CameraCentre(out->to_from_from).normalized());
+        beyond = c_t.dot(normal) >= 0.0;
       }
       chosen = beyond ? out->id : in->id;
     } else {
