@@ -790,8 +790,12 @@ void Localizer::Localize(FrameResult* result) {
   // re-initialised by wide-baseline matching; the belief carries on (it only loses this evidence).
   int current_tracked = 0;
   for (const TrackedFeature& f : tracker_.Features()) current_tracked += arc->points.count(f.id) ? 1 : 0;
+  // The estimate must also be evidence the belief accepts: tracks whose placements the belief keeps explaining as
+  // outliers (the camera placed off the map, past the end of a piece of it, or far from every place the motion
+  // allows) are no better than none, and relocalization may find what they cannot.
   const bool good = current_tracked >= options_.min_features &&
-                    (geometry_a.usable || geometry_b.usable || placements.pose.has_value());
+                    (geometry_a.usable || geometry_b.usable || placements.pose.has_value()) &&
+                    estimate.evidence;
   // (A placement in a neighbouring arc keeps the belief informed but does not make the current arc's tracks good.)
   bad_frames_ = good ? 0 : bad_frames_ + 1;
   // Too few features of the current arc and no evidence from any placement: these tracks cannot recover by

@@ -67,9 +67,11 @@
 // next frame relocalizes).
 //
 // The tracks are given up when fewer than `min_features` of the current arc are tracked in a frame without evidence,
-// or no current geometry or absolute pose is usable for `max_bad_frames` frames in a row; the same frame is then
-// re-initialised by wide-baseline matching against the key-images, exactly as the bootstrap, and when that fails the
-// frame is kLost and the following frames keep trying (kRelocalizing). The belief carries on through all of it.
+// or for `max_bad_frames` frames in a row no current geometry or absolute pose is usable or the belief accepts none of
+// their placements (the camera placed past the end of a piece of the map, or far from where the motion allows); the
+// same frame is then re-initialised by wide-baseline matching against the key-images, exactly as the bootstrap, and
+// when that fails the frame is kLost and the following frames keep trying (kRelocalizing). The belief carries on
+// through all of it.
 //
 // Bootstrap (§3.3, relocalization.cc): the frame is matched (upright ORB stored in the map by teach, ratio 0.8;
 // or SIFT from three detectors extracted at repeat time, `binary_relocalization` false) against the key-images of a
@@ -166,10 +168,11 @@ struct LocalizerOptions {
   // the features are trustworthy; at 320x240 an arc maps ~50 features, and 15 made the simulated drive lost in
   // mid-arc (80.0 % vs 77.3 % correct with 10, no frame two arcs off either way).
   int min_features = 10;
-  // Bad frames in a row (too few features of the current arc, or no usable current geometry or absolute pose)
-  // after which the tracks are given up and the frame is re-initialised by wide-baseline matching — at once when
-  // fewer than `min_features` of the current arc are tracked and the frame gave the belief no evidence. This
-  // decides when to spend a relocalization, not what is reported: the belief decides that.
+  // Bad frames in a row (too few features of the current arc, no usable current geometry or absolute pose, or no
+  // placement the belief accepts as evidence) after which the tracks are given up and the frame is re-initialised
+  // by wide-baseline matching — at once when fewer than `min_features` of the current arc are tracked and the frame
+  // gave the belief no evidence. This decides when to spend a relocalization, not what is reported: the belief
+  // decides that.
   int max_bad_frames = 3;
   // k of Segvic 2009, eq. (10), radians of steering per unit of normalised image coordinate.
   double steering_gain = 1.0;
