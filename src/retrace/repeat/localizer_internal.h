@@ -39,6 +39,10 @@ struct Localizer::ArcData {
   arc_t next = kInvalidArcId;
   // The planes at its key-images between which the camera is placed on it (placement.h).
   ArcBounds bounds;
+  // Where no arc continues (previous) it, a gap teach could not bridge: the first (last) arc of the piece of the map
+  // the teach drive made next (before), for the relocalization window (NodesNear); invalid at a route's ends.
+  arc_t next_piece = kInvalidArcId;
+  arc_t previous_piece = kInvalidArcId;
 };
 
 struct Localizer::CurrentGeometry {

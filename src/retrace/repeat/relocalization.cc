@@ -120,8 +120,11 @@ std::vector<node_t> Localizer::NodesNear(arc_t arc_id, int arcs) const {
       add(arc->arc->from);
       add(arc->arc->to);
     }
-    forward = forward != nullptr ? Arc(forward->next) : nullptr;
-    backward = backward != nullptr ? Arc(backward->previous) : nullptr;
+    // Along the route, and across a gap in the map on to the piece the teach drive made next (previous).
+    if (forward != nullptr) forward = Arc(forward->next != kInvalidArcId ? forward->next : forward->next_piece);
+    if (backward != nullptr) {
+      backward = Arc(backward->previous != kInvalidArcId ? backward->previous : backward->previous_piece);
+    }
   }
   return nodes;
 }
