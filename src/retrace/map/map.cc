@@ -53,6 +53,24 @@ std::vector<const MapArc*> Map::ArcsTo(node_t node) const {
   return result;
 }
 
+arc_t Map::DrivenArcAcrossGap(node_t node, int direction) const {
+  const MapNode* from = FindNode(node);
+  if (from == nullptr || direction == 0) return kInvalidArcId;
+  const MapNode* best = nullptr;
+  arc_t best_arc = kInvalidArcId;
+  for (const MapNode& other : nodes_) {
+    if (other.route != from->route || (other.source_frame - from->source_frame) * direction <= 0) continue;
+    if (best != nullptr && (other.source_frame - best->source_frame) * direction >= 0) continue;
+    for (const MapArc* arc : direction > 0 ? ArcsFrom(other.id) : ArcsTo(other.id)) {
+      if (arc->IsLink()) continue;
+      best = &other;
+      best_arc = arc->id;
+      break;
+    }
+  }
+  return best_arc;
+}
+
 std::optional<double> Map::ScaleAt(node_t node, arc_t arc_in, arc_t arc_out) const {
   for (const NodeScale& s : scales_) {
     if (s.node == node && s.arc_in == arc_in && s.arc_out == arc_out) return s.scale;

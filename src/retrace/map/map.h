@@ -112,6 +112,12 @@ class Map {
   std::vector<const MapArc*> ArcsFrom(node_t node) const;
   std::vector<const MapArc*> ArcsTo(node_t node) const;
   std::optional<double> ScaleAt(node_t node, arc_t arc_in, arc_t arc_out) const;
+  // Across a gap teach could not bridge (a map in pieces): the driven arc (not a link) leaving the key-image of
+  // `node`'s route that the teach drive made first after `node` among those such an arc leaves (direction +1), or
+  // entering the one it made last before `node` among those such an arc enters (-1) — the start of the next piece
+  // or the end of the previous one, in the order the drive made them (key-images made in the gap itself belong to
+  // no arc). kInvalidArcId at a route's ends.
+  arc_t DrivenArcAcrossGap(node_t node, int direction) const;
 
   // The largest feature id used so far (kInvalidFeatureId when there is none).
   feature_t MaxFeatureId() const;

@@ -186,29 +186,11 @@ Localizer::Localizer(Map map, const CameraModel& camera, const LocalizerOptions&
     }
     arcs_[arc.id] = std::move(data);
   }
-  // Across a gap: the driven arc leaving (entering) the key-image of the same route that the teach drive made first
-  // after the piece's last key-image (last before its first) among those such an arc leaves (enters); key-images
-  // made in the gap itself belong to no arc.
-  const auto across_gap = [this](node_t node, int direction) -> arc_t {
-    const MapNode* from = map_.FindNode(node);
-    const MapNode* best = nullptr;
-    arc_t best_arc = kInvalidArcId;
-    for (const MapNode& other : map_.nodes()) {
-      if (other.route != from->route || (other.source_frame - from->source_frame) * direction <= 0) continue;
-      if (best != nullptr && (other.source_frame - best->source_frame) * direction >= 0) continue;
-      for (const MapArc* arc : direction > 0 ? map_.ArcsFrom(other.id) : map_.ArcsTo(other.id)) {
-        if (arc->IsLink()) continue;
-        best = &other;
-        best_arc = arc->id;
-        break;
-      }
-    }
-    return best_arc;
-  };
+  // Across a gap in the map: the piece the teach drive made next (before), for the relocalization window.
   for (auto& [id, data] : arcs_) {
     if (data->arc->IsLink()) continue;
-    if (data->next == kInvalidArcId) data->next_piece = across_gap(data->arc->to, +1);
-    if (data->previous == kInvalidArcId) data->previous_piece = across_gap(data->arc->from, -1);
+    if (data->next == kInvalidArcId) data->next_piece = map_.DrivenArcAcrossGap(data->arc->to, +1);
+    if (data->previous == kInvalidArcId) data->previous_piece = map_.DrivenArcAcrossGap(data->arc->from, -1);
   }
 }
 
