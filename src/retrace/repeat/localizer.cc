@@ -183,14 +183,11 @@ Localizer::Localizer(Map map, const CameraModel& camera, const LocalizerOptions&
     if (!arc.IsLink()) {
       data->bounds =
           BisectingBounds(arc.to_from_from, only_driven(map_.ArcsTo(arc.from)), only_driven(map_.ArcsFrom(arc.to)));
+      // Across a gap in the map: the piece the teach drive made next (before), for the relocalization window.
+      if (data->next == kInvalidArcId) data->next_piece = map_.DrivenArcAcrossGap(arc.to, +1);
+      if (data->previous == kInvalidArcId) data->previous_piece = map_.DrivenArcAcrossGap(arc.from, -1);
     }
     arcs_[arc.id] = std::move(data);
-  }
-  // Across a gap in the map: the piece the teach drive made next (before), for the relocalization window.
-  for (auto& [id, data] : arcs_) {
-    if (data->arc->IsLink()) continue;
-    if (data->next == kInvalidArcId) data->next_piece = map_.DrivenArcAcrossGap(data->arc->to, +1);
-    if (data->previous == kInvalidArcId) data->previous_piece = map_.DrivenArcAcrossGap(data->arc->from, -1);
   }
 }
 

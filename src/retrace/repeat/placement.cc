@@ -92,6 +92,10 @@ ArcPosition LocateOnArc(const Rigid3d& current_from_a, const Rigid3d& arc_b_from
   return position;
 }
 
+bool InFrontOfStartPlane(const Vector3d& centre, const Rigid3d& arc_b_from_a, const ArcBounds& bounds) {
+  return centre.dot(NormalOr(bounds.normal_at_from, ArcDirection(arc_b_from_a))) >= 0.0;
+}
+
 ArcPosition AlongArc(double along) {
   ArcPosition position;
   position.valid = std::isfinite(along);

@@ -62,6 +62,10 @@ ArcBounds BisectingBounds(const Rigid3d& arc_b_from_a, const Rigid3d* previous_a
 // planes meet before it (the denominator s_a − s_b below a quarter of the arc), the chord projection is used.
 ArcPosition LocateOnArc(const Rigid3d& current_from_a, const Rigid3d& arc_b_from_a,
                         const ArcBounds& bounds = ArcBounds());
+// Whether a camera centre `centre` (in the arc's frame, at any scale: a unit-length W_t:a will do) lies on or in
+// front of the plane through a that starts the arc (`bounds`' plane at a): the sign test of eq. (9) at a, which
+// needs no scale.
+bool InFrontOfStartPlane(const Vector3d& centre, const Rigid3d& arc_b_from_a, const ArcBounds& bounds = ArcBounds());
 // A position known only along the arc (the belief's): distances measured along it.
 ArcPosition AlongArc(double along);
 

@@ -145,11 +145,10 @@ TEST(BisectingBounds, BeyondTheArcTheArcsScaleCarriesOn) {
   const auto along = [&](const Vector3d& centre_in_world) {
     return LocateOnArc(CamFromWorld(centre_in_world) * k1.Inverse(), two_from_one, bounds).along;
   };
-  // Key-image 5 lies 3 arcs past b along a curve turning 30 degrees per arc: its distance along arc (1, 2)'s
-  // direction, measured from b's plane, is between the chord's cosine-shortened length and 3.
-  const double ahead = along(CameraCentre(k5));
-  EXPECT_GT(ahead, 2.0);
-  EXPECT_LT(ahead, 4.0);
+  // The key-images lie on a circle of radius R = 1 / (2 sin 15°) whose centre is on every bisecting plane. Key-image
+  // 5, three arcs past b (90° around the circle), is R from b's plane, and arc (1, 2)'s direction is 15° from that
+  // plane's normal: along = 1 + R / cos 15° = 1 + 1 / sin 30° = 3 exactly.
+  EXPECT_NEAR(along(CameraCentre(k5)), 3.0, 1e-9);
   // Continuity across b's plane and a's plane, beside the route on both sides.
   const Vector3d node1 = CameraCentre(k1), node2 = CameraCentre(k2), node3 = CameraCentre(k3);
   const Vector3d normal_b = ((node2 - node1).normalized() + (node3 - node2).normalized()).normalized();
@@ -161,6 +160,28 @@ TEST(BisectingBounds, BeyondTheArcTheArcsScaleCarriesOn) {
     const Vector3d beside_a = node1 + offset * normal_a.cross(Vector3d::UnitY()).normalized();
     EXPECT_NEAR(along(beside_a - 1e-7 * normal_a), 0.0, 1e-5) << offset;
     EXPECT_NEAR(along(beside_a + 1e-7 * normal_a), 0.0, 1e-5) << offset;
+  }
+}
+
+TEST(InFrontOfStartPlane, TheBootstrapsSideTestUsesTheBisectingPlaneAtAnyScale) {
+  // Arc (1, 2) of the route turning 30 degrees at every key-image. A camera 0.8 arc lengths to the right of key-image
+  // 1 (outside the turn), just past the bisecting plane there, has entered arc (1, 2); the paper's plane
+  // perpendicular to (1, 2) says it has not yet (it is 0.8 sin 15° = 0.21 behind that plane). The test reads the
+  // direction of the camera only: a W_t:a known up to scale gives the same answer.
+  const double turn = 30.0;
+  const Rigid3d k0 = TurningKeyImage(0, turn), k1 = TurningKeyImage(1, turn), k2 = TurningKeyImage(2, turn);
+  const Rigid3d one_from_zero = k1 * k0.Inverse(), two_from_one = k2 * k1.Inverse();
+  const ArcBounds bounds = BisectingBounds(two_from_one, &one_from_zero, nullptr);
+  const Vector3d node0 = CameraCentre(k0), node1 = CameraCentre(k1), node2 = CameraCentre(k2);
+  const Vector3d normal_a = ((node1 - node0).normalized() + (node2 - node1).normalized()).normalized();
+  const Vector3d right = -normal_a.cross(Vector3d::UnitY()).normalized();
+  for (const double past : {0.01, -0.01}) {
+    const Vector3d world = node1 + 0.8 * right + past * normal_a;
+    const Vector3d centre = (CamFromWorld(world) * k1.Inverse()).Inverse().translation;  // in key-image 1's frame
+    for (const double scale : {1.0, 0.2, 7.0}) {
+      EXPECT_EQ(InFrontOfStartPlane(scale * centre, two_from_one, bounds), past > 0) << past << " " << scale;
+      EXPECT_FALSE(InFrontOfStartPlane(scale * centre, two_from_one)) << past << " " << scale;
+    }
   }
 }
 

@@ -208,11 +208,8 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
       // means "at k" (either arc is right).
       bool beyond = true;
       if (best->geometry.success) {
-        const Vector3d c_t = CameraCentre(best->geometry.b_from_a);  // in k's frame
-        const Vector3d& bisecting = Arc(out->id)->bounds.normal_at_from;
-        const Vector3d normal =
-            bisecting.squaredNorm() > 0 ? bisecting : Vector3d(CameraCentre(out->to_from_from).normalized());
-        beyond = c_t.dot(normal) >= 0.0;
+        // The camera centre in k's frame, the outgoing arc's frame.
+        beyond = InFrontOfStartPlane(CameraCentre(best->geometry.b_from_a), out->to_from_from, Arc(out->id)->bounds);
       }
       chosen = beyond ? out->id : in->id;
     } else {
