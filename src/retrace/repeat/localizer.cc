@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <tuple>
 
 #include <spdlog/spdlog.h>
 
@@ -617,12 +618,12 @@ void Localizer::Localize(FrameResult* result) {
   if (transfer_b) position_b = LocateOnArc(transfer_b->current_from_a(), arc->arc->to_from_from, arc->bounds);
   if (position_a.valid) {
     result->position_via_from = position_a.along;
-    placements.from = GeometryMeasurement(arc_, position_a, options_.placement);
+    placements.from = GeometryMeasurement(arc_, position_a, ArcImage::kA, options_.placement);
     placements.sigma_p_from = geometry_a.geometry.sigma_p;
   }
   if (position_b.valid) {
     result->position_via_to = position_b.along;
-    placements.to = GeometryMeasurement(arc_, position_b, options_.placement);
+    placements.to = GeometryMeasurement(arc_, position_b, ArcImage::kB, options_.placement);
     placements.sigma_p_to = geometry_b.geometry.sigma_p;
   }
   // ... and by its absolute pose in the arc's reconstruction (σ_p gated like the current geometries).
@@ -659,13 +660,14 @@ void Localizer::Localize(FrameResult* result) {
                           neighbour->bounds);
     }
     if (!placements.neighbour) {
-      for (const auto& [neighbour, transfer] :
-           {std::pair{next, &transfer_next}, std::pair{previous, &transfer_previous}}) {
+      // W_t:b relates the camera to the next arc's first key-image, W_t:a to the previous arc's second.
+      for (const auto& [neighbour, transfer, key] :
+           {std::tuple{next, &transfer_next, ArcImage::kA}, std::tuple{previous, &transfer_previous, ArcImage::kB}}) {
         if (neighbour == nullptr || !transfer->has_value()) continue;
         const ArcPosition placed =
             LocateOnArc((*transfer)->current_from_a(), neighbour->arc->to_from_from, neighbour->bounds);
         if (!placed.valid) continue;
-        placements.neighbour = GeometryMeasurement(neighbour->arc->id, placed, options_.placement);
+        placements.neighbour = GeometryMeasurement(neighbour->arc->id, placed, key, options_.placement);
         break;
       }
     }

@@ -145,6 +145,7 @@ bool PlacementModel::Check(std::string* error) const {
   if (!(pose_sigma_floor > 0) || !(geometry_sigma > 0) || !(key_image_sigma > 0)) {
     return fail("placement sigmas must be positive");
   }
+  if (!(geometry_extrapolation_length > 0)) return fail("geometry_extrapolation_length must be positive");
   for (const double p : {pose_outlier_probability, geometry_outlier_probability, key_image_outlier_probability}) {
     if (!(p > 0) || !(p < 1)) return fail("placement outlier probabilities must be in (0, 1)");
   }
@@ -161,8 +162,16 @@ PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const A
   return {arc, position.along, sigma, model.pose_outlier_probability};
 }
 
-PlaceMeasurement GeometryMeasurement(arc_t arc, const ArcPosition& position, const PlacementModel& model) {
-  return {arc, position.along, model.geometry_sigma, model.geometry_outlier_probability};
+PlaceMeasurement GeometryMeasurement(arc_t arc, const ArcPosition& position, ArcImage key,
+                                     const PlacementModel& model) {
+  const double distance = std::abs(key == ArcImage::kA ? position.along : position.along - 1.0);
+  double outlier_probability = model.geometry_outlier_probability;
+  if (distance > 1.0) {
+    outlier_probability =
+        1.0 - (1.0 - outlier_probability) * std::exp(-(distance - 1.0) / model.geometry_extrapolation_length);
+  }
+  // Kept below 1: a measurement that is certainly an outlier carries no information but must not zero the belief.
+  return {arc, position.along, model.geometry_sigma, std::min(outlier_probability, 0.999)};
 }
 
 PlaceMeasurement KeyImageMeasurement(const MapArc& arc, node_t node, int candidates, const PlacementModel& model) {

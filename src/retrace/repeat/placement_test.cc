@@ -8,6 +8,8 @@
 
 #include <gtest/gtest.h>
 
+#include "retrace/repeat/linear_map_testing.h"
+
 namespace retrace {
 namespace {
 
@@ -283,7 +285,18 @@ TEST(PlacementModel, MeasurementsCarryTheirUncertainty) {
   EXPECT_NEAR(m.sigma, std::hypot(0.04, model.pose_sigma_floor), 1e-12);
   EXPECT_DOUBLE_EQ(m.outlier_probability, model.pose_outlier_probability);
   // Less reliable: the decomposed placements and a verified key-image.
-  EXPECT_GT(GeometryMeasurement(7, AlongArc(0.4), model).outlier_probability, m.outlier_probability);
+  EXPECT_GT(GeometryMeasurement(7, AlongArc(0.4), ArcImage::kA, model).outlier_probability, m.outlier_probability);
+  // A current geometry is as reliable anywhere within one arc length of its key-image, and mostly wrong beyond:
+  // W_t:a placing the camera 1.375 arc lengths past a, W_t:b 1.375 past b or 0.375 behind a.
+  const double within = GeometryMeasurement(7, AlongArc(0.9), ArcImage::kA, model).outlier_probability;
+  EXPECT_DOUBLE_EQ(within, model.geometry_outlier_probability);
+  EXPECT_DOUBLE_EQ(GeometryMeasurement(7, AlongArc(0.1), ArcImage::kB, model).outlier_probability, within);
+  const double expected = 1.0 - (1.0 - within) * std::exp(-0.375 / model.geometry_extrapolation_length);
+  EXPECT_NEAR(GeometryMeasurement(7, AlongArc(1.375), ArcImage::kA, model).outlier_probability, expected, 1e-12);
+  EXPECT_NEAR(GeometryMeasurement(7, AlongArc(2.375), ArcImage::kB, model).outlier_probability, expected, 1e-12);
+  EXPECT_NEAR(GeometryMeasurement(7, AlongArc(-0.375), ArcImage::kB, model).outlier_probability, expected, 1e-12);
+  EXPECT_GT(expected, 0.75);
+  EXPECT_LT(GeometryMeasurement(7, AlongArc(20.0), ArcImage::kB, model).outlier_probability, 1.0);
   MapArc arc;
   arc.id = 3;
   arc.from = 10;
@@ -294,6 +307,29 @@ TEST(PlacementModel, MeasurementsCarryTheirUncertainty) {
   PlacementModel bad;
   bad.geometry_outlier_probability = 1.0;
   EXPECT_FALSE(bad.Check());
+}
+
+// Just after a bootstrap (the speed unknown: anywhere up to three arcs per frame) the camera is placed 0.5 along arc
+// 4 by its pose; the next frame, W_t:b alone places it 1.45 arc lengths past arc 4's end, on arc 6 (the kind of
+// placement that is mostly wrong, PlacementModel::geometry_extrapolation_length). With the outlier probability of a
+// placement within the arc, the belief jumps to arc 6 and reports it; with the one beyond, it does not.
+TEST(PlacementModel, AnExtrapolatedGeometryDoesNotCarryTheBeliefTwoArcs) {
+  const PlacementModel model;
+  const auto run = [&](const PlaceMeasurement& extrapolated) {
+    PlaceBelief belief(LinearMap(12));
+    belief.Predict(1);
+    belief.Update({{4, 0.5, 0.03, model.pose_outlier_probability}}, 1);
+    belief.Predict(1);
+    belief.Update({extrapolated}, 2);
+    return belief.estimate();
+  };
+  const PlaceMeasurement modelled = GeometryMeasurement(4, AlongArc(2.45), ArcImage::kB, model);
+  const PlaceMeasurement constant{4, 2.45, model.geometry_sigma, model.geometry_outlier_probability};
+  const PlaceEstimate with_constant = run(constant);
+  EXPECT_EQ(with_constant.arc, 6);
+  EXPECT_TRUE(with_constant.tracking);
+  const PlaceEstimate with_model = run(modelled);
+  EXPECT_FALSE(with_model.tracking && with_model.arc == 6);
 }
 
 }  // namespace
