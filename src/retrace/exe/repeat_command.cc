@@ -483,6 +483,10 @@ void RegisterRepeatCommand(CLI::App& app) {
   cmd->add_flag("--no-progress", args->no_progress, "Do not show the progress bar");
   cmd->add_option("--max-residual", args->options.max_residual, "R: largest tracking residual, grey levels")
       ->capture_default_str();
+  cmd->add_flag("--affine", args->options.affine_fallback,
+                "Align tracks whose residual under the paper's warp is above R (within 1.5 R) again with an affine "
+                "warp: more features 2-3 m beside the taught path, at a cost in speed and a few more frames on a "
+                "wrong arc (README, validation matrix)");
   cmd->add_option("--max-sigma-p", args->options.max_sigma_p_px, "sigma_p gate of current geometries, px at 320 px")
       ->capture_default_str();
   cmd->add_option("--steering-gain", args->options.steering_gain, "k of eq. (10)")->capture_default_str();

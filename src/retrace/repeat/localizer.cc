@@ -111,10 +111,12 @@ Localizer::Localizer(Map map, const CameraModel& camera, const LocalizerOptions&
   pose_options_.ransac.max_error_px = options_.inlier_threshold_px * pixel_scale_;
   FeatureTrackerOptions tracker_options = options_.tracker;
   tracker_options.alignment.max_residual = options_.max_residual;
+  tracker_options.alignment.affine_fallback = options_.affine_fallback;
   tracker_options.num_levels = pyramid_options_.num_levels;
   tracker_ = FeatureTracker(tracker_options);
   refine_options_.alignment = options_.tracker.alignment;
   refine_options_.alignment.max_residual = options_.max_residual;
+  refine_options_.alignment.affine_fallback = options_.affine_fallback;
   refine_options_.alignment.scale_prior_sigma = 0.0;
   refine_options_.max_distance = options_.prediction_radius_px * pixel_scale_;
   refine_options_.max_scale_ratio = options_.prediction_scale_ratio;

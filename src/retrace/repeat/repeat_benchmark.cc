@@ -21,8 +21,8 @@
 #include <opencv2/core.hpp>
 
 #include "retrace/camera/camera_io.h"
-#include "retrace/feature/wide_baseline.h"
 #include "retrace/dataset/sequence.h"
+#include "retrace/feature/wide_baseline.h"
 #include "retrace/image/image_utils.h"
 #include "retrace/repeat/localizer.h"
 #include "retrace/sim/recording.h"
@@ -89,12 +89,12 @@ const Setup* GetSimSetup() {
   return cached.get();
 }
 
-void RunRepeat(const Setup& setup, benchmark::State& state) {
+void RunRepeat(const Setup& setup, benchmark::State& state, const LocalizerOptions& options = LocalizerOptions()) {
   int64_t frames = 0, tracked = 0, tracking = 0;
   double tracking_seconds = 0.0;  // frames localized by tracking (no bootstrap / relocalization in them)
   for (auto _ : state) {
     state.PauseTiming();
-    Localizer localizer(setup.map, *setup.camera);
+    Localizer localizer(setup.map, *setup.camera, options);
     localizer.SetStartArc(setup.map.arcs().front().id);
     localizer.ProcessFrame(setup.repeat_frames.front());
     state.ResumeTiming();
@@ -129,6 +129,25 @@ BENCHMARK(BM_RepeatKitti)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)->Iter
 
 void BM_RepeatSim(benchmark::State& state) { RunRepeat(*GetSimSetup(), state); }
 BENCHMARK(BM_RepeatSim)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+// The same drives with the tracker's affine fallback on (`repeat --affine`, LocalizerOptions::affine_fallback): what
+// the fallback costs, measured in the same process.
+LocalizerOptions WithAffineFallback() {
+  LocalizerOptions options;
+  options.affine_fallback = true;
+  return options;
+}
+void BM_RepeatKittiAffine(benchmark::State& state) {
+  const Setup* setup = GetSetup(static_cast<int>(state.range(0)));
+  if (setup == nullptr) {
+    state.SkipWithError("kitti07 not found");
+    return;
+  }
+  RunRepeat(*setup, state, WithAffineFallback());
+}
+BENCHMARK(BM_RepeatKittiAffine)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)->Iterations(1);
+void BM_RepeatSimAffine(benchmark::State& state) { RunRepeat(*GetSimSetup(), state, WithAffineFallback()); }
+BENCHMARK(BM_RepeatSimAffine)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 // One frame localized from scratch (a fresh Localizer, no key-image features cached), `frame` of the repeat drive.
 void RunFindStart(const Setup& setup, size_t frame, benchmark::State& state) {
