@@ -52,19 +52,19 @@
 // bias +-30): max position error 0.09 px and max scale error 0.4 % on the case corners, against 0.2 px and
 // 8 % with the 15x15 window alone.
 
-// AFFINE FALLBACK (off by default; repeat turns it on). A reference cut in a key-image and aligned in an image taken
-// beside the taught path (a lateral offset) sees a facade more or less obliquely: foreshortened across, sheared
-// along the vertical, which (1) cannot absorb, so the alignment converges with its residual above R. When it does so
-// within 1.5 R at level 0, the geometric part is re-estimated as a full affine map x = A u + d from where it ended —
-// the affine Lucas-Kanade of Baker & Matthews (same paper, inverse compositional, the 8x8 Gauss-Newton matrix of
-// [Tx u, Tx v, Ty u, Ty v, Tx, Ty, T, 1] factorised once per call, per-pixel cubic sampling since the warp is no
-// longer axis-aligned) — and adopted when it converges within `max_affine_shift` of where it started with its
-// residuals within the limits, the singular values of A in [min_scale, max_scale] and their ratio at most
+// AFFINE FALLBACK (off by default; `repeat --affine` turns it on). A reference cut in a key-image and aligned in an
+// image taken beside the taught path (a lateral offset) sees a facade more or less obliquely: foreshortened across,
+// sheared along the vertical, which (1) cannot absorb, so the alignment converges with its residual above R. When it
+// does so within 1.5 R at level 0, the geometric part is re-estimated as a full affine map x = A u + d from where it
+// ended — the affine Lucas-Kanade of Baker & Matthews (same paper, inverse compositional, the 8x8 Gauss-Newton matrix
+// of [Tx u, Tx v, Ty u, Ty v, Tx, Ty, T, 1] factorised once per call, per-pixel cubic sampling since the warp is no
+// longer axis-aligned) — and adopted when it converges within `max_affine_shift` of where it started with its residuals
+// within the limits, the singular values of A in [min_scale, max_scale] and their ratio at most
 // `max_affine_anisotropy`; the scale reported is sqrt(det A). Measured in feature_tracker_test.cc on a texture
 // compressed to 0.7 across and sheared by 0.25: of 40 predicted features (1.1 px off) the paper's warp accepts 14, the
 // fallback 12 more, at a median error of 0.02 px. The features the paper's warp accepts there are off by 0.36 px
-// (median): a window sheared that much still matches an isotropic warp within R at a shifted centre, which the
-// fallback does not revisit.
+// (median): a window sheared that much still matches an isotropic warp within R at a shifted centre, which the fallback
+// does not revisit.
 //
 // RESIDUAL. The reported residual is the RMS over the window of the compensated error in (1),
 //     r = sqrt( (1/N) sum_u [alpha I(s u + d) + beta - T(u)]^2 ),
@@ -140,8 +140,8 @@ struct AlignmentOptions {
   // 1.5 R, the geometric part is re-estimated as a full affine map x = A u + d from where it ended, and adopted when
   // that converges within `max_affine_shift` level-0 pixels of it with a residual within the limits, the singular
   // values of A in [min_scale, max_scale] and their ratio at most `max_affine_anisotropy`. Off by default (the
-  // paper's warp alone); repeat turns it on (LocalizerOptions::affine_fallback), where the references come from
-  // key-images taught from another viewpoint.
+  // paper's warp alone); `repeat --affine` turns it on for the localizer (LocalizerOptions::affine_fallback), whose
+  // references come from key-images taught from another viewpoint.
   bool affine_fallback = false;
   double max_affine_anisotropy = 1.6;
   double max_affine_shift = 2.0;
