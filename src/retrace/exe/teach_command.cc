@@ -288,6 +288,11 @@ void RegisterTeachCommand(CLI::App& app) {
                   "Each key-image at the lowest quality whose error after the tracker's smoothing is at most this "
                   "(grey levels RMS; 0: always --image-quality)")
       ->capture_default_str();
+  cmd->add_option("--max-image-downscale", args->storage.max_image_downscale,
+                  "Key-images may be stored at 1/2 .. 1/N of their resolution when that keeps --max-image-error "
+                  "and is smaller (1: always full resolution)")
+      ->check(CLI::Range(1, 8))
+      ->capture_default_str();
   cmd->add_flag("--no-loop-closing", [args](int64_t) { args->options.close_loop = false; },
                 "Do not try to close the loop between the first and last key-image");
   cmd->add_flag("--no-gap-recovery", [args](int64_t) { args->options.recover_gaps = false; },

@@ -83,21 +83,72 @@ void SyncPath(const std::filesystem::path& path, bool directory) {
   close(fd);
 }
 
-std::vector<uint8_t> EncodeImage(const cv::Mat& image, const MapDatabaseOptions& options, const std::string& source) {
+// Key-images may be stored at 1/2 to 1/kMaxImageDownscale of their resolution (schema 5), never with a side below
+// kMinStoredImageSide pixels.
+constexpr int kMaxImageDownscale = 8;
+constexpr int kMinStoredImageSide = 32;
+
+// A key-image stored at 1/`downscale` of its resolution: the image, extended to a multiple of `downscale` on each
+// side by repeating its last row and column, averaged over `downscale` x `downscale` blocks, so that the stored
+// pixel (u, v) covers exactly the original pixels downscale * (u, v) + [0, downscale)^2.
+cv::Size ReducedSize(int64_t width, int64_t height, int downscale) {
+  return {static_cast<int>((width + downscale - 1) / downscale), static_cast<int>((height + downscale - 1) / downscale)};
+}
+
+cv::Mat ReduceKeyImage(const cv::Mat& image, int downscale) {
+  const cv::Size size = ReducedSize(image.cols, image.rows, downscale);
+  cv::Mat extended;
+  cv::copyMakeBorder(image, extended, 0, size.height * downscale - image.rows, 0, size.width * downscale - image.cols,
+                     cv::BORDER_REPLICATE);
+  cv::Mat reduced;
+  cv::resize(extended, reduced, size, 0, 0, cv::INTER_AREA);
+  return reduced;
+}
+
+// The inverse of ReduceKeyImage up to what it lost: bicubic interpolation by the same whole factor (the pixel
+// centres keep their places), cut to width x height.
+cv::Mat RestoreKeyImage(const cv::Mat& reduced, int64_t width, int64_t height, int downscale) {
+  cv::Mat restored;
+  cv::resize(reduced, restored, cv::Size(reduced.cols * downscale, reduced.rows * downscale), 0, 0, cv::INTER_CUBIC);
+  return restored(cv::Rect(0, 0, static_cast<int>(width), static_cast<int>(height))).clone();
+}
+
+// A key-image from its stored bytes (8-bit gray), or the reason it is damaged; `name` says which. A key-image stored
+// at a reduced resolution (ReduceKeyImage, 1/2 to 1/kMaxImageDownscale) is brought back to width x height.
+std::optional<std::string> DecodeKeyImage(const std::vector<uint8_t>& bytes, int64_t width, int64_t height,
+                                          const std::string& name, cv::Mat* image) {
+  *image = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+  if (image->empty()) return name + " cannot be decoded";
+  if (image->cols == width && image->rows == height) return std::nullopt;
+  for (int downscale = 2; downscale <= kMaxImageDownscale; ++downscale) {
+    if (image->size() == ReducedSize(width, height, downscale)) {
+      *image = RestoreKeyImage(*image, width, height, downscale);
+      return std::nullopt;
+    }
+  }
+  return fmt::format("{} is {}x{} but is stored as {}x{}", name, image->cols, image->rows, width, height);
+}
+
+// The key-image's stored bytes: at `options.image_quality`, or, for lossy codecs, the smallest encoding (quality
+// and resolution) whose error as the tracker sees it stays within `options.max_image_error` (map_database.h).
+// Reduced resolutions are tried only when `allow_reduced` (maps of schema >= 5).
+std::vector<uint8_t> EncodeImage(const cv::Mat& image, const MapDatabaseOptions& options, bool allow_reduced,
+                                 const std::string& source) {
   const bool lossy = options.image_format == ".jpg" || options.image_format == ".webp";
-  const auto encode = [&](int quality) {
+  const auto encode = [&](const cv::Mat& stored, int quality) {
     std::vector<int> params;
     if (options.image_format == ".jpg") params = {cv::IMWRITE_JPEG_QUALITY, quality};
     if (options.image_format == ".webp") params = {cv::IMWRITE_WEBP_QUALITY, quality};
     std::vector<uint8_t> bytes;
-    if (!cv::imencode(options.image_format, image, bytes, params)) {
+    if (!cv::imencode(options.image_format, stored, bytes, params)) {
       throw InputError(source, "cannot encode key-image as " + options.image_format);
     }
     return bytes;
   };
-  std::vector<uint8_t> best = encode(options.image_quality);
+  std::vector<uint8_t> best = encode(image, options.image_quality);
   if (!lossy || !(options.max_image_error > 0) || image.type() != CV_8UC1) return best;
-  // The error as the tracker sees it: RMS grey levels between the smoothed image and its smoothed decoding.
+  // The error as the tracker sees it: RMS grey levels between the smoothed image and its smoothed decoding (brought
+  // back to full resolution as DecodeKeyImage does).
   const double sigma = options.error_smoothing_px * image.cols / options.error_reference_width;
   const auto smoothed = [sigma](const cv::Mat& gray) {
     cv::Mat out;
@@ -107,23 +158,33 @@ std::vector<uint8_t> EncodeImage(const cv::Mat& image, const MapDatabaseOptions&
   };
   const cv::Mat original = smoothed(image);
   const auto within_budget = [&](const std::vector<uint8_t>& bytes) {
-    const cv::Mat decoded = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
-    if (decoded.size() != image.size()) return false;
+    cv::Mat decoded;
+    if (DecodeKeyImage(bytes, image.cols, image.rows, "", &decoded)) return false;
     const double rms = cv::norm(smoothed(decoded), original, cv::NORM_L2) / std::sqrt(static_cast<double>(image.total()));
     return rms <= options.max_image_error;
   };
   if (!within_budget(best)) return best;
-  // Bisection on the quality (the error grows as the quality falls), to within 2 quality steps.
-  constexpr int kLowestQuality = 20;
-  int low = kLowestQuality - 1, high = options.image_quality;  // high is within the budget, low is not known to be
-  while (high - low > 2) {
-    const int middle = (low + high) / 2;
-    std::vector<uint8_t> bytes = encode(middle);
-    if (within_budget(bytes)) {
-      high = middle;
-      best = std::move(bytes);
-    } else {
-      low = middle;
+  const int max_downscale = allow_reduced ? options.max_image_downscale : 1;
+  for (int downscale = 1; downscale <= max_downscale; ++downscale) {
+    const cv::Size size = ReducedSize(image.cols, image.rows, downscale);
+    if (std::min(size.width, size.height) < kMinStoredImageSide) break;
+    const cv::Mat stored = downscale > 1 ? ReduceKeyImage(image, downscale) : image;
+    std::vector<uint8_t> highest = encode(stored, options.image_quality);
+    // A coarser resolution loses more: once the highest quality is over the budget, so are the coarser ones.
+    if (!within_budget(highest)) break;
+    if (highest.size() < best.size()) best = highest;
+    // Bisection on the quality (the error grows as the quality falls), to within 2 quality steps.
+    constexpr int kLowestQuality = 20;
+    int low = kLowestQuality - 1, high = options.image_quality;  // high is within the budget, low is not known to be
+    while (high - low > 2) {
+      const int middle = (low + high) / 2;
+      std::vector<uint8_t> bytes = encode(stored, middle);
+      if (within_budget(bytes)) {
+        high = middle;
+        if (bytes.size() < best.size()) best = std::move(bytes);
+      } else {
+        low = middle;
+      }
     }
   }
   return best;
@@ -134,17 +195,6 @@ std::vector<uint8_t> EncodeImage(const cv::Mat& image, const MapDatabaseOptions&
 constexpr int kKeypointBytes = 6;
 constexpr int kDescriptorBytes = 32;
 constexpr double kKeypointUnit = 8.0;  // stored units per pixel
-
-// A key-image from its stored bytes (8-bit gray), or the reason it is damaged; `name` says which.
-std::optional<std::string> DecodeKeyImage(const std::vector<uint8_t>& bytes, int64_t width, int64_t height,
-                                          const std::string& name, cv::Mat* image) {
-  *image = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
-  if (image->empty()) return name + " cannot be decoded";
-  if (image->cols != width || image->rows != height) {
-    return fmt::format("{} is {}x{} but is stored as {}x{}", name, image->cols, image->rows, width, height);
-  }
-  return std::nullopt;
-}
 
 // A signature from its stored columns (the key-points and descriptors only when `features`), or the reason it is
 // damaged. Key-points must lie in the `image_width` x `image_height` key-image.
@@ -225,6 +275,9 @@ bool MapDatabaseOptions::Check(std::string* error) const {
   }
   if (image_quality < 1 || image_quality > 100) return fail("image_quality must be in 1..100");
   if (!(max_image_error >= 0) || !std::isfinite(max_image_error)) return fail("max_image_error must be >= 0");
+  if (max_image_downscale < 1 || max_image_downscale > kMaxImageDownscale) {
+    return fail("max_image_downscale must be in 1.." + std::to_string(kMaxImageDownscale));
+  }
   if (!(error_smoothing_px >= 0) || !std::isfinite(error_smoothing_px) || error_reference_width <= 0) {
     return fail("error_smoothing_px must be >= 0 and error_reference_width > 0");
   }
@@ -579,6 +632,7 @@ void MapDatabase::UpgradeSchema() {
       database_->Execute("ALTER TABLE arcs ADD COLUMN similarity REAL;");
     }
     if (schema_version_ < 4) CreateTables();  // adds the signatures table; the others exist
+    // 5 changes no table: key-images may be stored at a reduced resolution, which older retraces cannot read.
     database_->Execute("PRAGMA user_version=" + std::to_string(kSchemaVersion) + ";");
   });
   schema_version_ = kSchemaVersion;
@@ -644,7 +698,7 @@ std::optional<std::string> MapDatabase::ReadCameraYaml() {
 
 void MapDatabase::WriteNode(const MapNode& node) {
   const std::vector<uint8_t> image =
-      node.image.empty() ? std::vector<uint8_t>() : EncodeImage(node.image, options_, path_.string());
+      node.image.empty() ? std::vector<uint8_t>() : EncodeImage(node.image, options_, /*allow_reduced=*/schema_version_ >= 5, path_.string());
   InTransaction([&] {
     // A map of an older schema opened for writing keeps its schema (UpgradeSchema() brings it up to date).
     const bool has_checksums = schema_version_ >= 2;

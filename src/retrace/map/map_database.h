@@ -7,7 +7,9 @@
 //   cameras      the camera model of the key-images, as retrace camera YAML
 //   nodes        key-images with the image itself, compressed, so that a map is self-contained, the CRC-32 of
 //                the compressed bytes (schema 2; maps of schema 1 have no checksum and are still read) and the
-//                route (drive) that taught it (schema 3; 0 in older maps)
+//                route (drive) that taught it (schema 3; 0 in older maps). width x height is the key-image's size;
+//                the compressed image may be smaller by a whole factor (schema 5, MapDatabaseOptions::
+//                max_image_downscale)
 //   observations features seen in a node: position and reference patch (8-bit gray, row-major)
 //   arcs         two-view geometry W_k between two nodes: R (9 doubles, row-major), t (3 doubles), σ_p, |M_k|,
 //                kind, and the appearance similarity S_ij (schema 3, Booij 2007 §B.2; NULL = unknown, older maps)
@@ -56,6 +58,13 @@ struct MapDatabaseOptions {
   double max_image_error = 0.6;
   double error_smoothing_px = 0.7;
   int error_reference_width = 320;
+  // Lossy codecs with max_image_error: a key-image may also be stored at 1/2, 1/3, ... 1/max_image_downscale of
+  // its resolution (averaged over blocks, restored by bicubic interpolation when read), the smallest encoding within
+  // the same error budget chosen. The larger the tracker's smoothing, the less a coarser resolution loses: on kitti07
+  // at 1226x370 (2.7 px) half resolution alone costs 0.36-0.52 grey levels RMS, so that 14 of its 16 key-images are
+  // stored at half resolution near quality 85 (593 -> 410 kB), while a 320x240 image (0.7 px) keeps its resolution.
+  // 1: always full resolution (maps of schema < 5 are always written so).
+  int max_image_downscale = 4;
 
   bool Check(std::string* error = nullptr) const;
 };
@@ -63,8 +72,9 @@ struct MapDatabaseOptions {
 class MapDatabase {
  public:
   // Written by this retrace. 2: key-image checksums; 3: arcs.similarity and nodes.route (graphs of several drives);
-  // 4: key-image relocalization signatures.
-  static constexpr int kSchemaVersion = 4;
+  // 4: key-image relocalization signatures; 5: key-images stored at a reduced resolution (MapDatabaseOptions::
+  // max_image_downscale).
+  static constexpr int kSchemaVersion = 5;
   static constexpr int kOldestSchemaVersion = 1;  // oldest schema still read
   static constexpr int kApplicationId = 0x52545243;  // "RTRC"
   // Metadata key of teach's progress: kIncomplete from the start of teach, kComplete when it finished. Maps

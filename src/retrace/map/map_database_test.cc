@@ -184,6 +184,7 @@ void ExpectInputError(F&& f, const std::filesystem::path& path, const std::strin
   }
 }
 
+
 TEST(MapDatabase, ForeignAndBrokenFilesGiveClearErrors) {
   const auto dir = testing::MakeTempDir("map_foreign");
   ExpectInputError([&] { MapDatabase::Open(dir / "missing.db"); }, dir / "missing.db", "no such map file");
@@ -637,4 +638,86 @@ TEST(StagedMap, KilledWriterLeavesAnIncompleteMapAndTheOldOneUntouched) {
 }
 
 }  // namespace
+// The smoothed error of `decoded` against `original` as the tracker sees it (MapDatabaseOptions::max_image_error)
+// and the shift between the two (phase correlation), with the tracker's smoothing of `sigma` pixels.
+std::pair<double, cv::Point2d> SmoothedErrorAndShift(const cv::Mat& original, const cv::Mat& decoded, double sigma) {
+  cv::Mat a, b;
+  original.convertTo(a, CV_64F);
+  decoded.convertTo(b, CV_64F);
+  cv::GaussianBlur(a, a, cv::Size(), sigma, sigma, cv::BORDER_REFLECT);
+  cv::GaussianBlur(b, b, cv::Size(), sigma, sigma, cv::BORDER_REFLECT);
+  const double error = cv::norm(a, b, cv::NORM_L2) / std::sqrt(static_cast<double>(a.total()));
+  return {error, cv::phaseCorrelate(a, b)};
+}
+
+TEST(MapDatabase, LargeKeyImagesAreStoredAtAReducedResolutionWithinTheBudget) {
+  // A 1241x376 key-image (a side not divisible by 2 or 3) whose texture is as coarse as what the tracker keeps of a
+  // kitti07 frame after its 2.7 px smoothing: stored smaller than at full resolution with the same error budget,
+  // read back at its size, within the budget and not shifted.
+  cv::Mat texture = RandomImage(376, 1241, 5);
+  cv::GaussianBlur(texture, texture, cv::Size(), 2.0);
+  cv::normalize(texture, texture, 0, 255, cv::NORM_MINMAX);
+  MapNode node = MakeNode(0, 0);
+  node.image = texture;
+  const auto dir = testing::MakeTempDir("map_downscale");
+  MapDatabaseOptions full;
+  full.max_image_downscale = 1;
+  int64_t full_bytes = 0, reduced_bytes = 0;
+  {
+    auto db = MapDatabase::Create(dir / "full.db", full);
+    db->WriteNode(node);
+    full_bytes = db->ImageBytes();
+  }
+  {
+    auto db = MapDatabase::Create(dir / "reduced.db");  // default: down to 1/4
+    db->WriteNode(node);
+    reduced_bytes = db->ImageBytes();
+  }
+  EXPECT_LT(reduced_bytes, full_bytes * 2 / 3);
+  const double sigma = 0.7 * 1241 / 320;
+  const cv::Mat read = MapDatabase::Open(dir / "reduced.db")->ReadMap().nodes()[0].image;
+  ASSERT_EQ(read.size(), texture.size());
+  const auto [error, shift] = SmoothedErrorAndShift(texture, read, sigma);
+  EXPECT_LE(error, 0.6);
+  EXPECT_LT(std::hypot(shift.x, shift.y), 0.02);
+  EXPECT_EQ(MapDatabase::Open(dir / "reduced.db")->ReadKeyImage(0).size(), texture.size());
+
+  // A 320x240 key-image with detail at the scale of its 0.7 px smoothing keeps its resolution.
+  cv::Mat fine = RandomImage(240, 320, 6);
+  cv::GaussianBlur(fine, fine, cv::Size(), 0.8);
+  node.image = fine;
+  {
+    auto a = MapDatabase::Create(dir / "fine_full.db", full);
+    a->WriteNode(node);
+    auto b = MapDatabase::Create(dir / "fine.db");
+    b->WriteNode(node);
+    EXPECT_EQ(b->ImageBytes(), a->ImageBytes());
+  }
+
+  // A map of schema 4 opened for writing keeps full resolutions (retraces of that schema read it).
+  node.image = texture;
+  WriteTwoNodeMap(dir / "old.db");
+  {
+    SqliteDatabase raw(dir / "old.db", SqliteDatabase::Mode::kReadWrite);
+    raw.Execute("PRAGMA user_version=4;");
+  }
+  {
+    auto db = MapDatabase::Open(dir / "old.db", /*writable=*/true);
+    const int64_t before = db->ImageBytes();
+    node.id = 7;
+    db->WriteNode(node);
+    EXPECT_EQ(db->ImageBytes() - before, full_bytes);
+  }
+  // A stored image of another size than its node's (not a whole reduction) is refused with what is wrong.
+  {
+    SqliteDatabase raw(dir / "reduced.db", SqliteDatabase::Mode::kReadWrite);
+    raw.Execute("UPDATE nodes SET width = 1200;");
+  }
+  ExpectInputError([&] { MapDatabase::Open(dir / "reduced.db")->ReadMap(); }, dir / "reduced.db",
+                   "is 621x188 but is stored as 1200x376");
+  MapDatabaseOptions bad;
+  bad.max_image_downscale = 0;
+  EXPECT_FALSE(bad.Check());
+}
+
 }  // namespace retrace
