@@ -103,79 +103,94 @@ void FuseInto(const std::vector<cv::KeyPoint>& candidates, double radius, std::v
   }
 }
 
-// Hamming distances of all pairs of 32-byte descriptors as four 64-bit words each. The POPCNT instruction where the
-// CPU has it (every x86-64 CPU since 2008; chosen at run time, the build targets plain x86-64), else the compiler's
-// portable bit count. OpenCV's batchDistance calls its normHamming once per pair, with tracing overhead per call:
-// 3-4 times slower for 1000 x 1000 descriptors.
-// The table's rows; the body is the same for both builds of it below (with and without the POPCNT instruction).
-#define RETRACE_HAMMING_TABLE_BODY                                                                                 \
-  for (int i = 0; i < query.rows; ++i) {                                                                          \
+// The nearest and second-nearest train descriptor of every query descriptor and the nearest query descriptor of
+// every train descriptor, by the Hamming distance of 32-byte descriptors (four 64-bit words each). One pass over all
+// pairs keeps only these running minima: a table of every distance (4 bytes per pair, 9.7 MB for a 1226x370 frame's
+// 2430 key-points against a key-image's 1000) would be written and read back through memory, twice as slow.
+// Ties keep the first (lowest index), as a scan of such a table row by row would.
+struct HammingNearest {
+  std::vector<int> best, best_d, second_d;        // per query
+  std::vector<int> best_query_of_train, best_query_d;  // per train
+};
+
+// The POPCNT instruction where the CPU has it (every x86-64 CPU since 2008; chosen at run time, the build targets
+// plain x86-64), else the compiler's portable bit count. OpenCV's batchDistance calls its normHamming once per pair,
+// with tracing overhead per call: 3-4 times slower for 1000 x 1000 descriptors. The body is the same for both builds
+// of the function below.
+#define RETRACE_HAMMING_NEAREST_BODY                                                                               \
+  const int n = query.rows, m = train.rows;                                                                       \
+  int* best_query_d = nearest->best_query_d.data();                                                               \
+  int* best_query_of_train = nearest->best_query_of_train.data();                                                 \
+  for (int i = 0; i < n; ++i) {                                                                                   \
     const uint64_t* q = query.ptr<uint64_t>(i);                                                                   \
-    int* row = table->ptr<int>(i);                                                                                \
-    for (int j = 0; j < train.rows; ++j) {                                                                        \
+    const uint64_t q0 = q[0], q1 = q[1], q2 = q[2], q3 = q[3];                                                    \
+    int best = -1, best_d = std::numeric_limits<int>::max(), second_d = best_d;                                   \
+    for (int j = 0; j < m; ++j) {                                                                                 \
       const uint64_t* t = train.ptr<uint64_t>(j);                                                                 \
-      row[j] = __builtin_popcountll(q[0] ^ t[0]) + __builtin_popcountll(q[1] ^ t[1]) +                            \
-               __builtin_popcountll(q[2] ^ t[2]) + __builtin_popcountll(q[3] ^ t[3]);                             \
+      const int d = __builtin_popcountll(q0 ^ t[0]) + __builtin_popcountll(q1 ^ t[1]) +                           \
+                    __builtin_popcountll(q2 ^ t[2]) + __builtin_popcountll(q3 ^ t[3]);                            \
+      if (d < best_d) {                                                                                           \
+        second_d = best_d;                                                                                        \
+        best_d = d;                                                                                               \
+        best = j;                                                                                                 \
+      } else if (d < second_d) {                                                                                  \
+        second_d = d;                                                                                             \
+      }                                                                                                           \
+      if (d < best_query_d[j]) {                                                                                  \
+        best_query_d[j] = d;                                                                                      \
+        best_query_of_train[j] = i;                                                                               \
+      }                                                                                                           \
     }                                                                                                             \
+    nearest->best[i] = best;                                                                                      \
+    nearest->best_d[i] = best_d;                                                                                  \
+    nearest->second_d[i] = second_d;                                                                              \
   }
 
-void HammingTablePortable(const cv::Mat& query, const cv::Mat& train, cv::Mat* table) { RETRACE_HAMMING_TABLE_BODY }
+void HammingNearestPortable(const cv::Mat& query, const cv::Mat& train, HammingNearest* nearest) {
+  RETRACE_HAMMING_NEAREST_BODY
+}
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-__attribute__((target("popcnt"))) void HammingTablePopcnt(const cv::Mat& query, const cv::Mat& train,
-                                                          cv::Mat* table) {
-  RETRACE_HAMMING_TABLE_BODY
+__attribute__((target("popcnt"))) void HammingNearestPopcnt(const cv::Mat& query, const cv::Mat& train,
+                                                            HammingNearest* nearest) {
+  RETRACE_HAMMING_NEAREST_BODY
 }
 #endif
-#undef RETRACE_HAMMING_TABLE_BODY
+#undef RETRACE_HAMMING_NEAREST_BODY
 
-cv::Mat HammingTable(const cv::Mat& query_in, const cv::Mat& train_in) {
+HammingNearest FindHammingNearest(const cv::Mat& query_in, const cv::Mat& train_in) {
   CV_Assert(query_in.cols == 32 && train_in.cols == 32);
   // Rows of 32 bytes, 8-byte aligned (cv::Mat's data is 16-byte aligned; a continuous matrix keeps every row so).
   const cv::Mat query = query_in.isContinuous() ? query_in : query_in.clone();
   const cv::Mat train = train_in.isContinuous() ? train_in : train_in.clone();
-  cv::Mat table(query.rows, train.rows, CV_32S);
+  HammingNearest nearest;
+  nearest.best.assign(query.rows, -1);
+  nearest.best_d.assign(query.rows, std::numeric_limits<int>::max());
+  nearest.second_d.assign(query.rows, std::numeric_limits<int>::max());
+  nearest.best_query_of_train.assign(train.rows, -1);
+  nearest.best_query_d.assign(train.rows, std::numeric_limits<int>::max());
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
   if (__builtin_cpu_supports("popcnt")) {
-    HammingTablePopcnt(query, train, &table);
-    return table;
+    HammingNearestPopcnt(query, train, &nearest);
+    return nearest;
   }
 #endif
-  HammingTablePortable(query, train, &table);
-  return table;
+  HammingNearestPortable(query, train, &nearest);
+  return nearest;
 }
 
-// Binary descriptors (binary_features.h): the whole table of Hamming distances at once (OpenCV's vectorised
-// batchDistance), then the same ratio test and cross-check as for SIFT.
+// Binary descriptors (binary_features.h): the nearest descriptors by Hamming distance, then the same ratio test and
+// cross-check as for SIFT.
 std::vector<cv::DMatch> MatchBinaryDescriptors(const cv::Mat& query, const cv::Mat& train,
                                                const WideBaselineOptions& options) {
-  const cv::Mat distances = HammingTable(query, train);  // CV_32S, query rows x train rows
-  const int n = query.rows, m = train.rows;
-  std::vector<int> best(n, -1), best_d(n, std::numeric_limits<int>::max()), second_d(n, best_d[0]);
-  std::vector<int> best_query_of_train(m, -1), best_query_d(m, std::numeric_limits<int>::max());
-  for (int i = 0; i < n; ++i) {
-    const int* row = distances.ptr<int>(i);
-    for (int j = 0; j < m; ++j) {
-      const int d = row[j];
-      if (d < best_d[i]) {
-        second_d[i] = best_d[i];
-        best_d[i] = d;
-        best[i] = j;
-      } else if (d < second_d[i]) {
-        second_d[i] = d;
-      }
-      if (d < best_query_d[j]) {
-        best_query_d[j] = d;
-        best_query_of_train[j] = i;
-      }
-    }
-  }
+  const HammingNearest nearest = FindHammingNearest(query, train);
   std::vector<cv::DMatch> matches;
-  for (int i = 0; i < n; ++i) {
+  for (int i = 0; i < query.rows; ++i) {
+    const int best = nearest.best[i];
     // Segvic 2009 §4.1 on distances (not squared distances as for SIFT).
-    if (best[i] < 0 || !(best_d[i] < options.ratio * second_d[i])) continue;
-    if (options.cross_check && best_query_of_train[best[i]] != i) continue;
-    matches.emplace_back(i, best[i], static_cast<float>(best_d[i]));
+    if (best < 0 || !(nearest.best_d[i] < options.ratio * nearest.second_d[i])) continue;
+    if (options.cross_check && nearest.best_query_of_train[best] != i) continue;
+    matches.emplace_back(i, best, static_cast<float>(nearest.best_d[i]));
   }
   return matches;
 }
