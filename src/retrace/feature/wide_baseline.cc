@@ -106,7 +106,7 @@ void FuseInto(const std::vector<cv::KeyPoint>& candidates, double radius, std::v
 // The nearest and second-nearest train descriptor of every query descriptor and the nearest query descriptor of
 // every train descriptor, by the Hamming distance of 32-byte descriptors (four 64-bit words each). One pass over all
 // pairs keeps only these running minima: a table of every distance (4 bytes per pair, 9.7 MB for a 1226x370 frame's
-// 2430 key-points against a key-image's 1000) would be written and read back through memory, twice as slow.
+// 2430 key-points against a key-image's 1000) would be written and read back through memory: a third slower.
 // Ties keep the first (lowest index), as a scan of such a table row by row would.
 struct HammingNearest {
   std::vector<int> best, best_d, second_d;        // per query
