@@ -92,7 +92,8 @@ constexpr int kMinStoredImageSide = 32;
 // side by repeating its last row and column, averaged over `downscale` x `downscale` blocks, so that the stored
 // pixel (u, v) covers exactly the original pixels downscale * (u, v) + [0, downscale)^2.
 cv::Size ReducedSize(int64_t width, int64_t height, int downscale) {
-  return {static_cast<int>((width + downscale - 1) / downscale), static_cast<int>((height + downscale - 1) / downscale)};
+  return {static_cast<int>((width + downscale - 1) / downscale),
+          static_cast<int>((height + downscale - 1) / downscale)};
 }
 
 cv::Mat ReduceKeyImage(const cv::Mat& image, int downscale) {
@@ -163,16 +164,16 @@ std::vector<uint8_t> EncodeImage(const cv::Mat& image, const MapDatabaseOptions&
     const double rms = cv::norm(smoothed(decoded), original, cv::NORM_L2) / std::sqrt(static_cast<double>(image.total()));
     return rms <= options.max_image_error;
   };
-  if (!within_budget(best)) return best;
   const int max_downscale = allow_reduced ? options.max_image_downscale : 1;
   for (int downscale = 1; downscale <= max_downscale; ++downscale) {
     const cv::Size size = ReducedSize(image.cols, image.rows, downscale);
-    if (std::min(size.width, size.height) < kMinStoredImageSide) break;
+    if (downscale > 1 && std::min(size.width, size.height) < kMinStoredImageSide) break;
     const cv::Mat stored = downscale > 1 ? ReduceKeyImage(image, downscale) : image;
-    std::vector<uint8_t> highest = encode(stored, options.image_quality);
-    // A coarser resolution loses more: once the highest quality is over the budget, so are the coarser ones.
+    std::vector<uint8_t> highest = downscale > 1 ? encode(stored, options.image_quality) : best;
+    // Over the budget at the highest quality: the full resolution at that quality (the default) or, at a coarser
+    // resolution, nothing better, as the still coarser ones lose more.
     if (!within_budget(highest)) break;
-    if (highest.size() < best.size()) best = highest;
+    if (highest.size() < best.size()) best = std::move(highest);
     // Bisection on the quality (the error grows as the quality falls), to within 2 quality steps.
     constexpr int kLowestQuality = 20;
     int low = kLowestQuality - 1, high = options.image_quality;  // high is within the budget, low is not known to be
@@ -698,7 +699,9 @@ std::optional<std::string> MapDatabase::ReadCameraYaml() {
 
 void MapDatabase::WriteNode(const MapNode& node) {
   const std::vector<uint8_t> image =
-      node.image.empty() ? std::vector<uint8_t>() : EncodeImage(node.image, options_, /*allow_reduced=*/schema_version_ >= 5, path_.string());
+      node.image.empty()
+          ? std::vector<uint8_t>()
+          : EncodeImage(node.image, options_, /*allow_reduced=*/schema_version_ >= 5, path_.string());
   InTransaction([&] {
     // A map of an older schema opened for writing keeps its schema (UpgradeSchema() brings it up to date).
     const bool has_checksums = schema_version_ >= 2;

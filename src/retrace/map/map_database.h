@@ -61,9 +61,9 @@ struct MapDatabaseOptions {
   // Lossy codecs with max_image_error: a key-image may also be stored at 1/2, 1/3, ... 1/max_image_downscale of
   // its resolution (averaged over blocks, restored by bicubic interpolation when read), the smallest encoding within
   // the same error budget chosen. The larger the tracker's smoothing, the less a coarser resolution loses: on kitti07
-  // at 1226x370 (2.7 px) half resolution alone costs 0.36-0.52 grey levels RMS, so that 14 of its 16 key-images are
-  // stored at half resolution near quality 85 (593 -> 410 kB), while a 320x240 image (0.7 px) keeps its resolution.
-  // 1: always full resolution (maps of schema < 5 are always written so).
+  // at 1226x370 (2.7 px) half resolution alone costs 0.36-0.52 grey levels RMS (two frames, a throwaway program),
+  // so that 14 of its 16 key-images are stored at half resolution near quality 85 (593 -> 410 kB), while a 320x240
+  // image (0.7 px) keeps its resolution. 1: always full resolution (maps of schema < 5 are always written so).
   int max_image_downscale = 4;
 
   bool Check(std::string* error = nullptr) const;
