@@ -313,8 +313,17 @@ void RegisterBenchCommand(CLI::App& app) {
   cmd->add_option("--ambiguity-ratio", args->options.retrieval_ambiguity_ratio,
                   "A look-alike elsewhere verified with this fraction of the best's inliers: not localized")
       ->capture_default_str();
-  cmd->add_option("--min-global-features", args->options.min_global_bootstrap_features,
-                  "Fewest mapped features located by a relocalization over the whole map")
+  cmd->add_option("--global-agreeing-key-images", args->options.min_global_agreeing_key_images,
+                  "A relocalization over the whole map needs this many key-images of the chosen arc and its "
+                  "neighbours verified")
+      ->capture_default_str();
+  cmd->add_option("--global-gate-candidates", args->options.global_gate_candidates,
+                  "Up to this many key-images, a relocalization over the whole map needs no more located features "
+                  "than a local one; beyond, --global-features-per-log more per factor e")
+      ->capture_default_str();
+  cmd->add_option("--global-features-per-log", args->options.global_features_per_log_candidates,
+                  "Located features a relocalization over the whole map needs in addition per factor e of "
+                  "key-images beyond --global-gate-candidates")
       ->capture_default_str();
   cmd->add_option("--confident-inliers", args->options.retrieval_confident_inliers,
                   "Verification stops at the first key-image with this many inliers")->capture_default_str();

@@ -68,6 +68,10 @@ bool LocalizerOptions::Check(std::string* error) const {
     return fail("relocalization_neighbourhood and relocalization_widening must be >= 0");
   }
   if (global_relocalization_frames < 1) return fail("global_relocalization_frames must be >= 1");
+  if (min_global_agreeing_key_images < 1) return fail("min_global_agreeing_key_images must be >= 1");
+  if (!(global_features_per_log_candidates >= 0.0) || global_gate_candidates < 1) {
+    return fail("global_features_per_log_candidates must be >= 0 and global_gate_candidates >= 1");
+  }
   if (max_cached_key_images < 1) return fail("max_cached_key_images must be >= 1");
   if (retrieval_shortlist < 0 || retrieval_confident_inliers < 0) {
     return fail("retrieval_shortlist and retrieval_confident_inliers must be >= 0");

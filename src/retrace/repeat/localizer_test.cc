@@ -56,6 +56,30 @@ TEST(LocalizerOptions, CheckRejectsBadValues) {
   options.retrieval.patch_size = 4;
   EXPECT_FALSE(options.Check(&error));
   EXPECT_NE(error.find("retrieval"), std::string::npos) << error;
+  options = LocalizerOptions();
+  options.min_global_agreeing_key_images = 0;
+  EXPECT_FALSE(options.Check());
+  options = LocalizerOptions();
+  options.global_gate_candidates = 0;
+  EXPECT_FALSE(options.Check());
+}
+
+// The a-contrario gate of a relocalization over the whole map: no more than a local one on maps up to
+// global_gate_candidates key-images, then λ more located features per factor e of candidates.
+TEST(LocalizerOptions, GlobalBootstrapFeaturesGrowWithTheLogarithmOfTheCandidates) {
+  LocalizerOptions options;
+  options.min_bootstrap_features = 8;
+  options.global_features_per_log_candidates = 12.0;
+  options.global_gate_candidates = 200;
+  EXPECT_EQ(GlobalBootstrapFeatures(options, 1), 8);
+  EXPECT_EQ(GlobalBootstrapFeatures(options, 200), 8);
+  // 8 + 12 ln(1264 / 200) = 30.1: the map of equal blocks needs 31.
+  EXPECT_EQ(GlobalBootstrapFeatures(options, 1264), 31);
+  // A factor e of key-images adds 12 (543 = 200 e, rounded down).
+  EXPECT_EQ(GlobalBootstrapFeatures(options, 543), 8 + 12);
+  EXPECT_EQ(GlobalBootstrapFeatures(options, 544), 8 + 13);
+  options.global_features_per_log_candidates = 0.0;
+  EXPECT_EQ(GlobalBootstrapFeatures(options, 100000), 8);
 }
 
 TEST(Localizer, MapWithoutImagesIsBadInput) {

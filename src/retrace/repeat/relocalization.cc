@@ -5,6 +5,7 @@
 // (the quantised thumbnails of AppearanceIndex) and verifies the most alike, in order, within a budget (issue 16).
 
 #include <algorithm>
+#include <cmath>
 #include <unordered_set>
 
 #include <fmt/format.h>
@@ -16,6 +17,13 @@
 namespace retrace {
 
 using internal::Median;
+
+int GlobalBootstrapFeatures(const LocalizerOptions& options, size_t candidates) {
+  const double excess = static_cast<double>(candidates) / options.global_gate_candidates;
+  if (excess <= 1.0) return options.min_bootstrap_features;
+  return options.min_bootstrap_features +
+         static_cast<int>(std::ceil(options.global_features_per_log_candidates * std::log(excess)));
+}
 
 
 std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBaselineFeatures& current,
@@ -238,6 +246,26 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
     verified.insert(verified.end(), std::make_move_iterator(more.begin()), std::make_move_iterator(more.end()));
   }
 
+  // Over the whole map, the place must be verified beyond one pair of images: enough key-images of the arc and of
+  // its neighbours verify (LocalizerOptions::min_global_agreeing_key_images; a look-alike place mostly verifies one).
+  if (global) {
+    int agreeing = 0;
+    for (const MatchedKeyImage& candidate : verified) {
+      for (const ArcData* located : {arc, Arc(arc->previous), Arc(arc->next)}) {
+        if (located != nullptr && (candidate.node == located->arc->from || candidate.node == located->arc->to)) {
+          ++agreeing;
+          break;
+        }
+      }
+    }
+    if (agreeing < options_.min_global_agreeing_key_images) {
+      spdlog::debug("repeat: bootstrap at frame {} failed: {} of the key-images around arc {} verified (key-image {}, "
+                    "{} inliers)",
+                    frame.index, agreeing, chosen, best_node, best_inliers);
+      return false;
+    }
+  }
+
   // Locate the mapped features of the arc and of its neighbours (all three are tracked from now on) in the frame:
   // each feature seen in a matched key-image is predicted from the displacement of the nearest matched key-points
   // there, then refined against the reference cut in that key-image.
@@ -288,8 +316,8 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
       }
     }
   }
-  const int min_features = global ? std::max(options_.min_bootstrap_features, options_.min_global_bootstrap_features)
-                                  : options_.min_bootstrap_features;
+  const int min_features =
+      global ? GlobalBootstrapFeatures(options_, candidate_count) : options_.min_bootstrap_features;
   if (tracker_.NumFeatures() < min_features) {
     spdlog::debug("repeat: bootstrap at frame {} failed: {} of {} features located around arc {} (key-image {}, {} "
                   "inliers)",
