@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import retrace
 
-from conftest import cli_error, read_csv
+from conftest import REPEAT_OFFSET, cli_error, read_csv
 
 
 def assert_same_as_run_csv(result, row):
@@ -53,8 +53,9 @@ def test_localizer_gives_the_states_and_arcs_of_repeat(drives):
     for result, row in zip(results, rows):
         assert_same_as_run_csv(result, row)
     assert localizer.state == rows[-1]["state"]
-    # The repeat drive runs 3 m to the right of the taught one (positive lateral_m: to the right).
-    assert 1.5 < np.median([r.path.lateral_m for r in results if r.path is not None]) < 4.5
+    # The repeat drive runs REPEAT_OFFSET m to the right of the taught one (positive lateral_m: to the right).
+    lateral = np.median([r.path.lateral_m for r in results if r.path is not None])
+    assert REPEAT_OFFSET - 1.5 < lateral < REPEAT_OFFSET + 1.5
 
 
 def test_localizer_takes_numpy_images_gray_or_bgr(drives):

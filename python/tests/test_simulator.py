@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import retrace
 
-from conftest import FRAMES, cli_error
+from conftest import FRAMES, REPEAT_OFFSET, cli_error
 
 
 def read_poses(path):
@@ -12,7 +12,8 @@ def read_poses(path):
 
 
 def test_simulator_renders_the_drive_sim_render_writes(drives):
-    simulator = retrace.Simulator(frames=FRAMES, width=320, height=240, seed=3, variant="repeat", lateral_offset=3)
+    simulator = retrace.Simulator(frames=FRAMES, width=320, height=240, seed=3, variant="repeat",
+                                  lateral_offset=REPEAT_OFFSET)
     assert simulator.expected_frames == FRAMES
     rendered = list(simulator)
     written = list(retrace.Sequence(drives.repeat))

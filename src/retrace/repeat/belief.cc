@@ -38,6 +38,7 @@ bool PlaceBeliefOptions::Check(std::string* error) const {
   if (bins_per_arc < 2) return fail("bins_per_arc must be >= 2");
   if (!(relative_speed_noise >= 0) || !(position_noise > 0)) return fail("motion noise must be positive");
   if (!(unknown_speed_max > unknown_speed_min)) return fail("unknown_speed_max must exceed unknown_speed_min");
+  if (teach_frame_step < 1) return fail("teach_frame_step must be >= 1");
   if (speed_steps < 1 || speed_memory_frames < 1) return fail("speed_steps and speed_memory_frames must be >= 1");
   if (!(jump_probability > 0) || !(jump_probability < 1)) return fail("jump_probability must be in (0, 1)");
   if (!(static_fraction >= 0) || !(static_fraction < 1)) return fail("static_fraction must be in [0, 1)");
@@ -104,6 +105,11 @@ PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : op
       for (const int p : arcs_[k].predecessors) visit(p, false);
     }
   }
+  // A teach frame spans teach_frame_step frames of the sequence the key-images are numbered in.
+  for (ArcNode& arc : arcs_) {
+    arc.teach_frame_length =
+        arc.length * options_.teach_frame_step / TeachFrames(map, *map.FindArc(arc.id));
+  }
   // Virtual arcs beyond the route's ends (ArcNode::virtual_of). Beyond the teach drive's first and last key-images
   // they are as long as the median arc (a route's last arc is often short: teach registers its last frame); where a
   // piece of a disconnected map ends inside the drive, as long as the arc itself (the drive went on to another
@@ -122,6 +128,7 @@ PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : op
       if (!(beyond_end ? arcs_[k].successors : arcs_[k].predecessors).empty()) continue;
       ArcNode extension;
       extension.id = arcs_[k].id;
+      extension.teach_frame_length = arcs_[k].teach_frame_length;
       const MapArc& arc = *map.FindArc(arcs_[k].id);
       const MapNode* end = map.FindNode(beyond_end ? arc.to : arc.from);
       const bool drive_end = end != nullptr && end->source_frame == (beyond_end ? last_frame : first_frame);
@@ -355,8 +362,8 @@ void PlaceBelief::Predict(int frames) {
         boxes.push_back({mean + (j - 3.5) * sigma, mean + (j - 2.5) * sigma, kBoxProbability[j] / 0.9995});
       }
     } else {
-      boxes.push_back({options_.unknown_speed_min * frames_d * length, options_.unknown_speed_max * frames_d * length,
-                       1.0});
+      const double step = arcs_[k].teach_frame_length;
+      boxes.push_back({options_.unknown_speed_min * frames_d * step, options_.unknown_speed_max * frames_d * step, 1.0});
     }
     for (int i = 0; i < bins; ++i) {
       const double m = mass_[k * bins + i];

@@ -21,9 +21,9 @@
 //     the median of the last steps of the estimated position), d ~ N(v Δ, Δ ((α v)² + (σ₀ ℓ)²)) for Δ frames: α =
 //     `relative_speed_noise` (the speed changes and is estimated from noisy positions), σ₀ = `position_noise` arc
 //     lengths. With the speed unknown (after a start, a loss, or a jump) d is uniform over [`unknown_speed_min`,
-//     `unknown_speed_max`] arc lengths per frame. Then a fraction `jump_probability` of the mass is spread uniformly
-//     over the whole map: the belief may be wrong, or the robot carried elsewhere; this is what lets consistent
-//     evidence elsewhere win.
+//     `unknown_speed_max`] teach frames per frame (the distance the teach drive covered in one of its frames there).
+//     Then a fraction `jump_probability` of the mass is spread uniformly over the whole map: the belief may be
+//     wrong, or the robot carried elsewhere; this is what lets consistent evidence elsewhere win.
 //  2. Update (measurement model): every placement of the camera this frame yields — the absolute pose in an arc's
 //     reconstruction, the current geometries W_t:a / W_t:b brought into the arc's frame, a key-image verified by
 //     wide-baseline matching — is a measurement z (arc lengths of its arc k, anywhere on k's line: z = 1.5 is half
@@ -84,11 +84,18 @@ struct PlaceBeliefOptions {
   double relative_speed_noise = 0.3;
   // ... plus this many arc lengths per frame (a camera at rest still has a position noise).
   double position_noise = 0.05;
-  // With the speed unknown, one frame moves the camera anywhere in [min, max] arc lengths: backward a little,
-  // forward up to three arcs (kitti07 at 320 px passes about one arc per frame in its turns, where key-images are
-  // one or two teach frames apart; a repeat at twice the teach speed or half its frame rate passes two to three).
-  double unknown_speed_min = -0.25;
-  double unknown_speed_max = 3.0;
+  // With the speed unknown, one frame moves the camera anywhere in [min, max] teach frames — the distance the teach
+  // drive covered in that many of its frames on the arc (the arc's length over the teach frames it spans; maps
+  // without source frames: one per arc): backward a little, forward as far as a repeat at twice the teach speed and
+  // half its frame rate. In arcs that is up to 2-4 where key-images are one or two teach frames apart (kitti07 at
+  // 320 px in its turns, which passes about one per frame) and well under one arc in the simulated town (3-8 teach
+  // frames per arc), where a bound of three arcs per frame let a relocalization right after a kidnapped start
+  // report a look-alike three arcs ahead (`retrace bench kidnap --seed 2` on the map of validation drive seed2).
+  double unknown_speed_min = -1.0;
+  double unknown_speed_max = 4.0;
+  // Frames of the teach sequence per teach frame (`teach --every`; the key-images keep their numbers in the sequence).
+  // LoadMapForLocalizer sets it from the map's metadata `frames_every`.
+  int teach_frame_step = 1;
   // Steps of the estimated position whose median is the speed, ...
   int speed_steps = 3;
   // ... forgotten after this many frames without evidence (the speed is then unknown again).
@@ -175,6 +182,8 @@ class PlaceBelief {
   struct ArcNode {
     arc_t id = kInvalidArcId;
     double length = 1.0;
+    // The length the teach drive covered per frame on the arc (common units; a virtual arc: its real arc's).
+    double teach_frame_length = 1.0;
     // A route's end has a virtual arc beyond it (and its start one before it), where a camera
     // past the last key-image (before the first) is; its mass counts for the real arc. -1 for a real arc.
     int virtual_of = -1;

@@ -68,10 +68,10 @@ TEST(PlaceBelief, WithoutEvidenceItSpreadsAndIsNotTracking) {
 }
 
 TEST(PlaceBelief, MotionCarriesTheMassAcrossSeveralArcsInOneFrame) {
-  // Short arcs: the camera covers 2.5 arcs per frame (dense key-images, a low frame rate) — faster than a camera
-  // of unknown speed is expected to move, so the first placements count as outliers until they agree for a few
-  // frames; then the speed is known.
-  PlaceBelief belief(LinearMap(60));
+  // Short arcs: the camera covers 2.5 arcs per frame (key-images one teach frame apart, a repeat faster than the
+  // teach) — about as fast as a camera of unknown speed is expected to move, so the first placements may count as
+  // outliers until they agree for a few frames; then the speed is known.
+  PlaceBelief belief(LinearMap(60, {}, 1));
   const auto place = [](int t) { return Pose(1 + (5 * t) / 2, (5 * t) % 2 == 0 ? 0.2 : 0.7); };
   int t = 0;
   for (; t < 12 && !(belief.estimate().tracking && belief.SpeedOn(0)); ++t) Frame(&belief, t + 1, {place(t)});
@@ -95,6 +95,30 @@ TEST(PlaceBelief, MotionCarriesTheMassAcrossSeveralArcsInOneFrame) {
   ASSERT_TRUE(moved.has_value());
   EXPECT_NEAR(*moved, 2.5, 0.05);
   EXPECT_GE(belief.estimate().arc, predicted.arc + 2);
+}
+
+TEST(PlaceBelief, WithoutASpeedOneFrameMovesTheCameraAFewTeachFrames) {
+  // Localized on arc 5 by one placement (the speed unknown), the next frame is placed 3 arcs ahead (a relocalization
+  // on a look-alike). Where the teach drive spent 5 frames on each arc, that is 15 teach frames in one frame, beyond
+  // unknown_speed_max (4): an outlier, not reported. Where key-images are one teach frame apart, 3 teach frames are
+  // within reach and the camera is there.
+  const PlaceBeliefOptions options;
+  ASSERT_DOUBLE_EQ(options.unknown_speed_max, 4.0);
+  for (const int frames_per_arc : {5, 1}) {
+    SCOPED_TRACE(frames_per_arc);
+    PlaceBelief belief(LinearMap(20, {}, frames_per_arc), options);
+    Frame(&belief, 1, {Pose(5, 0.5)});
+    ASSERT_EQ(belief.estimate().arc, 5);
+    ASSERT_FALSE(belief.SpeedOn(5).has_value());
+    Frame(&belief, 2, {Pose(8, 0.5)});
+    if (frames_per_arc == 5) {
+      EXPECT_FALSE(belief.estimate().evidence);
+      EXPECT_FALSE(belief.estimate().tracking);
+    } else {
+      EXPECT_TRUE(belief.estimate().evidence);
+      EXPECT_EQ(belief.estimate().arc, 8);
+    }
+  }
 }
 
 TEST(PlaceBelief, AtAJunctionTheMassSpreadsIntoEveryOutgoingArc) {

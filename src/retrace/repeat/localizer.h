@@ -97,6 +97,7 @@
 #include <optional>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "retrace/camera/camera_model.h"
@@ -449,6 +450,11 @@ class Localizer {
   // the samples by what finds a model of min_inliers inliers (relocalization.cc).
   std::vector<MatchedKeyImage> MatchKeyImages(const WideBaselineFeatures& current,
                                               const std::vector<node_t>& candidates, bool screening = false);
+  // Locates in the current frame the mapped features of `arcs` seen in `key_image` and not tracked yet: each is
+  // predicted from the displacement of the nearest matched key-points there, then refined against the reference cut
+  // in that key-image and tracked from now on. Adds the features seen to `seen`; returns how many were located.
+  int LocateMappedFeatures(const MatchedKeyImage& key_image, const std::array<const ArcData*, 3>& arcs,
+                           std::unordered_set<feature_t>* seen);
   // The key-images of the arcs up to `arcs` arcs before and after `arc`, nearest first.
   std::vector<node_t> NodesNear(arc_t arc, int arcs) const;
   bool Bootstrap(const Frame& frame, FrameResult* result);

@@ -56,6 +56,12 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
   if (const auto value = database->Metadata("reference_width")) {
     loaded.options.reference_width = static_cast<int>(ParseMetadataNumber(*value, "reference_width", path));
   }
+  // The belief's motion without a speed is bounded in teach frames (belief.h): `teach --every k` kept every k-th.
+  if (const auto value = database->Metadata("frames_every")) {
+    const double every = ParseMetadataNumber(*value, "frames_every", path);
+    if (!(every >= 1 && every <= 1e6)) throw InputError(path.string(), "metadata frames_every out of range: " + *value);
+    loaded.options.belief.teach_frame_step = static_cast<int>(every);
+  }
   // The camera's height above the ground given to teach (unless repeat is given one): the metric path.
   if (const auto value = database->Metadata("camera_height"); value && !(base.path.camera_height > 0)) {
     loaded.options.path.camera_height = ParseMetadataNumber(*value, "camera_height", path);

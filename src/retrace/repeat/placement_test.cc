@@ -309,14 +309,18 @@ TEST(PlacementModel, MeasurementsCarryTheirUncertainty) {
   EXPECT_FALSE(bad.Check());
 }
 
-// Just after a bootstrap (the speed unknown: anywhere up to three arcs per frame) the camera is placed 0.5 along arc
-// 4 by its pose; the next frame, W_t:b alone places it 1.45 arc lengths past arc 4's end, on arc 6 (the kind of
-// placement that is mostly wrong, PlacementModel::geometry_extrapolation_length). With the outlier probability of a
-// placement within the arc, the belief jumps to arc 6 and reports it; with the one beyond, it does not.
+// Just after a bootstrap (the speed unknown: here anywhere from a quarter arc back to three arcs ahead per frame,
+// key-images one teach frame apart) the camera is placed 0.5 along arc 4 by its pose; the next frame, W_t:b alone places it 1.45 arc
+// lengths past arc 4's end, on arc 6 (the kind of placement that is mostly wrong,
+// PlacementModel::geometry_extrapolation_length). With the outlier probability of a placement within the arc, the
+// belief jumps to arc 6 and reports it; with the one beyond, it does not.
 TEST(PlacementModel, AnExtrapolatedGeometryDoesNotCarryTheBeliefTwoArcs) {
   const PlacementModel model;
   const auto run = [&](const PlaceMeasurement& extrapolated) {
-    PlaceBelief belief(LinearMap(12));
+    PlaceBeliefOptions options;
+    options.unknown_speed_min = -0.25;
+    options.unknown_speed_max = 3.0;
+    PlaceBelief belief(LinearMap(12, {}, 1), options);
     belief.Predict(1);
     belief.Update({{4, 0.5, 0.03, model.pose_outlier_probability}}, 1);
     belief.Predict(1);

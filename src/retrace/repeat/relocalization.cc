@@ -5,6 +5,7 @@
 // (the quantised thumbnails of AppearanceIndex) and verifies the most alike, in order, within a budget (issue 16).
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <unordered_set>
 
@@ -137,6 +138,54 @@ std::vector<node_t> Localizer::NodesNear(arc_t arc_id, int arcs) const {
   return nodes;
 }
 
+int Localizer::LocateMappedFeatures(const MatchedKeyImage& key_image, const std::array<const ArcData*, 3>& arcs,
+                                    std::unordered_set<feature_t>* seen) {
+  const double neighbour_radius = options_.bootstrap_neighbour_radius_px * pixel_scale_;
+  RefinePredictionOptions refine = refine_options_;
+  refine.max_distance = options_.bootstrap_radius_px * pixel_scale_;
+  refine.max_scale_ratio = 1.5;
+  const NodeData& node = Node(key_image.node);
+  int located_features = 0;
+  for (const ArcData* located : arcs) {
+    if (located == nullptr || (key_image.node != located->arc->from && key_image.node != located->arc->to)) continue;
+    for (const auto& [id, point] : located->points) {
+      if (tracker_.Find(id) != nullptr) continue;
+      const auto position = node.positions.find(id);
+      if (position == node.positions.end()) continue;
+      seen->insert(id);
+      // The matched key-points within the radius (at least 2), else (distant structure, where SIFT finds little)
+      // within twice the radius (at least 3) or three times (at least 4).
+      std::vector<double> dx, dy, ratios;
+      bool enough = false;
+      for (int widening = 1; widening <= 3 && !enough; ++widening) {
+        dx.clear();
+        dy.clear();
+        ratios.clear();
+        for (size_t i = 0; i < key_image.key_points.size(); ++i) {
+          if ((key_image.key_points[i] - position->second).norm() > widening * neighbour_radius) continue;
+          const Vector2d d = key_image.current_points[i] - key_image.key_points[i];
+          dx.push_back(d.x());
+          dy.push_back(d.y());
+          ratios.push_back(key_image.size_ratios[i]);
+        }
+        enough = static_cast<int>(dx.size()) >= widening + 1;
+      }
+      if (!enough) continue;
+      const Vector2d predicted = position->second + Vector2d(Median(dx), Median(dy));
+      if (!camera_->InImage(predicted, tracker_.Options().alignment.window_size / 2 + 2)) continue;
+      const ReferencePatch* reference = Reference(key_image.node, id);
+      if (reference == nullptr) continue;
+      const AlignmentResult refined =
+          RefinePrediction(prediction_pyramid_, *reference, predicted, Median(ratios), refine);
+      if (refined.ok() && tracker_.AddFeature(*reference, refined, id) != kInvalidFeatureId) {
+        reference_node_[id] = key_image.node;
+        ++located_features;
+      }
+    }
+  }
+  return located_features;
+}
+
 bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   const bool use_start_arc = start_arc_ != kInvalidArcId;
   const arc_t last_arc = last_arc_;
@@ -228,96 +277,67 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   const ArcData* arc = Arc(chosen);
   best = nullptr;  // `verified` may grow below
 
-  // The features are located through the key-images of the arc and of its neighbours: verify those the retrieval
-  // did not try (with a start arc, its two key-images only).
-  std::vector<node_t> untried;
-  for (const ArcData* located : {arc, Arc(arc->previous), Arc(arc->next)}) {
+  // The features are located through the verified key-images of the arc and of its neighbours (with a start arc,
+  // its two key-images only). Those retrieval did not try are verified lazily (the verifications are most of a
+  // first frame's time): the arc's own first, its neighbours' outer key-images only when the features located so far
+  // are too few or, over the whole map, the place not yet verified beyond one pair of images.
+  const std::array<const ArcData*, 3> located_arcs = {arc, Arc(arc->previous), Arc(arc->next)};
+  const auto on_located_arcs = [&located_arcs](node_t node) {
+    return std::any_of(located_arcs.begin(), located_arcs.end(), [node](const ArcData* located) {
+      return located != nullptr && (node == located->arc->from || node == located->arc->to);
+    });
+  };
+  std::vector<node_t> untried_arc, untried_neighbours;
+  for (const ArcData* located : located_arcs) {
     if (located == nullptr || use_start_arc) continue;
     for (const node_t node : {located->arc->from, located->arc->to}) {
+      const bool own = node == arc->arc->from || node == arc->arc->to;
+      std::vector<node_t>& untried = own ? untried_arc : untried_neighbours;
       if (std::find(tried.begin(), tried.end(), node) == tried.end() &&
           std::find(untried.begin(), untried.end(), node) == untried.end()) {
         untried.push_back(node);
       }
     }
   }
-  result->key_images_matched = static_cast<int>(tried.size() + untried.size());
-  if (!untried.empty()) {
-    std::vector<MatchedKeyImage> more = MatchKeyImages(current, untried);
+  const auto verify = [&](const std::vector<node_t>& nodes) {
+    if (nodes.empty()) return;
+    result->key_images_matched += static_cast<int>(nodes.size());
+    std::vector<MatchedKeyImage> more = MatchKeyImages(current, nodes);
     verified.insert(verified.end(), std::make_move_iterator(more.begin()), std::make_move_iterator(more.end()));
-  }
-
+  };
   // Over the whole map, the place must be verified beyond one pair of images: enough key-images of the arc and of
   // its neighbours verify (LocalizerOptions::min_global_agreeing_key_images; a look-alike place mostly verifies one).
-  if (global) {
-    int agreeing = 0;
-    for (const MatchedKeyImage& candidate : verified) {
-      for (const ArcData* located : {arc, Arc(arc->previous), Arc(arc->next)}) {
-        if (located != nullptr && (candidate.node == located->arc->from || candidate.node == located->arc->to)) {
-          ++agreeing;
-          break;
-        }
-      }
-    }
-    if (agreeing < options_.min_global_agreeing_key_images) {
-      spdlog::debug("repeat: bootstrap at frame {} failed: {} of the key-images around arc {} verified (key-image {}, "
-                    "{} inliers)",
-                    frame.index, agreeing, chosen, best_node, best_inliers);
-      return false;
-    }
-  }
+  const auto agreeing = [&]() {
+    return static_cast<int>(std::count_if(verified.begin(), verified.end(), [&](const MatchedKeyImage& candidate) {
+      return on_located_arcs(candidate.node);
+    }));
+  };
 
-  // Locate the mapped features of the arc and of its neighbours (all three are tracked from now on) in the frame:
-  // each feature seen in a matched key-image is predicted from the displacement of the nearest matched key-points
-  // there, then refined against the reference cut in that key-image.
-  const double neighbour_radius = options_.bootstrap_neighbour_radius_px * pixel_scale_;
-  RefinePredictionOptions refine = refine_options_;
-  refine.max_distance = options_.bootstrap_radius_px * pixel_scale_;
-  refine.max_scale_ratio = 1.5;
+  // Located through each verified key-image once, in the order verified.
   std::unordered_set<feature_t> seen;  // mapped features of the three arcs seen in a verified key-image
-  for (const MatchedKeyImage& candidate : verified) {
-    const NodeData& node = Node(candidate.node);
-    for (const ArcData* located : {arc, Arc(arc->previous), Arc(arc->next)}) {
-      if (located == nullptr || (candidate.node != located->arc->from && candidate.node != located->arc->to)) {
-        continue;
-      }
-      for (const auto& [id, point] : located->points) {
-        if (tracker_.Find(id) != nullptr) continue;
-        const auto position = node.positions.find(id);
-        if (position == node.positions.end()) continue;
-        seen.insert(id);
-        // The matched key-points within the radius (at least 2), else (distant structure, where SIFT finds little)
-        // within twice the radius (at least 3) or three times (at least 4).
-        std::vector<double> dx, dy, ratios;
-        bool enough = false;
-        for (int widening = 1; widening <= 3 && !enough; ++widening) {
-          dx.clear();
-          dy.clear();
-          ratios.clear();
-          for (size_t i = 0; i < candidate.key_points.size(); ++i) {
-            if ((candidate.key_points[i] - position->second).norm() > widening * neighbour_radius) continue;
-            const Vector2d d = candidate.current_points[i] - candidate.key_points[i];
-            dx.push_back(d.x());
-            dy.push_back(d.y());
-            ratios.push_back(candidate.size_ratios[i]);
-          }
-          enough = static_cast<int>(dx.size()) >= widening + 1;
-        }
-        if (!enough) continue;
-        const Vector2d predicted = position->second + Vector2d(Median(dx), Median(dy));
-        if (!camera_->InImage(predicted, tracker_.Options().alignment.window_size / 2 + 2)) continue;
-        const ReferencePatch* reference = Reference(candidate.node, id);
-        if (reference == nullptr) continue;
-        const AlignmentResult refined =
-            RefinePrediction(prediction_pyramid_, *reference, predicted, Median(ratios), refine);
-        if (refined.ok() && tracker_.AddFeature(*reference, refined, id) != kInvalidFeatureId) {
-          reference_node_[id] = candidate.node;
-          ++result->resumed;
-        }
-      }
+  size_t located_through = 0;
+  const auto locate = [&]() {
+    for (; located_through < verified.size(); ++located_through) {
+      result->resumed += LocateMappedFeatures(verified[located_through], located_arcs, &seen);
     }
-  }
+  };
+
   const int min_features =
       global ? GlobalBootstrapFeatures(options_, candidate_count) : options_.min_bootstrap_features;
+  const int min_agreeing = global ? options_.min_global_agreeing_key_images : 1;
+  verify(untried_arc);
+  if (agreeing() >= min_agreeing) locate();
+  if (agreeing() < min_agreeing || tracker_.NumFeatures() < min_features) {
+    verify(untried_neighbours);
+    if (agreeing() < min_agreeing) {
+      spdlog::debug("repeat: bootstrap at frame {} failed: {} of the key-images around arc {} verified (key-image {}, "
+                    "{} inliers)",
+                    frame.index, agreeing(), chosen, best_node, best_inliers);
+      ClearTracks();
+      return false;
+    }
+    locate();
+  }
   if (tracker_.NumFeatures() < min_features) {
     spdlog::debug("repeat: bootstrap at frame {} failed: {} of {} features located around arc {} (key-image {}, {} "
                   "inliers)",
