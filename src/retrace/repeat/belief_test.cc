@@ -100,18 +100,20 @@ TEST(PlaceBelief, MotionCarriesTheMassAcrossSeveralArcsInOneFrame) {
 TEST(PlaceBelief, WithoutASpeedOneFrameMovesTheCameraAFewTeachFrames) {
   // Localized on arc 5 by one placement (the speed unknown), the next frame is placed 3 arcs ahead (a relocalization
   // on a look-alike). Where the teach drive spent 5 frames on each arc, that is 15 teach frames in one frame, beyond
-  // unknown_speed_max (4): an outlier, not reported. Where key-images are one teach frame apart, 3 teach frames are
-  // within reach and the camera is there.
-  const PlaceBeliefOptions options;
-  ASSERT_DOUBLE_EQ(options.unknown_speed_max, 4.0);
-  for (const int frames_per_arc : {5, 1}) {
-    SCOPED_TRACE(frames_per_arc);
+  // unknown_speed_max (4): an outlier, not reported. Where key-images are one teach frame apart — one frame of the
+  // sequence, or 5 of a drive taught with `--every 5` (teach_frame_step) — 3 teach frames are within reach and the
+  // camera is there.
+  for (const auto [frames_per_arc, step] : {std::pair{5, 1}, std::pair{1, 1}, std::pair{5, 5}}) {
+    SCOPED_TRACE(::testing::Message() << frames_per_arc << " frames per arc, step " << step);
+    PlaceBeliefOptions options;
+    ASSERT_DOUBLE_EQ(options.unknown_speed_max, 4.0);
+    options.teach_frame_step = step;
     PlaceBelief belief(LinearMap(20, {}, frames_per_arc), options);
     Frame(&belief, 1, {Pose(5, 0.5)});
     ASSERT_EQ(belief.estimate().arc, 5);
     ASSERT_FALSE(belief.SpeedOn(5).has_value());
     Frame(&belief, 2, {Pose(8, 0.5)});
-    if (frames_per_arc == 5) {
+    if (frames_per_arc / step == 5) {
       EXPECT_FALSE(belief.estimate().evidence);
       EXPECT_FALSE(belief.estimate().tracking);
     } else {
@@ -304,6 +306,10 @@ TEST(PlaceBelief, OptionsAreChecked) {
   options = PlaceBeliefOptions();
   options.jump_probability = 0.0;
   EXPECT_FALSE(options.Check());
+  options = PlaceBeliefOptions();
+  options.teach_frame_step = 0;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("teach_frame_step"), std::string::npos);
   options = PlaceBeliefOptions();
   options.planned_branch_probability = 1.0;  // a plan the robot could never leave
   EXPECT_FALSE(options.Check());

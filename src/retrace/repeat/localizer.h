@@ -86,7 +86,8 @@
 // belief. The mapped features of that arc and of its two neighbours seen in the matched key-images are then located
 // in the frame from the displacement of the nearest matched key-points and refined against their references
 // (without the coarsest pyramid level, like every refined prediction); the regular transfer predicts the remaining
-// ones from the next frame on. Key-images of these three arcs that retrieval did not verify are verified for this.
+// ones from the next frame on. Key-images of these three arcs that retrieval did not verify are verified for this:
+// the arc's own first, the neighbours' outer ones only when too few features were located through those.
 // A bootstrap over the whole map is a multiple test against look-alike places: it also needs a second key-image of
 // those arcs verified and more located features the more key-images it searched (min_global_agreeing_key_images,
 // GlobalBootstrapFeatures).
