@@ -213,7 +213,8 @@ struct LocalizerOptions {
   // A relocalization over the whole map (no start arc, or lost for long) is a multiple test: each key-image is a
   // chance for a look-alike place to verify. Two checks hold its false alarms down, both measured on a map of 1264
   // key-images of rows of equal blocks (out-and-back streets 58 m apart; README, "Relocalization at scale"):
-  // 4 x 100 kidnapped starts (`retrace bench kidnap --seed 1..4`), 386 global bootstraps judged by the ground truth.
+  // 4 x 100 kidnapped starts (`retrace bench kidnap --seed 1..4`), 386 global bootstraps judged by the ground truth
+  // (their verified key-images and located features logged by temporary debug lines, not committed).
   // (1) The place is verified beyond one pair of images: at least this many key-images of the chosen arc and its
   //     two neighbours verify (right places: 354 of 362 had a second one; look-alikes 150-870 m away: 3 of 24) ...
   int min_global_agreeing_key_images = 2;

@@ -19,13 +19,19 @@ namespace retrace {
 
 using internal::Median;
 
+namespace {
+
+// Whether `node` is one of the two key-images of `arc`.
+bool HasEnd(const MapArc& arc, node_t node) { return node == arc.from || node == arc.to; }
+
+}  // namespace
+
 int GlobalBootstrapFeatures(const LocalizerOptions& options, size_t candidates) {
   const double excess = static_cast<double>(candidates) / options.global_gate_candidates;
   if (excess <= 1.0) return options.min_bootstrap_features;
   return options.min_bootstrap_features +
          static_cast<int>(std::ceil(options.global_features_per_log_candidates * std::log(excess)));
 }
-
 
 std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBaselineFeatures& current,
                                                                  const std::vector<node_t>& candidates,
@@ -147,7 +153,7 @@ int Localizer::LocateMappedFeatures(const MatchedKeyImage& key_image, const std:
   const NodeData& node = Node(key_image.node);
   int located_features = 0;
   for (const ArcData* located : arcs) {
-    if (located == nullptr || (key_image.node != located->arc->from && key_image.node != located->arc->to)) continue;
+    if (located == nullptr || !HasEnd(*located->arc, key_image.node)) continue;
     for (const auto& [id, point] : located->points) {
       if (tracker_.Find(id) != nullptr) continue;
       const auto position = node.positions.find(id);
@@ -284,15 +290,14 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   const std::array<const ArcData*, 3> located_arcs = {arc, Arc(arc->previous), Arc(arc->next)};
   const auto on_located_arcs = [&located_arcs](node_t node) {
     return std::any_of(located_arcs.begin(), located_arcs.end(), [node](const ArcData* located) {
-      return located != nullptr && (node == located->arc->from || node == located->arc->to);
+      return located != nullptr && HasEnd(*located->arc, node);
     });
   };
   std::vector<node_t> untried_arc, untried_neighbours;
   for (const ArcData* located : located_arcs) {
     if (located == nullptr || use_start_arc) continue;
     for (const node_t node : {located->arc->from, located->arc->to}) {
-      const bool own = node == arc->arc->from || node == arc->arc->to;
-      std::vector<node_t>& untried = own ? untried_arc : untried_neighbours;
+      std::vector<node_t>& untried = HasEnd(*arc->arc, node) ? untried_arc : untried_neighbours;
       if (std::find(tried.begin(), tried.end(), node) == tried.end() &&
           std::find(untried.begin(), untried.end(), node) == untried.end()) {
         untried.push_back(node);
