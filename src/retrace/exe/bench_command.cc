@@ -5,7 +5,8 @@
 // one tolerated near a node, evaluation.h); a frame reported `tracking` on any other arc is wrong. Times are the
 // localizer's own per-frame wall time (FrameResult::seconds, one thread). With --lost-sequence, one localizer is
 // fed frames of another drive (a place not in the map: it stays lost) and the relocalizing frames' times are
-// reported: what a lost robot pays per frame, the window around the loss widening until it is the whole map.
+// reported: what a lost robot pays per frame (its verification budget, LocalizerOptions::retrieval_shortlist, not the
+// start's).
 //
 //   retrace bench kidnap --map big.db --sequence drive_repeat --starts 100 --frames 3 [--lost-sequence other]
 //
@@ -184,7 +185,11 @@ void RunKidnap(const KidnapArguments& args) {
 
   if (!args.lost_sequence.empty()) {
     std::unique_ptr<Sequence> lost = OpenSequence(args.lost_sequence);
-    Localizer localizer(loaded.map, *loaded.camera, loaded.options);
+    // A robot lost after it was localized verifies retrieval_shortlist candidates per frame; a fresh localizer, which
+    // has never been localized, stands in for it with the start's larger budget set to that.
+    LocalizerOptions lost_options = loaded.options;
+    lost_options.start_retrieval_shortlist = lost_options.retrieval_shortlist;
+    Localizer localizer(loaded.map, *loaded.camera, lost_options);
     std::vector<double> ms, cpu_ms;
     int tracking = 0;
     const size_t count = std::min(lost->size(), static_cast<size_t>(args.lost_frames));
@@ -295,6 +300,9 @@ void RegisterBenchCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--retrieval-shortlist", args->options.retrieval_shortlist,
                   "Verification budget: key-images verified at most per relocalizing frame (0: all)")
+      ->capture_default_str();
+  cmd->add_option("--start-retrieval-shortlist", args->options.start_retrieval_shortlist,
+                  "Verification budget of the frames before the first localization (0: all)")
       ->capture_default_str();
   // Settings of the relocalization, for measuring alternatives (signatures made with other settings than the map's
   // are computed when the map is loaded).

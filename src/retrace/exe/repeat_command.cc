@@ -508,6 +508,10 @@ void RegisterRepeatCommand(CLI::App& app) {
                   "Verification budget when localizing without a start arc: at most this many key-images verified "
                   "per frame, the most similar in appearance first, stopping at the first confident one (0: all)")
       ->capture_default_str();
+  cmd->add_option("--start-retrieval-shortlist", args->options.start_retrieval_shortlist,
+                  "The same budget for the frames before the first localization (a robot at its start can spend "
+                  "more time on a frame than a lost one moving along; 0: all)")
+      ->capture_default_str();
   cmd->add_flag("!--sift", args->options.binary_relocalization,
                 "Relocalize with SIFT from three detectors extracted at run time (as before issue 16), not with the "
                 "binary key-points the map stores");

@@ -73,8 +73,8 @@ bool LocalizerOptions::Check(std::string* error) const {
     return fail("global_features_per_log_candidates must be >= 0 and global_gate_candidates >= 1");
   }
   if (max_cached_key_images < 1) return fail("max_cached_key_images must be >= 1");
-  if (retrieval_shortlist < 0 || retrieval_confident_inliers < 0) {
-    return fail("retrieval_shortlist and retrieval_confident_inliers must be >= 0");
+  if (retrieval_shortlist < 0 || start_retrieval_shortlist < 0 || retrieval_confident_inliers < 0) {
+    return fail("retrieval_shortlist, start_retrieval_shortlist and retrieval_confident_inliers must be >= 0");
   }
   std::string retrieval_error;
   if (!retrieval.Check(&retrieval_error)) return fail("retrieval: " + retrieval_error);

@@ -80,8 +80,8 @@
 // since, and the whole map only after `global_relocalization_frames` (look-alike streets elsewhere verify too).
 // Candidates are ranked by whole-image appearance (the quantised thumbnails stored in the map, AppearanceIndex) and
 // verified geometrically (relative pose on the matches) in that order, within a budget: at most
-// `retrieval_shortlist` of them, stopping at the first with `retrieval_confident_inliers` (issue 16: a relocalizing
-// frame costs the same on a map of any size). The verified key-image with most inliers wins. Its arc is chosen by which side of the
+// `retrieval_shortlist` of them (`start_retrieval_shortlist` before the first localization), stopping at the first
+// with `retrieval_confident_inliers` (issue 16: a relocalizing frame costs the same on a map of any size). The verified key-image with most inliers wins. Its arc is chosen by which side of the
 // key-image the camera is on (the sign test of eq. (9), which needs no scale); the key-image is a measurement of the
 // belief. The mapped features of that arc and of its two neighbours seen in the matched key-images are then located
 // in the frame from the displacement of the nearest matched key-points and refined against their references
@@ -240,6 +240,13 @@ struct LocalizerOptions {
   // appearance (GlobalDescriptor) and verified by wide-baseline matching in that order, at most this many (the
   // verification budget); 0 verifies every candidate.
   int retrieval_shortlist = 5;
+  // ... and at most this many while the robot has not been localized since the localizer started (a start without a
+  // start arc, and the frames after it until one localizes): a robot at its start can spend a few tens of milliseconds
+  // more on one frame, a lost robot moving along cannot. On the map of 1264 key-images (`retrace bench kidnap --map
+  // lawn.db --sequence repeat --starts 100 --frames 3 --retrieval-shortlist N --seed 1`) the right key-image was
+  // among the five most alike in 73 % of the first frames, among 10 in 77 %, 20 in 84 %, 40 in 91 % (within 3
+  // frames 90 / 91 / 94 / 97 %, never a wrong place), the first frame's 95th percentile 69, 72, 69 and 101 ms CPU.
+  int start_retrieval_shortlist = 20;
   // ... stopping at the first verified with at least this many inliers (a look-alike street elsewhere in the
   // simulated town verified with 42 SIFT inliers; the right key-image has hundreds on kitti07 and 60-150 in the
   // simulated town). Without a start arc the belief, not this, decides what is reported.
@@ -442,12 +449,12 @@ class Localizer {
     std::vector<Vector2d> key_points, current_points;  // inlier matches
     std::vector<double> size_ratios;                   // key-point size in the frame / in the key-image
   };
-  // Verifies `candidates` by wide-baseline matching, the most similar in appearance to `image` first (see
-  // LocalizerOptions::retrieval_shortlist), screened as MatchKeyImages when `screening`; every candidate tried is
-  // added to `tried`.
+  // Verifies `candidates` by wide-baseline matching, the most similar in appearance to `image` first, at most
+  // `shortlist` of them (0: all; see LocalizerOptions::retrieval_shortlist), screened as MatchKeyImages when
+  // `screening`; every candidate tried is added to `tried`.
   std::vector<MatchedKeyImage> RetrieveKeyImages(const cv::Mat& image, const WideBaselineFeatures& current,
                                                  const std::vector<node_t>& candidates, std::vector<node_t>* tried,
-                                                 bool screening);
+                                                 int shortlist, bool screening);
   // Verifies each candidate by a relative pose on the matches; `screening` (retrieval over the whole map) bounds
   // the samples by what finds a model of min_inliers inliers (relocalization.cc).
   std::vector<MatchedKeyImage> MatchKeyImages(const WideBaselineFeatures& current,

@@ -42,6 +42,10 @@ TEST(LocalizerOptions, CheckRejectsBadValues) {
   options.retrieval_shortlist = -1;
   EXPECT_FALSE(options.Check());
   options = LocalizerOptions();
+  options.start_retrieval_shortlist = -1;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("start_retrieval_shortlist"), std::string::npos) << error;
+  options = LocalizerOptions();
   options.retrieval_ambiguity_ratio = 1.5;
   EXPECT_FALSE(options.Check(&error));
   EXPECT_NE(error.find("ambiguity"), std::string::npos) << error;

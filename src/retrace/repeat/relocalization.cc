@@ -95,7 +95,8 @@ std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBase
 std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::Mat& image,
                                                                     const WideBaselineFeatures& current,
                                                                     const std::vector<node_t>& candidates,
-                                                                    std::vector<node_t>* tried, bool screening) {
+                                                                    std::vector<node_t>* tried, int shortlist_size,
+                                                                    bool screening) {
   // Rank by appearance: an exhaustive scan of the quantised thumbnails (about 0.3 µs per key-image).
   std::vector<size_t> entries;
   entries.reserve(candidates.size());
@@ -106,7 +107,7 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
   for (const size_t entry : appearance_index_.Rank(query, entries)) ranked.push_back(appearance_nodes_[entry]);
   // The verification budget: the most alike first, at most retrieval_shortlist of them, stopping at the first
   // confident one (0: every candidate, none skipped).
-  const size_t shortlist = static_cast<size_t>(options_.retrieval_shortlist);
+  const size_t shortlist = static_cast<size_t>(std::max(shortlist_size, 0));
   const size_t budget = shortlist > 0 ? std::min(shortlist, ranked.size()) : ranked.size();
   std::vector<MatchedKeyImage> verified;
   for (size_t i = 0; i < budget; ++i) {
@@ -225,7 +226,10 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
     }
     // Over the whole map most candidates are other places, and a lost robot's frame rate depends on how fast they
     // are refused (screening, MatchKeyImages); near where it was lost a candidate is likely the place: full budget.
-    verified = RetrieveKeyImages(frame.image, current, candidates, &tried, /*screening=*/global);
+    // Not localized since the start: the start's larger budget (LocalizerOptions::start_retrieval_shortlist).
+    const int shortlist =
+        last_arc == kInvalidArcId ? options_.start_retrieval_shortlist : options_.retrieval_shortlist;
+    verified = RetrieveKeyImages(frame.image, current, candidates, &tried, shortlist, /*screening=*/global);
     candidate_count = candidates.size();
   }
   result->key_images_matched = static_cast<int>(tried.size());

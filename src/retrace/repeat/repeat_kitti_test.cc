@@ -173,7 +173,9 @@ TEST_F(RepeatKitti, StartInTheMiddle) {
   EXPECT_EQ(run.evaluation.wrong_by_two, 0);
   const int after = static_cast<int>(run.results.size()) - std::max(run.first_localized, 0);
   EXPECT_GE(run.evaluation.correct, static_cast<int>(0.95 * after));
-  // Retrieval verified the appearance shortlist and the key-images around the chosen arc, not the whole map.
+  // Retrieval verified a few of the most alike key-images and those around the chosen arc, not the whole map: the
+  // start's budget (start_retrieval_shortlist) is not used up, as the first candidate verifies with more than
+  // retrieval_confident_inliers.
   const int shortlist = LocalizerOptions().retrieval_shortlist;
   EXPECT_LE(run.results.front().key_images_matched, shortlist + 4) << "of " << map_->nodes().size();
 }
@@ -182,8 +184,8 @@ TEST_F(RepeatKitti, StartInTheMiddle) {
 TEST_F(RepeatKitti, RetrievalShortlistAgreesWithMatchingEveryKeyImage) {
   SubsampledSequence odd(OpenSequence(kitti_), 2, 81);
   const Frame frame = *odd.Next();
-  LocalizerOptions every;
-  every.retrieval_shortlist = 0;
+  LocalizerOptions every;  // a first frame: the start's budget applies
+  every.start_retrieval_shortlist = 0;
   const FrameResult shortlisted = Localizer(*map_, *camera_).ProcessFrame(frame);
   const FrameResult exhaustive = Localizer(*map_, *camera_, every).ProcessFrame(frame);
   std::cout << "frame 81 from scratch: shortlist verified " << shortlisted.key_images_matched << " key-images in "
@@ -219,8 +221,9 @@ TEST_F(RepeatKitti, StoredSignaturesAreThoseComputedForOlderMaps) {
   EXPECT_EQ(stored.arc, recomputed.arc);
   EXPECT_EQ(stored.state, recomputed.state);
   EXPECT_EQ(stored.tracked, recomputed.tracked);
-  // The verification budget: at most retrieval_shortlist candidates, plus the key-images of the chosen arc and its
-  // neighbours that retrieval did not try.
+  // The verification budget: the first candidate is confident, so far fewer than the start's budget — at most
+  // retrieval_shortlist candidates, plus the key-images of the chosen arc and its neighbours that retrieval did not
+  // try.
   EXPECT_LE(stored.key_images_matched, LocalizerOptions().retrieval_shortlist + 4);
 }
 

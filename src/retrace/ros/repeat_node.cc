@@ -100,6 +100,7 @@ RepeatNodeOptions ReadRepeatNodeOptions(const ros::NodeHandle& private_node) {
   ReadParameter(private_node, "max_bad_frames", &localizer.max_bad_frames);
   ReadParameter(private_node, "min_confidence", &localizer.belief.min_confidence);
   ReadParameter(private_node, "retrieval_shortlist", &localizer.retrieval_shortlist);
+  ReadParameter(private_node, "start_retrieval_shortlist", &localizer.start_retrieval_shortlist);
   ReadParameter(private_node, "max_cached_key_images", &localizer.max_cached_key_images);
   std::string error;
   if (!options.Check(&error)) throw InputError(private_node.getNamespace(), error);

@@ -69,8 +69,9 @@ struct RepeatNodeOptions {
   // ~diagnostics_period: seconds between /diagnostics messages.
   double diagnostics_period = 1.0;
   // The localizer's main options, ~max_residual, ~max_sigma_p, ~steering_gain, ~max_bad_frames, ~min_confidence,
-  // ~retrieval_shortlist, ~max_cached_key_images, as `retrace repeat`'s options of the same names; defaults:
-  // LocalizerOptions'. The map's stored tracking settings (reference width, smoothing) are applied on top.
+  // ~retrieval_shortlist, ~start_retrieval_shortlist, ~max_cached_key_images, as `retrace repeat`'s options of the
+  // same names; defaults: LocalizerOptions'. The map's stored tracking settings (reference width, smoothing) are
+  // applied on top.
   LocalizerOptions localizer;
 
   bool Check(std::string* error) const;
