@@ -81,12 +81,13 @@
 // Candidates are ranked by whole-image appearance (the quantised thumbnails stored in the map, AppearanceIndex) and
 // verified geometrically (relative pose on the matches) in that order, within a budget: at most
 // `retrieval_shortlist` of them (`start_retrieval_shortlist` before the first localization), stopping at the first
-// with `retrieval_confident_inliers` (issue 16: a relocalizing frame costs the same on a map of any size). The verified key-image with most inliers wins. Its arc is chosen by which side of the
-// key-image the camera is on (the sign test of eq. (9), which needs no scale); the key-image is a measurement of the
-// belief. The mapped features of that arc and of its two neighbours seen in the matched key-images are then located
-// in the frame from the displacement of the nearest matched key-points and refined against their references
-// (without the coarsest pyramid level, like every refined prediction); the regular transfer predicts the remaining
-// ones from the next frame on. Key-images of these three arcs that retrieval did not verify are verified for this:
+// with `retrieval_confident_inliers` (issue 16: a relocalizing frame costs the same on a map of any size). The
+// verified key-image with most inliers wins. Its arc is chosen by which side of the key-image the camera is on (the
+// sign test of eq. (9), which needs no scale); the key-image is a measurement of the belief. The mapped features
+// of that arc and of its two neighbours seen in the matched key-images are then located in the frame from the
+// displacement of the nearest matched key-points and refined against their references (without the coarsest
+// pyramid level, like every refined prediction); the regular transfer predicts the remaining ones from the next
+// frame on. Key-images of these three arcs that retrieval did not verify are verified for this:
 // the arc's own first, the neighbours' outer ones only when too few features were located through those.
 // A bootstrap over the whole map is a multiple test against look-alike places: it also needs a second key-image of
 // those arcs verified and more located features the more key-images it searched (min_global_agreeing_key_images,
@@ -243,7 +244,7 @@ struct LocalizerOptions {
   // ... and at most this many while the robot has not been localized since the localizer started (a start without a
   // start arc, and the frames after it until one localizes): a robot at its start can spend a few tens of milliseconds
   // more on one frame, a lost robot moving along cannot. On the map of 1264 key-images (`retrace bench kidnap --map
-  // lawn.db --sequence repeat --starts 100 --frames 3 --retrieval-shortlist N --seed 1`) the right key-image was
+  // lawn.db --sequence repeat --starts 100 --frames 3 --start-retrieval-shortlist N --seed 1`) the right key-image was
   // among the five most alike in 73 % of the first frames, among 10 in 77 %, 20 in 84 %, 40 in 91 % (within 3
   // frames 90 / 91 / 94 / 97 %, never a wrong place), the first frame's 95th percentile 69, 72, 69 and 101 ms CPU.
   int start_retrieval_shortlist = 20;

@@ -95,7 +95,7 @@ std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBase
 std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::Mat& image,
                                                                     const WideBaselineFeatures& current,
                                                                     const std::vector<node_t>& candidates,
-                                                                    std::vector<node_t>* tried, int shortlist_size,
+                                                                    std::vector<node_t>* tried, int shortlist,
                                                                     bool screening) {
   // Rank by appearance: an exhaustive scan of the quantised thumbnails (about 0.3 µs per key-image).
   std::vector<size_t> entries;
@@ -105,10 +105,10 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
   std::vector<node_t> ranked;
   ranked.reserve(candidates.size());
   for (const size_t entry : appearance_index_.Rank(query, entries)) ranked.push_back(appearance_nodes_[entry]);
-  // The verification budget: the most alike first, at most retrieval_shortlist of them, stopping at the first
-  // confident one (0: every candidate, none skipped).
-  const size_t shortlist = static_cast<size_t>(std::max(shortlist_size, 0));
-  const size_t budget = shortlist > 0 ? std::min(shortlist, ranked.size()) : ranked.size();
+  // The verification budget: the most alike first, at most `shortlist` of them, stopping at the first confident one
+  // (0: every candidate, none skipped).
+  const bool limited = shortlist > 0;
+  const size_t budget = limited ? std::min(static_cast<size_t>(shortlist), ranked.size()) : ranked.size();
   std::vector<MatchedKeyImage> verified;
   for (size_t i = 0; i < budget; ++i) {
     tried->push_back(ranked[i]);
@@ -118,7 +118,7 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
     if (one.empty()) continue;
     const bool confident = one.front().geometry.num_inliers >= options_.retrieval_confident_inliers;
     verified.push_back(std::move(one.front()));
-    if (confident && shortlist > 0) break;
+    if (confident && limited) break;
   }
   return verified;
 }
