@@ -235,7 +235,8 @@ void BindLocalizer(py::module_& module) {
       "The GIL is released while a frame is processed.")
       .def(py::init([](const py::object& map, std::shared_ptr<CameraModel> camera, std::optional<arc_t> start_arc,
                        double max_residual, double max_sigma_p, double steering_gain, int max_bad_frames,
-                       double min_confidence, int max_cached_key_images, int retrieval_shortlist, bool absolute_pose,
+                       double min_confidence, int max_cached_key_images, int retrieval_shortlist,
+                       int start_retrieval_shortlist, bool absolute_pose,
                        bool redefine_references, double camera_height, bool sift_relocalization) {
              // A retrace.Map is localized in through its file: the Localizer reads the settings teach stored there.
              const py::object map_type = py::module_::import("retrace").attr("Map");
@@ -248,6 +249,7 @@ void BindLocalizer(py::module_& module) {
              options.belief.min_confidence = min_confidence;
              options.max_cached_key_images = max_cached_key_images;
              options.retrieval_shortlist = retrieval_shortlist;
+             options.start_retrieval_shortlist = start_retrieval_shortlist;
              options.place_by_absolute_pose = absolute_pose;
              options.redefine_references = redefine_references;
              options.path.camera_height = camera_height;
@@ -263,6 +265,7 @@ void BindLocalizer(py::module_& module) {
            py::arg("min_confidence") = PlaceBeliefOptions().min_confidence,
            py::arg("max_cached_key_images") = LocalizerOptions().max_cached_key_images,
            py::arg("retrieval_shortlist") = LocalizerOptions().retrieval_shortlist,
+           py::arg("start_retrieval_shortlist") = LocalizerOptions().start_retrieval_shortlist,
            py::arg("absolute_pose") = LocalizerOptions().place_by_absolute_pose,
            py::arg("redefine_references") = LocalizerOptions().redefine_references, py::arg("camera_height") = 0.0,
            py::arg("sift_relocalization") = !LocalizerOptions().binary_relocalization,
@@ -271,7 +274,8 @@ void BindLocalizer(py::module_& module) {
            "the same rays more than 1 px away from the map's is refused.\n"
            "start_arc: bootstrap the first frame on this arc (--start-arc); default: found by retrieval.\n"
            "The keyword options are those of `retrace repeat` (--max-residual, --max-sigma-p, --steering-gain,\n"
-           "--max-bad-frames, --min-confidence, --max-cached-key-images, --retrieval-shortlist; absolute_pose=False\n"
+           "--max-bad-frames, --min-confidence, --max-cached-key-images, --retrieval-shortlist,\n"
+           "--start-retrieval-shortlist; absolute_pose=False\n"
            "is --no-absolute-pose, redefine_references=False --keep-references, camera_height --camera-height:\n"
            "the camera's height above the ground in metres for FrameResult.path; 0 = the one stored in the map;\n"
            "sift_relocalization=True is --sift: relocalize with SIFT extracted at run time, not the binary key-points\n"

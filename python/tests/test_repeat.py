@@ -135,3 +135,5 @@ def test_localizer_errors(drives, tmp_path):
     assert retrace.Localizer(drives.map, camera=camera.scaled(2.0)).camera.to_yaml() == camera.to_yaml()
     with pytest.raises(retrace.InputError, match="localizer options"):
         retrace.Localizer(drives.map, max_bad_frames=0)
+    with pytest.raises(retrace.InputError, match="start_retrieval_shortlist"):
+        retrace.Localizer(drives.map, start_retrieval_shortlist=-1)
