@@ -199,6 +199,28 @@ TEST_F(RepeatKitti, RetrievalShortlistAgreesWithMatchingEveryKeyImage) {
   EXPECT_GE(shortlisted.tracked, 0.9 * exhaustive.tracked);
 }
 
+// The verification budget follows whether the robot has been localized: a fresh localizer (a start) verifies up to
+// start_retrieval_shortlist key-images per frame, one lost after it was localized up to retrieval_shortlist. A
+// uniform grey frame verifies no key-image, so every budget is used up; no candidate can be confident.
+TEST_F(RepeatKitti, StartAndLossHaveTheirOwnVerificationBudgets) {
+  SubsampledSequence odd(OpenSequence(kitti_), 2, 81);
+  const Frame frame = *odd.Next();
+  Frame grey = frame;
+  grey.image = cv::Mat(frame.image.size(), CV_8UC1, cv::Scalar(128));
+  LocalizerOptions options;
+  options.start_retrieval_shortlist = 7;
+  options.retrieval_shortlist = 2;
+  const FrameResult start = Localizer(*map_, *camera_, options).ProcessFrame(grey);
+  EXPECT_NE(start.state, LocalizerState::kTracking);
+  EXPECT_EQ(start.key_images_matched, 7);
+  Localizer localizer(*map_, *camera_, options);
+  ASSERT_EQ(localizer.ProcessFrame(frame).state, LocalizerState::kTracking);
+  // The tracks are given up in the grey frame and it is relocalized at once, near where they were lost.
+  const FrameResult lost = localizer.ProcessFrame(grey);
+  EXPECT_NE(lost.state, LocalizerState::kTracking);
+  EXPECT_EQ(lost.key_images_matched, 2);
+}
+
 // The key-images' relocalization signatures that teach stored, and the same computed by the localizer for a map
 // without them (a map of an older retrace): frame 81 from scratch is localized on the same arc with the same
 // features, and the stored key-points are those LoadMapForLocalizer would compute.
