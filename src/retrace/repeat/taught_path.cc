@@ -6,7 +6,9 @@
 #include <stdexcept>
 #include <vector>
 
+#include <Eigen/Cholesky>
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include "retrace/repeat/localizer_internal.h"
 
@@ -94,7 +96,79 @@ bool TaughtPathOptions::Check(std::string* error) const {
   if (scale_window < 0 || scale_window > 100) {
     return fail(fmt::format("scale_window must be in 0..100, got {}", scale_window));
   }
+  if (!(relative_scale_sigma > 0 && relative_scale_sigma < 1)) {
+    return fail(fmt::format("relative_scale_sigma must be in (0, 1), got {}", relative_scale_sigma));
+  }
+  if (!(ground_scale_sigma > 0 && ground_scale_sigma < 1)) {
+    return fail(fmt::format("ground_scale_sigma must be in (0, 1), got {}", ground_scale_sigma));
+  }
+  if (!(ground_outlier_probability >= 0 && ground_outlier_probability < 1)) {
+    return fail(fmt::format("ground_outlier_probability must be in [0, 1), got {}", ground_outlier_probability));
+  }
   return ground.Check(error);
+}
+
+CombinedScale CombineArcScales(const std::vector<CarriedScale>& scales, const TaughtPathOptions& options) {
+  CombinedScale combined;
+  const int n = static_cast<int>(scales.size());
+  if (n == 0) return combined;
+  const double sigma_r2 = options.relative_scale_sigma * options.relative_scale_sigma;
+  const double p = options.ground_outlier_probability;
+  const double outlier_density =
+      p / std::log(options.ground.max_distance / options.ground.min_distance);  // p · U(L)
+  Eigen::VectorXd y(n), fit_variance(n);
+  Eigen::MatrixXd shared(n, n);  // σ_r² · node scales shared on the way from the arc
+  for (int i = 0; i < n; ++i) {
+    y(i) = scales[i].log_metres_per_unit;
+    fit_variance(i) = std::pow(std::max(options.ground_scale_sigma, scales[i].fit_sigma), 2);
+    for (int j = 0; j < n; ++j) {
+      const bool same_side = scales[i].side != 0 && scales[i].side == scales[j].side;
+      shared(i, j) = same_side ? sigma_r2 * std::min(scales[i].steps, scales[j].steps) : 0.0;
+    }
+  }
+  // Responsibilities of the Gaussian component (E step) and the mixture's log-likelihood at x.
+  const auto responsibilities = [&](double x, Eigen::VectorXd* w) {
+    double log_likelihood = 0.0;
+    for (int i = 0; i < n; ++i) {
+      const double variance = shared(i, i) + fit_variance(i);
+      const double r = y(i) - x;
+      const double inlier = (1 - p) * std::exp(-0.5 * r * r / variance) / std::sqrt(2 * M_PI * variance);
+      if (w != nullptr) (*w)(i) = inlier / (inlier + outlier_density);
+      log_likelihood += std::log(inlier + outlier_density);
+    }
+    return log_likelihood;
+  };
+  double x = y(0);
+  double best = -std::numeric_limits<double>::infinity();
+  for (int i = 0; i < n; ++i) {
+    const double log_likelihood = responsibilities(y(i), nullptr);
+    if (log_likelihood > best) {
+      best = log_likelihood;
+      x = y(i);
+    }
+  }
+  Eigen::VectorXd w(n);
+  double information = 0.0;
+  constexpr int kMaxIterations = 30;
+  for (int iteration = 0; iteration < kMaxIterations; ++iteration) {
+    responsibilities(x, &w);
+    Eigen::MatrixXd covariance = shared;
+    for (int i = 0; i < n; ++i) covariance(i, i) += fit_variance(i) / std::max(w(i), 1e-9);
+    const Eigen::LDLT<Eigen::MatrixXd> ldlt(covariance);
+    const Eigen::VectorXd gain = ldlt.solve(Eigen::VectorXd::Ones(n));  // C_w⁻¹ 1
+    information = gain.sum();
+    if (!(information > 0)) return combined;
+    const double next = gain.dot(y) / information;
+    const bool converged = std::abs(next - x) < 1e-9;
+    x = next;
+    if (converged) break;
+  }
+  responsibilities(x, &w);
+  combined.valid = std::isfinite(x);
+  combined.metres_per_unit = std::exp(x);
+  combined.sigma = std::sqrt(1.0 / information);
+  combined.inliers = static_cast<int>((w.array() > 0.5).count());
+  return combined;
 }
 
 TaughtPath::TaughtPath(const Map& map, const CameraModel& camera, const TaughtPathOptions& options)
@@ -152,6 +226,11 @@ const TaughtPath::ArcGround& TaughtPath::Ground(arc_t arc_id) {
       ground->plane = EstimateGroundPlane(map_.KeyImage(a->id), map_.KeyImage(b->id), *camera_, arc->to_from_from,
                                          options);
       if (ground->plane.valid) ground->metres_per_unit = options_.camera_height / ground->plane.distance_b;
+      spdlog::debug("taught path: arc {} ground plane {}: d_b {:.4f} +- {:.4f} units, rms {:.1f}, overlap {:.2f}, "
+                    "{:.4f} m/unit",
+                    arc_id, ground->plane.valid ? "valid" : "invalid", ground->plane.distance_b,
+                    ground->plane.distance_sigma, ground->plane.rms_residual, ground->plane.overlap,
+                    ground->metres_per_unit);
     }
   }
   return *grounds_.emplace(arc_id, std::move(ground)).first->second;
@@ -168,34 +247,37 @@ std::optional<double> TaughtPath::MetresPerUnit(arc_t arc_id) {
   // This arc's own scale and its neighbours' carried into its unit through the relative scales stored at the
   // nodes (design §1: a length in units of the arc leaving a node times the scale is that length in units of the
   // arc entering it).
-  std::vector<double> scales;
-  if (ground.metres_per_unit > 0) scales.push_back(ground.metres_per_unit);
+  const auto fit_sigma = [](const GroundPlane& plane) {
+    return plane.distance_b > 0 ? plane.distance_sigma / plane.distance_b : 0.0;
+  };
+  std::vector<CarriedScale> scales;
+  if (ground.metres_per_unit > 0) {
+    scales.push_back({std::log(ground.metres_per_unit), 0, 0, fit_sigma(ground.plane)});
+  }
   for (const int direction : {+1, -1}) {
     const MapArc* current = arc;
-    double unit_ratio = 1.0;  // a length in units of `arc` times this = the same length in units of `current`
+    double log_unit_ratio = 0.0;  // a length in units of `arc` times exp(this) = the same length in units of `current`
     for (int step = 0; step < options_.scale_window; ++step) {
       const MapArc* neighbour = direction > 0 ? Next(*current) : Previous(*current);
       if (neighbour == nullptr) break;
       const std::optional<double> scale = direction > 0 ? map_.ScaleAt(current->to, current->id, neighbour->id)
                                                         : map_.ScaleAt(current->from, neighbour->id, current->id);
       if (!scale || !(*scale > 0)) break;
-      unit_ratio *= direction > 0 ? 1.0 / *scale : *scale;
-      const double metres_per_unit = Ground(neighbour->id).metres_per_unit;
-      if (metres_per_unit > 0) scales.push_back(metres_per_unit * unit_ratio);
+      log_unit_ratio += direction > 0 ? -std::log(*scale) : std::log(*scale);
+      const ArcGround& neighbour_ground = Ground(neighbour->id);
+      if (neighbour_ground.metres_per_unit > 0) {
+        scales.push_back({std::log(neighbour_ground.metres_per_unit) + log_unit_ratio, direction, step + 1,
+                          fit_sigma(neighbour_ground.plane)});
+      }
       current = neighbour;
     }
   }
-  if (scales.empty()) return std::nullopt;
-  const double median = internal::Median(scales);
-  // Relative spread: the median absolute deviation of the log-scales (robust), at least the own fit's.
-  std::vector<double> deviations;
-  for (double s : scales) deviations.push_back(std::abs(std::log(s / median)));
-  double sigma = scales.size() >= 3 ? 1.4826 * internal::Median(deviations) : 0.0;
-  if (ground.plane.valid && ground.plane.distance_b > 0) {
-    sigma = std::max(sigma, ground.plane.distance_sigma / ground.plane.distance_b);
-  }
-  ground.window_scale = median;
-  ground.window_sigma = sigma;
+  const CombinedScale combined = CombineArcScales(scales, options_);
+  if (!combined.valid) return std::nullopt;
+  spdlog::debug("taught path: arc {} scale {:.4f} m/unit +- {:.1f} % from {} of {} ground planes", arc_id,
+                combined.metres_per_unit, 100 * combined.sigma, combined.inliers, scales.size());
+  ground.window_scale = combined.metres_per_unit;
+  ground.window_sigma = combined.sigma;
   return ground.window_scale;
 }
 
