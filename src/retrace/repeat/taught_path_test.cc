@@ -11,22 +11,18 @@ namespace retrace {
 namespace {
 
 // Carried scales of an arc whose true scale is `metres_per_unit`, with `window` arcs on each side: every node scale
-// and every right fit off by the model's noise, the fits listed in `wrong` (side, steps) off by `factor`.
-struct Chain {
-  std::vector<CarriedScale> scales;
-};
-
-Chain MakeChain(double metres_per_unit, int window, const std::vector<std::pair<std::pair<int, int>, double>>& wrong,
-                unsigned seed) {
+// and every right fit off by the model's noise, the fits listed in `wrong` ((side, steps), factor) off by `factor`.
+std::vector<CarriedScale> MakeChain(double metres_per_unit, int window,
+                                    const std::vector<std::pair<std::pair<int, int>, double>>& wrong, unsigned seed) {
   std::mt19937 random(seed);
   std::normal_distribution<double> node_noise(0.0, 0.01), fit_noise(0.0, 0.02);
-  Chain chain;
+  std::vector<CarriedScale> chain;
   const auto fit = [&](int side, int steps, double carried_error) {
     double log_scale = std::log(metres_per_unit) + carried_error + fit_noise(random);
     for (const auto& [where, factor] : wrong) {
       if (where.first == side && where.second == steps) log_scale += std::log(factor);
     }
-    chain.scales.push_back({log_scale, side, steps, 0.002});
+    chain.push_back({log_scale, side, steps, 0.002});
   };
   fit(0, 0, 0.0);
   for (const int side : {+1, -1}) {
@@ -54,10 +50,11 @@ TEST(CombineArcScalesTest, RecoversTheScaleThroughARunOfWrongGroundFits) {
   const double truth = 2.0;
   const TaughtPathOptions options;
   for (unsigned seed = 1; seed <= 20; ++seed) {
-    const Chain chain = MakeChain(truth, options.scale_window, {{{0, 0}, 2.75}, {{1, 1}, 1.45}, {{1, 2}, 2.5}}, seed);
+    const std::vector<CarriedScale> chain =
+        MakeChain(truth, options.scale_window, {{{0, 0}, 2.75}, {{1, 1}, 1.45}, {{1, 2}, 2.5}}, seed);
     // The median of the arcs within two of it, as before this model, is taken by the run of wrong fits.
-    EXPECT_GT(std::abs(MedianOfWindow(chain.scales, 2) / truth - 1), 0.3) << "seed " << seed;
-    const CombinedScale combined = CombineArcScales(chain.scales, options);
+    EXPECT_GT(std::abs(MedianOfWindow(chain, 2) / truth - 1), 0.3) << "seed " << seed;
+    const CombinedScale combined = CombineArcScales(chain, options);
     ASSERT_TRUE(combined.valid);
     EXPECT_NEAR(combined.metres_per_unit / truth, 1.0, 0.04) << "seed " << seed;
     EXPECT_EQ(combined.inliers, 2 * options.scale_window + 1 - 3) << "seed " << seed;
