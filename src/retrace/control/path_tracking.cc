@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 #include <stdexcept>
 
 #include <fmt/format.h>
+
+#include "retrace/util/robust_random_walk.h"
 
 namespace retrace {
 
@@ -45,6 +48,21 @@ bool PathTrackingOptions::Check(std::string* error) const {
   if (!(uncertain_speed_fraction > 0 && uncertain_speed_fraction <= 1)) {
     return fail(fmt::format("uncertain_speed_fraction must be in (0, 1], got {}", uncertain_speed_fraction));
   }
+  if (!(offset_window >= 0 && offset_window <= 1000)) {
+    return fail(fmt::format("offset_window must be in [0, 1000] m, got {}", offset_window));
+  }
+  if (!(offset_process_sigma >= 0 && offset_process_sigma <= 10)) {
+    return fail(fmt::format("offset_process_sigma must be in [0, 10] m/sqrt(m), got {}", offset_process_sigma));
+  }
+  if (!(min_offset_sigma > 0 && min_offset_sigma <= 10)) {
+    return fail(fmt::format("min_offset_sigma must be in (0, 10] m, got {}", min_offset_sigma));
+  }
+  if (!(offset_outlier_probability >= 0 && offset_outlier_probability < 1)) {
+    return fail(fmt::format("offset_outlier_probability must be in [0, 1), got {}", offset_outlier_probability));
+  }
+  if (!(offset_outlier_range > 0 && offset_outlier_range <= 1000)) {
+    return fail(fmt::format("offset_outlier_range must be in (0, 1000] m, got {}", offset_outlier_range));
+  }
   return true;
 }
 
@@ -60,11 +78,33 @@ PathTracker::PathTracker(const PathTrackingOptions& options) : options_(options)
   if (!options_.Check(&error)) throw std::invalid_argument("PathTrackingOptions: " + error);
 }
 
+double PathTracker::FilteredOffset(const PathTrackingInput& input, double dt) {
+  // The camera moved speed·dt since the last frame in the direction φ = ψ − atan(d κ) relative to the path.
+  if (!frames_.empty()) {
+    const double travelled = speed_ * dt;
+    const double direction = input.heading_error_rad - std::atan(options_.camera_forward * curvature_);
+    distance_ += travelled;
+    drift_ += travelled * std::sin(direction);
+  }
+  frames_.push_back({distance_, input.lateral_m - drift_, std::max(options_.min_offset_sigma, input.lateral_sigma_m)});
+  while (distance_ - frames_.front().distance > options_.offset_window) frames_.erase(frames_.begin());
+  const double q2 = options_.offset_process_sigma * options_.offset_process_sigma;
+  std::vector<CarriedObservation> observations;
+  for (const Frame& f : frames_) {
+    const double behind = distance_ - f.distance;
+    observations.push_back({f.offset, f.sigma, q2 * behind, behind > 0 ? -1 : 0});
+  }
+  const CombinedObservation offset =
+      CombineCarriedObservations(observations, options_.offset_outlier_probability, options_.offset_outlier_range);
+  return offset.valid ? offset.value + drift_ : input.lateral_m;
+}
+
 PathTrackingCommand PathTracker::Update(const PathTrackingInput& input, bool prefer_image) {
   PathTrackingCommand command;
   const double dt = std::max(0.0, input.dt);
   if (!input.tracking) {
     // Lost: stop now; the wheels keep their angle (nothing to steer by).
+    frames_.clear();
     speed_ = 0.0;
     command.mode = SteeringMode::kStop;
     command.curvature = curvature_;
@@ -74,11 +114,15 @@ PathTrackingCommand PathTracker::Update(const PathTrackingInput& input, bool pre
   double wanted = curvature_;
   if (input.metric && !prefer_image) {
     command.mode = SteeringMode::kPath;
-    wanted = CameraPointCurvature(input.lateral_m, input.heading_error_rad, options_);
+    double lateral = input.lateral_m;
+    if (options_.offset_process_sigma > 0) lateral = FilteredOffset(input, dt);
+    wanted = CameraPointCurvature(lateral, input.heading_error_rad, options_);
   } else if (input.image_steering_valid) {
+    frames_.clear();
     command.mode = SteeringMode::kImage;
     wanted = -options_.image_gain * input.image_steering;
   } else {
+    frames_.clear();
     command.mode = SteeringMode::kImage;  // nothing new to steer by: hold the wheels
   }
   wanted = std::clamp(wanted, -options_.max_curvature, options_.max_curvature);

@@ -59,8 +59,10 @@ struct DriveResult {
 
 // Drives the car at `speed` with one command per `dt`, the camera starting `start_offset` right of the path's
 // start, heading along it.
+// `measured` (when given) turns the frame's true offset into the one the law is told, with its σ.
+using Measurement = std::function<void(int frame, PathTrackingInput* input)>;
 DriveResult Drive(const TestPath& path, double speed, double dt, double start_offset, const PathTrackingOptions& options,
-                  double wheelbase = 2.7) {
+                  double wheelbase = 2.7, const Measurement& measured = nullptr) {
   PathTracker tracker(options);
   // Rear axle such that the camera is start_offset to the right (-y) of the start, heading +x.
   Vector2d rear(-options.camera_forward, -start_offset);
@@ -77,6 +79,7 @@ DriveResult Drive(const TestPath& path, double speed, double dt, double start_of
     path.Locate(camera, heading, &input.lateral_m, &input.heading_error_rad, &index);
     input.dt = dt;
     result.lateral.push_back(input.lateral_m);
+    if (measured) measured(frame, &input);
     result.driven.push_back(driven);
     if (index >= path.points.size() - 2) {
       result.reached_end = true;
@@ -135,6 +138,49 @@ TEST(CameraPointCurvature, SteersTowardsThePathAndMatchesASteadyTurn) {
   const double k = 1.0 / 7.0;
   EXPECT_NEAR(CameraPointCurvature(0.0, std::atan(options.camera_forward * k), options), k, 1e-12);
   EXPECT_NEAR(CameraPointCurvature(0.0, -std::atan(options.camera_forward * k), options), -k, 1e-12);
+}
+
+TEST(PathTracker, ARunOfFramesAMetreOffDoesNotTurnTheCar) {
+  // A pose on one far facade: seven frames in a row put the camera 1 m left of where it is, sure of themselves (σ 5
+  // cm), as seed3's frames 7-13 in the validation matrix; the others see the truth with σ 3 cm. The filtered offset
+  // (the frames of the last 20 m carried by the car's motion) takes them for wrong; each frame's own steers the car
+  // towards the phantom. (With a 10 m window the seven frames are the majority once the older ones have left it.)
+  const TestPath path = MakePath(120.0, [](double) { return 0.0; });
+  const auto phantom = [](int frame, PathTrackingInput* input) {
+    const bool wrong = frame >= 60 && frame < 67;
+    input->lateral_m -= wrong ? 1.0 : 0.0;
+    input->lateral_sigma_m = wrong ? 0.05 : 0.03;
+  };
+  PathTrackingOptions filtered = FastOptions();
+  PathTrackingOptions own = FastOptions();
+  own.offset_process_sigma = 0.0;
+  const DriveResult with_filter = Drive(path, 8.0, 0.1, 0.0, filtered, 2.7, phantom);
+  const DriveResult without = Drive(path, 8.0, 0.1, 0.0, own, 2.7, phantom);
+  ASSERT_TRUE(with_filter.reached_end);
+  ASSERT_TRUE(without.reached_end);
+  EXPECT_LT(MaxAbsAfter(with_filter, 0.0), 0.05);
+  EXPECT_GT(MaxAbsAfter(without, 0.0), 0.3);
+}
+
+TEST(PathTracker, FilteredOffsetFollowsTheCarOntoThePath) {
+  // From 1.5 m beside, the offset closes over ~10 m: carried by the commanded motion, the frames of the window agree
+  // with the current one, and the car converges as with each frame's own offset.
+  const TestPath path = MakePath(80.0, [](double) { return 0.0; });
+  const auto noisy = [](int frame, PathTrackingInput* input) {
+    input->lateral_m += (frame % 2 ? 0.03 : -0.03);
+    input->lateral_sigma_m = 0.03;
+  };
+  PathTrackingOptions own = FastOptions();
+  own.offset_process_sigma = 0.0;
+  const DriveResult with_filter = Drive(path, 8.0, 0.1, 1.5, FastOptions(), 2.7, noisy);
+  const DriveResult without = Drive(path, 8.0, 0.1, 1.5, own, 2.7, noisy);
+  EXPECT_LT(MaxAbsAfter(with_filter, 15.0), 0.1);
+  EXPECT_LT(MaxAbsAfter(with_filter, 15.0), MaxAbsAfter(without, 15.0) + 0.02);
+  // No overshoot to the other side beyond what each frame's own offset gives.
+  double lowest_with = 0.0, lowest_without = 0.0;
+  for (double l : with_filter.lateral) lowest_with = std::min(lowest_with, l);
+  for (double l : without.lateral) lowest_without = std::min(lowest_without, l);
+  EXPECT_GT(lowest_with, lowest_without - 0.05);
 }
 
 TEST(PathTracker, StraightPathConvergesFromAnOffset) {
@@ -233,6 +279,14 @@ TEST(PathTrackingOptions, RejectsImplausibleValues) {
   EXPECT_FALSE(options.Check(&error));
   EXPECT_NE(error.find("camera_forward"), std::string::npos);
   EXPECT_THROW(PathTracker{options}, std::invalid_argument);
+  options = PathTrackingOptions();
+  options.offset_outlier_probability = 1.0;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("offset_outlier_probability"), std::string::npos);
+  options = PathTrackingOptions();
+  options.min_offset_sigma = 0.0;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("min_offset_sigma"), std::string::npos);
 }
 
 }  // namespace

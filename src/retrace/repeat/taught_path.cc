@@ -6,11 +6,11 @@
 #include <stdexcept>
 #include <vector>
 
-#include <Eigen/Cholesky>
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include "retrace/repeat/localizer_internal.h"
+#include "retrace/util/robust_random_walk.h"
 
 namespace retrace {
 namespace {
@@ -109,65 +109,20 @@ bool TaughtPathOptions::Check(std::string* error) const {
 }
 
 CombinedScale CombineArcScales(const std::vector<CarriedScale>& scales, const TaughtPathOptions& options) {
-  CombinedScale combined;
-  const int n = static_cast<int>(scales.size());
-  if (n == 0) return combined;
   const double sigma_r2 = options.relative_scale_sigma * options.relative_scale_sigma;
-  const double p = options.ground_outlier_probability;
-  const double outlier_density =
-      p / std::log(options.ground.max_distance / options.ground.min_distance);  // p · U(L)
-  Eigen::VectorXd y(n), fit_variance(n);
-  Eigen::MatrixXd shared(n, n);  // σ_r² · node scales shared on the way from the arc
-  for (int i = 0; i < n; ++i) {
-    y(i) = scales[i].log_metres_per_unit;
-    fit_variance(i) = std::pow(std::max(options.ground_scale_sigma, scales[i].fit_sigma), 2);
-    for (int j = 0; j < n; ++j) {
-      const bool same_side = scales[i].side != 0 && scales[i].side == scales[j].side;
-      shared(i, j) = same_side ? sigma_r2 * std::min(scales[i].steps, scales[j].steps) : 0.0;
-    }
+  std::vector<CarriedObservation> observations;
+  for (const CarriedScale& s : scales) {
+    observations.push_back({s.log_metres_per_unit, std::max(options.ground_scale_sigma, s.fit_sigma),
+                            sigma_r2 * s.steps, s.side});
   }
-  // Responsibilities of the Gaussian component (E step) and the mixture's log-likelihood at x.
-  const auto responsibilities = [&](double x, Eigen::VectorXd* w) {
-    double log_likelihood = 0.0;
-    for (int i = 0; i < n; ++i) {
-      const double variance = shared(i, i) + fit_variance(i);
-      const double r = y(i) - x;
-      const double inlier = (1 - p) * std::exp(-0.5 * r * r / variance) / std::sqrt(2 * M_PI * variance);
-      if (w != nullptr) (*w)(i) = inlier / (inlier + outlier_density);
-      log_likelihood += std::log(inlier + outlier_density);
-    }
-    return log_likelihood;
-  };
-  double x = y(0);
-  double best = -std::numeric_limits<double>::infinity();
-  for (int i = 0; i < n; ++i) {
-    const double log_likelihood = responsibilities(y(i), nullptr);
-    if (log_likelihood > best) {
-      best = log_likelihood;
-      x = y(i);
-    }
-  }
-  Eigen::VectorXd w(n);
-  double information = 0.0;
-  constexpr int kMaxIterations = 30;
-  for (int iteration = 0; iteration < kMaxIterations; ++iteration) {
-    responsibilities(x, &w);
-    Eigen::MatrixXd covariance = shared;
-    for (int i = 0; i < n; ++i) covariance(i, i) += fit_variance(i) / std::max(w(i), 1e-9);
-    const Eigen::LDLT<Eigen::MatrixXd> ldlt(covariance);
-    const Eigen::VectorXd gain = ldlt.solve(Eigen::VectorXd::Ones(n));  // C_w⁻¹ 1
-    information = gain.sum();
-    if (!(information > 0)) return combined;
-    const double next = gain.dot(y) / information;
-    const bool converged = std::abs(next - x) < 1e-9;
-    x = next;
-    if (converged) break;
-  }
-  responsibilities(x, &w);
-  combined.valid = std::isfinite(x);
-  combined.metres_per_unit = std::exp(x);
-  combined.sigma = std::sqrt(1.0 / information);
-  combined.inliers = static_cast<int>((w.array() > 0.5).count());
+  const CombinedObservation log_scale =
+      CombineCarriedObservations(observations, options.ground_outlier_probability,
+                                 std::log(options.ground.max_distance / options.ground.min_distance));
+  CombinedScale combined;
+  combined.valid = log_scale.valid;
+  combined.metres_per_unit = std::exp(log_scale.value);
+  combined.sigma = log_scale.sigma;
+  combined.inliers = log_scale.inliers;
   return combined;
 }
 

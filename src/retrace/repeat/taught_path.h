@@ -91,17 +91,10 @@ struct CombinedScale {
   int inliers = 0;     // fits judged right (responsibility > 0.5)
 };
 
-// The metric scale of one arc from the carried scales of the arcs around it: a Gaussian-uniform mixture solved by
-// expectation-maximisation (the inlier-outlier model of MLESAC, Torr & Zisserman 2000) with generalised least squares
-// inside. In logs, with x the arc's scale,
-//   y_j = x + Σ_{s on the way} ε_s + e_j,   ε_s ~ N(0, σ_r²) (a node scale's error),
-//   e_j ~ (1 - p) N(0, σ_j²) + p U(L),       σ_j = max(σ_g, the fit's own σ),
-// L the range of log-scales the ground search spans (log(max_distance / min_distance)). Two carried scales share
-// the node scales between the arc and the nearer of them (same side), so the right fits' covariance is
-//   C_ij = σ_r² · shared_ij + δ_ij σ_j².
-// The start is the carried scale of highest mixture likelihood (a mode, not the median: wrong fits come in runs);
-// then each step weighs every fit by its responsibility w_j (E), and x = 1ᵀC_w⁻¹y / 1ᵀC_w⁻¹1 with σ_j² / w_j on
-// the diagonal (M), its variance 1 / 1ᵀC_w⁻¹1. Invalid without carried scales.
+// The metric scale of one arc from the carried scales of the arcs around it (CombineCarriedObservations,
+// util/robust_random_walk.h): in logs, x the arc's scale, each node scale on the way adds ε ~ N(0, σ_r²) (v_j = σ_r²
+// · steps), a right fit has σ_j = max(σ_g, its own σ), and a wrong one is uniform over the range of log-scales the
+// ground search spans (log(max_distance / min_distance)).
 CombinedScale CombineArcScales(const std::vector<CarriedScale>& scales, const TaughtPathOptions& options);
 
 class TaughtPath {

@@ -1,0 +1,75 @@
+#include "retrace/util/robust_random_walk.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+
+namespace retrace {
+
+CombinedObservation CombineCarriedObservations(const std::vector<CarriedObservation>& observations,
+                                               double outlier_probability, double outlier_range) {
+  CombinedObservation combined;
+  const int n = static_cast<int>(observations.size());
+  if (n == 0 || !(outlier_range > 0)) return combined;
+  const double p = outlier_probability;
+  const double outlier_density = p / outlier_range;  // p · U(L)
+  Eigen::VectorXd y(n), own_variance(n);
+  Eigen::MatrixXd shared(n, n);  // the walk shared with the other observations on the same side
+  for (int i = 0; i < n; ++i) {
+    y(i) = observations[i].value;
+    own_variance(i) = observations[i].sigma * observations[i].sigma;
+    for (int j = 0; j < n; ++j) {
+      const bool same_side = observations[i].side != 0 && observations[i].side == observations[j].side;
+      shared(i, j) =
+          same_side ? std::min(observations[i].carried_variance, observations[j].carried_variance) : 0.0;
+    }
+  }
+  // Responsibilities of the Gaussian component (E step) and the mixture's log-likelihood at x.
+  const auto responsibilities = [&](double x, Eigen::VectorXd* w) {
+    double log_likelihood = 0.0;
+    for (int i = 0; i < n; ++i) {
+      const double variance = shared(i, i) + own_variance(i);
+      const double r = y(i) - x;
+      const double inlier = (1 - p) * std::exp(-0.5 * r * r / variance) / std::sqrt(2 * M_PI * variance);
+      if (w != nullptr) (*w)(i) = inlier / (inlier + outlier_density);
+      log_likelihood += std::log(inlier + outlier_density);
+    }
+    return log_likelihood;
+  };
+  double x = y(0);
+  double best = -std::numeric_limits<double>::infinity();
+  for (int i = 0; i < n; ++i) {
+    const double log_likelihood = responsibilities(y(i), nullptr);
+    if (log_likelihood > best) {
+      best = log_likelihood;
+      x = y(i);
+    }
+  }
+  Eigen::VectorXd w(n);
+  double information = 0.0;
+  constexpr int kMaxIterations = 30;
+  for (int iteration = 0; iteration < kMaxIterations; ++iteration) {
+    responsibilities(x, &w);
+    Eigen::MatrixXd covariance = shared;
+    for (int i = 0; i < n; ++i) covariance(i, i) += own_variance(i) / std::max(w(i), 1e-9);
+    const Eigen::LDLT<Eigen::MatrixXd> ldlt(covariance);
+    const Eigen::VectorXd gain = ldlt.solve(Eigen::VectorXd::Ones(n));  // C_w⁻¹ 1
+    information = gain.sum();
+    if (!(information > 0)) return combined;
+    const double next = gain.dot(y) / information;
+    const bool converged = std::abs(next - x) < 1e-9;
+    x = next;
+    if (converged) break;
+  }
+  responsibilities(x, &w);
+  combined.valid = std::isfinite(x);
+  combined.value = x;
+  combined.sigma = std::sqrt(1.0 / information);
+  combined.inliers = static_cast<int>((w.array() > 0.5).count());
+  return combined;
+}
+
+}  // namespace retrace

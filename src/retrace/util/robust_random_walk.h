@@ -1,0 +1,40 @@
+#pragma once
+
+// One quantity x observed several times from places it drifts away from, some observations wrong: the robust
+// combination behind an arc's metric scale (repeat/taught_path.h, its neighbours' ground fits carried through the
+// node scales) and the path tracker's lateral offset (control/path_tracking.h, the recent frames' offsets carried by
+// the vehicle's motion).
+//
+// Each observation y_j is carried from its own place to x's:
+//   y_j = x + (the walk between x's place and y_j's) + e_j,   e_j ~ (1 - p) N(0, σ_j²) + p U(L).
+// Observations on the same side of x share their walk up to the nearer one, so the right observations' covariance is
+//   C_ij = min(v_i, v_j) [same side] + δ_ij σ_j²,   v_j the variance of y_j's walk.
+// The estimate is this Gaussian-uniform mixture solved by expectation-maximisation (the inlier-outlier model of
+// MLESAC, Torr & Zisserman 2000) with generalised least squares inside: started at the observation of highest mixture
+// likelihood (a mode, not the median: wrong observations come in runs), each step weighs every observation by its
+// responsibility w_j (E) and takes x = 1ᵀC_w⁻¹y / 1ᵀC_w⁻¹1 with σ_j² / w_j on the diagonal (M); its variance is
+// 1 / 1ᵀC_w⁻¹1.
+
+#include <vector>
+
+namespace retrace {
+
+struct CarriedObservation {
+  double value = 0.0;
+  double sigma = 0.0;             // σ_j of the observation when it is right
+  double carried_variance = 0.0;  // v_j
+  int side = 0;                   // 0: at x's place; +1 / -1: after / before it
+};
+
+struct CombinedObservation {
+  bool valid = false;  // false without observations
+  double value = 0.0;
+  double sigma = 0.0;  // posterior, with the observations judged right
+  int inliers = 0;     // observations judged right (responsibility > 0.5)
+};
+
+// `outlier_probability` p in [0, 1) and `outlier_range` L > 0 as above.
+CombinedObservation CombineCarriedObservations(const std::vector<CarriedObservation>& observations,
+                                               double outlier_probability, double outlier_range);
+
+}  // namespace retrace
