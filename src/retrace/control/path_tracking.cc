@@ -87,7 +87,11 @@ double PathTracker::FilteredOffset(const PathTrackingInput& input, double dt) {
     drift_ += travelled * std::sin(direction);
   }
   frames_.push_back({distance_, input.lateral_m - drift_, std::max(options_.min_offset_sigma, input.lateral_sigma_m)});
-  while (distance_ - frames_.front().distance > options_.offset_window) frames_.erase(frames_.begin());
+  // The window's frames, and at most kMaxOffsetFrames of them (a robot standing still adds frames but no distance).
+  constexpr size_t kMaxOffsetFrames = 64;
+  while (distance_ - frames_.front().distance > options_.offset_window || frames_.size() > kMaxOffsetFrames) {
+    frames_.erase(frames_.begin());
+  }
   const double q2 = options_.offset_process_sigma * options_.offset_process_sigma;
   std::vector<CarriedObservation> observations;
   for (const Frame& f : frames_) {

@@ -183,6 +183,21 @@ TEST(PathTracker, FilteredOffsetFollowsTheCarOntoThePath) {
   EXPECT_GT(lowest_with, lowest_without - 0.05);
 }
 
+TEST(PathTracker, FramesWithoutMotionKeepTheOffsetWindowBounded) {
+  // Frames that add no distance (dt 0: the same instant delivered again) stay in the window until 64 newer ones
+  // push them out, so thousands of them neither slow the law down nor outvote what it sees now for long.
+  PathTracker tracker(FastOptions());
+  PathTrackingInput input = ConfidentFrame();
+  input.dt = 0.0;
+  input.lateral_m = 0.4;
+  input.lateral_sigma_m = 0.03;
+  for (int i = 0; i < 3000; ++i) tracker.Update(input);
+  input.lateral_m = -0.4;  // left of the path now
+  PathTrackingCommand command;
+  for (int i = 0; i < 40; ++i) command = tracker.Update(input);
+  EXPECT_LT(command.curvature, 0.0);  // the newer frames are the majority of the 64: steer right, back to the path
+}
+
 TEST(PathTracker, StraightPathConvergesFromAnOffset) {
   const TestPath path = MakePath(80.0, [](double) { return 0.0; });
   for (double speed : {2.0, 8.0}) {
