@@ -55,10 +55,10 @@ struct PathTrackingOptions {
   // Below this belief confidence, or without a metric offset, the speed is scaled by `uncertain_speed_fraction`.
   double confident = 0.99;
   double uncertain_speed_fraction = 0.5;
-  // The offset the law steers by (PathTracker::FilteredOffset): the frames within `offset_window` metres driven,
-  // each carried to the current frame by the camera's motion since — direction φ = ψ − atan(d κ) with the commanded
-  // κ, de/ds = sin φ, over the commanded speed·dt — plus a random walk of `offset_process_sigma` m/√m for what that
-  // misses; each right with its own σ (at least `min_offset_sigma`) or wrong with probability
+  // The offset the law steers by (PathTracker::FilteredOffset): the frames within `offset_window` metres driven (at
+  // most 64), each carried to the current frame by the camera's motion since — direction φ = ψ − atan(d κ) with the
+  // commanded κ, de/ds = sin φ, over the commanded speed·dt — plus a random walk of `offset_process_sigma` m/√m for
+  // what that misses; each right with its own σ (at least `min_offset_sigma`) or wrong with probability
   // `offset_outlier_probability` (uniform over `offset_outlier_range` m), combined robustly
   // (util/robust_random_walk.h). Why: a frame whose pose rests on features at one depth (a far facade) may put the
   // camera a metre off with a σ of centimetres, several frames in a row (seed3 of the validation matrix: 7 frames,
