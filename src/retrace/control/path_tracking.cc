@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <vector>
 #include <stdexcept>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -90,7 +90,7 @@ double PathTracker::FilteredOffset(const PathTrackingInput& input, double dt) {
   // The window's frames, and at most kMaxOffsetFrames of them (a robot standing still adds frames but no distance).
   constexpr size_t kMaxOffsetFrames = 64;
   while (distance_ - frames_.front().distance > options_.offset_window || frames_.size() > kMaxOffsetFrames) {
-    frames_.erase(frames_.begin());
+    frames_.pop_front();
   }
   const double q2 = options_.offset_process_sigma * options_.offset_process_sigma;
   std::vector<CarriedObservation> observations;
@@ -122,13 +122,12 @@ PathTrackingCommand PathTracker::Update(const PathTrackingInput& input, bool pre
     if (options_.offset_process_sigma > 0) lateral = FilteredOffset(input, dt);
     wanted = CameraPointCurvature(lateral, input.heading_error_rad, options_);
   } else if (input.image_steering_valid) {
-    frames_.clear();
     command.mode = SteeringMode::kImage;
     wanted = -options_.image_gain * input.image_steering;
   } else {
-    frames_.clear();
     command.mode = SteeringMode::kImage;  // nothing new to steer by: hold the wheels
   }
+  if (command.mode != SteeringMode::kPath) frames_.clear();  // the filtered offset starts again with the metric path
   wanted = std::clamp(wanted, -options_.max_curvature, options_.max_curvature);
   const double step = options_.max_curvature_rate * dt;
   curvature_ = dt > 0 ? std::clamp(wanted, curvature_ - step, curvature_ + step) : wanted;

@@ -29,8 +29,8 @@
 // gave no metric offset; zero at once when the localizer is not tracking (a robot must not drive blind), and ramped
 // up at `max_acceleration` when it tracks again.
 
+#include <deque>
 #include <string>
-#include <vector>
 
 namespace retrace {
 
@@ -118,7 +118,7 @@ class PathTracker {
     double sigma;
   };
   double FilteredOffset(const PathTrackingInput& input, double dt);
-  std::vector<Frame> frames_;
+  std::deque<Frame> frames_;
   double distance_ = 0.0;
   double drift_ = 0.0;  // ∫ sin φ ds
 };

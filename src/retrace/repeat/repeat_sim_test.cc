@@ -16,6 +16,7 @@
 #include "retrace/repeat/localizer.h"
 #include "retrace/sim/recording.h"
 #include "retrace/teach/teacher.h"
+#include "retrace/util/statistics.h"
 
 namespace retrace {
 namespace {
@@ -85,9 +86,8 @@ void RepeatAndCheck(const Scenario& base, const std::string& label, bool check_s
     if (truth.valid) lateral_errors.push_back(std::abs(r.path.lateral_m - truth.lateral_m));
   }
   ASSERT_GT(lateral_errors.size(), results.size() / 2);
-  std::sort(lateral_errors.begin(), lateral_errors.end());
-  const double median = lateral_errors[lateral_errors.size() / 2];
-  const double tail = lateral_errors[static_cast<size_t>(0.95 * (lateral_errors.size() - 1))];
+  const double median = Quantile(lateral_errors, 0.5);
+  const double tail = Quantile(lateral_errors, 0.95);
   std::cout << "lateral offset against ground truth, " << lateral_errors.size() << " frames: median " << median
             << " m, 95th percentile " << tail << " m\n";
   EXPECT_LE(median, 0.05);

@@ -9,7 +9,6 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include "retrace/repeat/localizer_internal.h"
 #include "retrace/util/robust_random_walk.h"
 
 namespace retrace {
