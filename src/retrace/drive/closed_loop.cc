@@ -65,10 +65,18 @@ PathTrackingFigures ClosedLoopSummary::Figures(double skip_m) const {
   return figures;
 }
 
+double DeviationFromPath(const PathTruth& truth, size_t taught_poses) {
+  if (!truth.valid) return std::numeric_limits<double>::infinity();
+  // The nearest point is the path's first or last camera centre, and the camera lies before or beyond it: its
+  // distance to that point would count how far the car is from the end, not beside the path.
+  const bool beyond_an_end = truth.along_index <= 0.0 || truth.along_index >= static_cast<double>(taught_poses) - 1.0;
+  return beyond_an_end ? std::abs(truth.lateral_m) : truth.distance_m;
+}
+
 double DistanceToPath(const Vector3d& position, const std::vector<TimedPose>& taught, double* along) {
   const PathTruth truth = TruthAgainstTaughtPath(Rigid3d(Matrix3d::Identity(), position), taught, 0, taught.size());
   if (along != nullptr && truth.valid) *along = truth.along_index;
-  return truth.valid ? truth.distance_m : std::numeric_limits<double>::infinity();
+  return DeviationFromPath(truth, taught.size());
 }
 
 ClosedLoopSummary DriveClosedLoop(Simulator* simulator, Localizer* localizer, const Map& map,
@@ -127,7 +135,7 @@ ClosedLoopSummary DriveClosedLoop(Simulator* simulator, Localizer* localizer, co
     bool past_end = false;
     if (taught.size() >= 2) {
       const PathTruth truth = TruthAgainstTaughtPath(view.world_from_cam, taught, 0, taught.size());
-      step.deviation = truth.valid ? truth.distance_m : std::numeric_limits<double>::infinity();
+      step.deviation = DeviationFromPath(truth, taught.size());
       step.along = truth.along_index;
       step.true_lateral = truth.lateral_m;
       step.true_heading_error = truth.heading_error_rad;

@@ -18,6 +18,7 @@
 
 #include "retrace/control/path_tracking.h"
 #include "retrace/dataset/ground_truth.h"
+#include "retrace/repeat/evaluation.h"
 #include "retrace/repeat/localizer.h"
 #include "retrace/sim/simulator.h"
 
@@ -57,8 +58,8 @@ struct ClosedLoopStep {
   // The true lateral offset (positive right) and heading error against the taught path; NaN without taught poses.
   double true_lateral = std::numeric_limits<double>::quiet_NaN();
   double true_heading_error = std::numeric_limits<double>::quiet_NaN();
-  // Distance (metres) on the ground plane from the taught camera path and the position along it (taught frames,
-  // fractional); NaN without taught poses.
+  // Deviation (metres) on the ground plane from the taught camera path (DeviationFromPath) and the position along it
+  // (taught frames, fractional); NaN without taught poses.
   double deviation = std::numeric_limits<double>::quiet_NaN();
   double along = std::numeric_limits<double>::quiet_NaN();
 };
@@ -90,8 +91,15 @@ struct ClosedLoopSummary {
   double MaxDeviation() const;
 };
 
-// Distance on the ground plane (world x, z; y points down) from `position` to the polyline through the camera
-// centres of `taught`, and where along it (taught frame index, fractional) the nearest point lies.
+// Deviation of a camera from the taught path, on the ground plane (world x, z; y points down): its distance to the
+// polyline through the camera centres of the `taught_poses` taught poses (TruthAgainstTaughtPath over all of them),
+// except before the first or beyond the last centre, where it is the distance from the line of the end stretch —
+// how far the car is short of the path's start or past its end is not a deviation (a drive stops in the frame that
+// passes the end, up to a frame's travel beyond it).
+double DeviationFromPath(const PathTruth& truth, size_t taught_poses);
+
+// DeviationFromPath of a camera at `position`, and where along the path (taught frame index, fractional) the nearest
+// point lies.
 double DistanceToPath(const Vector3d& position, const std::vector<TimedPose>& taught, double* along);
 
 // Drives `simulator` (placed at its scenario's start) with `localizer`'s steering until the car is past the end of

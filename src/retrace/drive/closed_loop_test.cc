@@ -27,6 +27,14 @@ TEST(DistanceToPath, MeasuresOnTheGroundPlaneAlongThePolyline) {
   // Past the corner, nearest to the second segment.
   EXPECT_NEAR(DistanceToPath(Vector3d(5, 0, 13), path, &along), 3.0, 1e-12);
   EXPECT_NEAR(along, 1.5, 1e-12);
+  // 0.6 m past the end, 0.05 m to its right (-z of a path travelling along +x): the deviation is the 0.05 m beside
+  // the end stretch's line, not the 0.6 m of overshoot; likewise 0.5 m short of the start, 0.03 m to the right.
+  EXPECT_NEAR(DistanceToPath(Vector3d(10.6, 0, 9.95), path, &along), 0.05, 1e-12);
+  EXPECT_NEAR(along, 2.0, 1e-12);
+  EXPECT_NEAR(DistanceToPath(Vector3d(0.03, 0, -0.5), path, &along), 0.03, 1e-12);
+  EXPECT_NEAR(along, 0.0, 1e-12);
+  // At the corner (an interior vertex) the distance stands: outside the turn it is the distance to the vertex.
+  EXPECT_NEAR(DistanceToPath(Vector3d(-1, 0, 11), path, &along), std::sqrt(2.0), 1e-12);
 }
 
 TEST(ClosedLoopOptions, CheckRejectsBadValues) {
