@@ -235,6 +235,26 @@ std::optional<double> TaughtPath::MetresPerUnit(arc_t arc_id) {
   return ground.window_scale;
 }
 
+std::vector<Vector2d> KeyImageTangents(const std::vector<Vector2d>& centres, const std::vector<Vector2d>& headings) {
+  std::vector<Vector2d> tangents(centres.size(), Vector2d::Zero());
+  const auto rotated = [](const Vector2d& v, double angle) {
+    return Vector2d(std::cos(angle) * v.x() - std::sin(angle) * v.y(), std::sin(angle) * v.x() + std::cos(angle) * v.y());
+  };
+  for (size_t i = 0; i + 1 < centres.size() && i + 1 < headings.size(); ++i) {
+    const Vector2d chord = centres[i + 1] - centres[i];
+    if (!(chord.norm() > 1e-12)) continue;
+    const Vector2d& h0 = headings[i];
+    const Vector2d& h1 = headings[i + 1];
+    const double turn = std::atan2(h0.x() * h1.y() - h0.y() * h1.x(), h0.dot(h1));
+    tangents[i] += rotated(chord.normalized(), -turn / 2);
+    tangents[i + 1] += rotated(chord.normalized(), turn / 2);
+  }
+  for (Vector2d& t : tangents) {
+    if (t.norm() > 1e-12) t.normalize();
+  }
+  return tangents;
+}
+
 PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const Matrix3d* centre_covariance,
                             arc_t reported_arc) {
   PathPose pose;
@@ -247,6 +267,7 @@ PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const
   // Key-image centres in the frame of the arc's key-image a, in metres: [previous arc's a], a, b, [next arc's b].
   const Vector3d centre_b = -(arc->to_from_from.rotation.transpose() * arc->to_from_from.translation) * *scale;
   std::vector<Vector3d> centres;
+  std::vector<Vector3d> axes;  // the key-images' optical axes, same frame
   std::vector<arc_t> segment_arcs;
   const MapArc* previous = Previous(*arc);
   const MapArc* next = Next(*arc);
@@ -254,17 +275,22 @@ PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const
     if (const auto previous_scale = MetresPerUnit(previous->id)) {
       // Key-image a of the previous arc is the origin of its frame: at t (its unit) in the frame of its b = our a.
       centres.push_back(previous->to_from_from.translation * *previous_scale);
+      axes.push_back(previous->to_from_from.rotation * Vector3d::UnitZ());
       segment_arcs.push_back(previous->id);
     }
   }
   centres.push_back(Vector3d::Zero());
+  axes.push_back(Vector3d::UnitZ());
   segment_arcs.push_back(arc->id);
   centres.push_back(centre_b);
+  axes.push_back(arc->to_from_from.rotation.transpose() * Vector3d::UnitZ());
   if (next != nullptr) {
     if (const auto next_scale = MetresPerUnit(next->id)) {
       const Vector3d next_b_in_b =
           -(next->to_from_from.rotation.transpose() * next->to_from_from.translation) * *next_scale;
       centres.push_back(arc->to_from_from.rotation.transpose() * next_b_in_b + centre_b);
+      axes.push_back(arc->to_from_from.rotation.transpose() *
+                     (next->to_from_from.rotation.transpose() * Vector3d::UnitZ()));
       segment_arcs.push_back(next->id);
     }
   }
@@ -280,6 +306,9 @@ PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const
 
   std::vector<Vector2d> points;
   for (const Vector3d& c : centres) points.push_back(flat(c));
+  std::vector<Vector2d> headings;
+  for (const Vector3d& axis : axes) headings.push_back(flat(axis));
+  const std::vector<Vector2d> node_tangents = KeyImageTangents(points, headings);
   std::vector<Segment> segments;
   for (size_t i = 0; i + 1 < points.size(); ++i) {
     Segment s;
@@ -287,10 +316,8 @@ PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const
     s.p0 = points[i];
     s.p1 = points[i + 1];
     const double length = (s.p1 - s.p0).norm();
-    const Vector2d before = i > 0 ? points[i - 1] : points[i];
-    const Vector2d after = i + 2 < points.size() ? points[i + 2] : points[i + 1];
-    s.t0 = (s.p1 - before).normalized() * length;
-    s.t1 = (after - s.p0).normalized() * length;
+    s.t0 = node_tangents[i] * length;
+    s.t1 = node_tangents[i + 1] * length;
     segments.push_back(s);
   }
 

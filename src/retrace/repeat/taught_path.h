@@ -16,8 +16,10 @@
 // of it, carried into its unit through the node scales, by the robust model of CombineArcScales below.
 //
 // On the ground plane (normal n of the arc's frame, pointing down) the path between a and b is a cubic Hermite
-// curve with Catmull-Rom tangents (the directions from the previous to the next key-image), which follows the
-// curvature of a turn where the chord a-b would cut it (a 4 m chord of a 7 m radius turn lies 0.29 m inside it).
+// curve whose tangents follow the turn each arc measured (KeyImageTangents below), which follows the curvature of a
+// turn where the chord a-b would cut it (a 4 m chord of a 7 m radius turn lies 0.29 m inside it). Catmull-Rom
+// tangents (from the previous to the next key-image) did that only where the neighbouring arcs turn alike: a 27°
+// turn within one 6.7 m arc between straight ones bulged 0.2 m of the drive's 0.58 (README).
 // The camera centre (its absolute pose in the arc's reconstruction) is projected on the curves of the previous,
 // current and next arcs; the nearest point gives
 //  - lateral offset: signed distance from the path, positive to the right in the direction of travel;
@@ -96,6 +98,13 @@ struct CombinedScale {
 // · steps), a right fit has σ_j = max(σ_g, its own σ), and a wrong one is uniform over the range of log-scales the
 // ground search spans (log(max_distance / min_distance)).
 CombinedScale CombineArcScales(const std::vector<CarriedScale>& scales, const TaughtPathOptions& options);
+
+// Unit tangents of the taught path at its key-images, in ground-plane coordinates (`centres`; `headings` are the
+// key-images' optical axes on the ground plane, any length). Each arc between two key-images is taken as a circle
+// through both that turns by the angle between their headings — a camera fixed on the vehicle turns with its
+// direction of travel, whatever its mount's yaw — so its tangents lie at ∓ Δψ / 2 from the chord; at a key-image
+// between two arcs the two circles' tangents are averaged. Exact on a circle however the key-images are spaced.
+std::vector<Vector2d> KeyImageTangents(const std::vector<Vector2d>& centres, const std::vector<Vector2d>& headings);
 
 class TaughtPath {
  public:

@@ -107,5 +107,32 @@ TEST(TaughtPathOptionsTest, RejectsAScaleModelOutOfRange) {
   EXPECT_NE(error.find("ground_scale_sigma"), std::string::npos);
 }
 
+// On a circle the tangents are the circle's, however unevenly the key-images are spaced (Catmull-Rom tangents, the
+// directions from the previous to the next key-image, are not: 0.2 rad off at the second key-image here) and
+// whatever yaw the camera is mounted with (only the headings' differences count).
+TEST(KeyImageTangentsTest, FollowACircleWithUnevenKeyImagesAndAYawedCamera) {
+  const double radius = 20.0;
+  const std::vector<double> angles = {0.0, 0.1, 0.6, 0.75, 1.2};  // radians along a left turn
+  const double mount_yaw = 5.0 * M_PI / 180;
+  std::vector<Vector2d> centres, headings, truth;
+  for (const double a : angles) {
+    centres.emplace_back(-radius + radius * std::cos(a), radius * std::sin(a));  // (right, forward)
+    truth.emplace_back(-std::sin(a), std::cos(a));
+    headings.emplace_back(-std::sin(a + mount_yaw), std::cos(a + mount_yaw));
+  }
+  const std::vector<Vector2d> tangents = KeyImageTangents(centres, headings);
+  ASSERT_EQ(tangents.size(), centres.size());
+  for (size_t i = 0; i < tangents.size(); ++i) EXPECT_LT((tangents[i] - truth[i]).norm(), 1e-9) << i;
+  const Vector2d catmull_rom = (centres[2] - centres[0]).normalized();
+  EXPECT_GT((catmull_rom - truth[1]).norm(), 0.1);
+}
+
+TEST(KeyImageTangentsTest, AStraightRoadKeepsItsDirection) {
+  const std::vector<Vector2d> centres = {{0, 0}, {0.3, 4}, {0.6, 8}, {0.9, 12}};
+  const std::vector<Vector2d> headings(4, Vector2d(0.2, 1.0));  // a yawed camera, not along the road: no turn
+  const Vector2d road = Vector2d(0.3, 4).normalized();
+  for (const Vector2d& t : KeyImageTangents(centres, headings)) EXPECT_LT((t - road).norm(), 1e-12);
+}
+
 }  // namespace
 }  // namespace retrace
