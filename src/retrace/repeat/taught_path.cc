@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include <Eigen/Geometry>
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -237,17 +238,14 @@ std::optional<double> TaughtPath::MetresPerUnit(arc_t arc_id) {
 
 std::vector<Vector2d> KeyImageTangents(const std::vector<Vector2d>& centres, const std::vector<Vector2d>& headings) {
   std::vector<Vector2d> tangents(centres.size(), Vector2d::Zero());
-  const auto rotated = [](const Vector2d& v, double angle) {
-    return Vector2d(std::cos(angle) * v.x() - std::sin(angle) * v.y(), std::sin(angle) * v.x() + std::cos(angle) * v.y());
-  };
   for (size_t i = 0; i + 1 < centres.size() && i + 1 < headings.size(); ++i) {
     const Vector2d chord = centres[i + 1] - centres[i];
     if (!(chord.norm() > 1e-12)) continue;
     const Vector2d& h0 = headings[i];
     const Vector2d& h1 = headings[i + 1];
-    const double turn = std::atan2(h0.x() * h1.y() - h0.y() * h1.x(), h0.dot(h1));
-    tangents[i] += rotated(chord.normalized(), -turn / 2);
-    tangents[i + 1] += rotated(chord.normalized(), turn / 2);
+    const double turn = std::atan2(h0.x() * h1.y() - h0.y() * h1.x(), h0.dot(h1));  // signed, h0 to h1
+    tangents[i] += Eigen::Rotation2Dd(-turn / 2) * chord.normalized();
+    tangents[i + 1] += Eigen::Rotation2Dd(turn / 2) * chord.normalized();
   }
   for (Vector2d& t : tangents) {
     if (t.norm() > 1e-12) t.normalize();
