@@ -316,6 +316,9 @@ void RegisterBenchCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--ratio", args->options.relocalization_features.ratio, "Ratio test of binary matches")
       ->capture_default_str();
+  cmd->add_option("--descriptor-bytes", args->options.relocalization_features.descriptor_bytes,
+                  "Bytes kept of each binary descriptor (8, 16, 24 or 32)")
+      ->capture_default_str();
   cmd->add_option("--min-inliers", args->options.min_binary_inliers, "Fewest verified inliers (binary)")
       ->capture_default_str();
   cmd->add_option("--ambiguity-ratio", args->options.retrieval_ambiguity_ratio,

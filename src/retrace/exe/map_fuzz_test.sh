@@ -94,8 +94,8 @@ def mutate_sql(path):
         db.execute(f'DELETE FROM {table} WHERE ({WITHOUT_ROWID.get(table, "rowid")} + ?) % 3 = 0', (rng.randrange(3),))
         what = f'rows of {table} deleted'
     elif kind == 'dangle':
-        table, column = rng.choice([('arcs', 'from_node'), ('arcs', 'to_node'), ('observations', 'node_id'),
-                                    ('arc_points', 'arc_id'), ('node_scales', 'arc_in'), ('node_scales', 'node_id')])
+        table, column = rng.choice([('arcs', 'from_node'), ('arcs', 'to_node'), ('node_features', 'node_id'),
+                                    ('arc_point_lists', 'arc_id'), ('node_scales', 'arc_in'), ('node_scales', 'node_id')])
         db.execute(f'UPDATE {table} SET {column} = {column} + ?', (rng.choice([1, 1000, -1]),))
         what = f'{table}.{column} shifted'
     elif kind == 'schema':

@@ -20,13 +20,17 @@ bool BinaryFeatureOptions::Check(std::string* error) const {
   if (fast_threshold < 1 || fast_threshold > 255) return fail("fast_threshold must be in 1..255");
   if (patch_size < 7 || patch_size > 63) return fail("patch_size must be in 7..63");
   if (!(ratio > 0.0 && ratio <= 1.0)) return fail("ratio must be in (0, 1]");
+  if (descriptor_bytes < 8 || descriptor_bytes > 32 || descriptor_bytes % 8 != 0) {
+    return fail("descriptor_bytes must be 8, 16, 24 or 32");
+  }
   return true;
 }
 
 std::string BinaryFeatureOptions::Name() const {
-  return fmt::format("orb-upright n{}{} f{} l{} t{} p{}", max_keypoints,
+  // Descriptors of 32 bytes are named as before descriptor_bytes existed: the signatures of those maps stay valid.
+  return fmt::format("orb-upright n{}{} f{} l{} t{} p{}{}", max_keypoints,
                      scale_with_area ? fmt::format(" a{}", reference_area) : std::string(), scale_factor, levels,
-                     fast_threshold, patch_size);
+                     fast_threshold, patch_size, descriptor_bytes != 32 ? fmt::format(" b{}", descriptor_bytes) : "");
 }
 
 WideBaselineFeatures ExtractBinaryFeatures(const cv::Mat& image, const BinaryFeatureOptions& options) {
@@ -46,7 +50,9 @@ WideBaselineFeatures ExtractBinaryFeatures(const cv::Mat& image, const BinaryFea
   if (!features.keypoints.empty()) orb->compute(image, features.keypoints, features.descriptors);
   if (features.descriptors.empty()) {
     features.keypoints.clear();
-    features.descriptors = cv::Mat(0, 32, CV_8U);
+    features.descriptors = cv::Mat(0, options.descriptor_bytes, CV_8U);
+  } else if (options.descriptor_bytes < features.descriptors.cols) {
+    features.descriptors = features.descriptors.colRange(0, options.descriptor_bytes).clone();
   }
   return features;
 }

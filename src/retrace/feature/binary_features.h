@@ -1,8 +1,9 @@
 #pragma once
 
 // Binary key-points for relocalization (design §4.2, §6 bootstrap; issue 16): FAST corners on a scale pyramid,
-// described by upright rotated-BRIEF (ORB, Rublee et al., ICCV 2011), 32 bytes each, matched by Hamming distance
-// with the same ratio test and cross-check as the SIFT matching of wide_baseline.h (Segvic 2009 §4.1).
+// described by upright rotated-BRIEF (ORB, Rublee et al., ICCV 2011), 32 bytes each (or fewer, below), matched by
+// Hamming distance with the same ratio test and cross-check as the SIFT matching of wide_baseline.h (Segvic 2009
+// §4.1).
 //
 // Why not SIFT here: relocalization runs while the robot is lost, every frame, against several key-images. SIFT
 // with three detectors (wide_baseline.h) costs 45 ms per 320x240 frame plus 30 ms per key-image whose key-points
@@ -46,6 +47,18 @@ struct BinaryFeatureOptions {
   // where 0.8 localized 93 %; the relative pose verifies every match.
   double ratio = 0.85;
   bool cross_check = true;
+  // Bytes kept of each 32-byte descriptor (8, 16, 24 or 32): its first 8 x descriptor_bytes binary tests. The
+  // map stores them for every key-point of every key-image, most of its size (issue 16: kitti07's 16 key-images
+  // keep 1000 key-points each, 512 kB of 32-byte descriptors in a 1.29 MB map). Fewer bits tell a descriptor from
+  // its look-alikes less well; the relative pose verifies the matches, but not well enough. 100 kidnapped starts
+  // each (`retrace bench kidnap ... --descriptor-bytes N`), localized at the first frame / within 3 frames:
+  //   validation seeds 1-3: 32 bytes 92 / 93 / 97 %, 16 bytes 91 / 92 / 98 %, 8 bytes 93 / 94 / 99 % (first);
+  //   1264-key-image map, seeds 1-2: 32 bytes 84 / 94 and 80 / 91 %, 16 bytes 85 / 94 and 80 / 92 %, 8 bytes 85 / 93
+  //   and 80 / 93 %, 0 wrong; 8 bytes let more chance matches through to the relative pose (the first frame's
+  //   95th percentile 136-143 ms CPU against 53-65 ms).
+  // But over the validation matrix (scripts/validation) 16 bytes reported 29 frames on a wrong arc, one of them two
+  // arcs off (hard127), against 19 and none with 32, for 97.65 % correct instead of 97.54 %: 32 stays the default.
+  int descriptor_bytes = 32;
 
   bool Check(std::string* error = nullptr) const;
   // The settings that make the stored key-image descriptors, e.g. "orb-upright n500 f1.2 l8 t10 p19": maps store
@@ -53,7 +66,7 @@ struct BinaryFeatureOptions {
   std::string Name() const;
 };
 
-// Key-points and 32-byte binary descriptors (CV_8U, one row per key-point) of an 8-bit gray image, as
+// Key-points and binary descriptors of options.descriptor_bytes bytes (CV_8U, one row per key-point) of an 8-bit gray image, as
 // WideBaselineFeatures so that MatchWideBaseline matches them (by Hamming distance).
 WideBaselineFeatures ExtractBinaryFeatures(const cv::Mat& image, const BinaryFeatureOptions& options = {});
 

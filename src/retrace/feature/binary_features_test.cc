@@ -36,7 +36,7 @@ TEST(BinaryFeatures, MatchesFollowAKnownScaleAndShiftUnderOtherLight) {
   const WideBaselineFeatures fa = ExtractBinaryFeatures(a, options);
   const WideBaselineFeatures fb = ExtractBinaryFeatures(b, options);
   EXPECT_EQ(fa.descriptors.type(), CV_8U);
-  EXPECT_EQ(fa.descriptors.cols, 32);
+  EXPECT_EQ(fa.descriptors.cols, options.descriptor_bytes);
   EXPECT_EQ(fa.descriptors.rows, static_cast<int>(fa.size()));
   EXPECT_LE(fa.size(), 1000u);
   EXPECT_GE(fa.size(), 500u);
@@ -46,6 +46,35 @@ TEST(BinaryFeatures, MatchesFollowAKnownScaleAndShiftUnderOtherLight) {
   // Every match is mutual (cross-check) and passes the ratio test: no key-point is used twice.
   std::vector<int> used(fb.size(), 0);
   for (const cv::DMatch& m : matches) EXPECT_EQ(++used[m.trainIdx], 1);
+}
+
+TEST(BinaryFeatures, ShorterDescriptorsAreTheLeadingBytesAndStillMatchTheRightPoints) {
+  const cv::Mat a = ClutteredTexture(320, 240, 5);
+  cv::Mat transform = cv::getRotationMatrix2D(cv::Point2f(160, 120), 0.0, 1.1);
+  transform.at<double>(0, 2) -= 6.0;
+  cv::Mat b;
+  cv::warpAffine(a, b, transform, a.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(128));
+  BinaryFeatureOptions full;
+  full.descriptor_bytes = 32;
+  const WideBaselineFeatures a32 = ExtractBinaryFeatures(a, full);
+  for (const int bytes : {8, 16, 24}) {
+    BinaryFeatureOptions options;
+    options.descriptor_bytes = bytes;
+    const WideBaselineFeatures fa = ExtractBinaryFeatures(a, options);
+    const WideBaselineFeatures fb = ExtractBinaryFeatures(b, options);
+    // The same key-points, each described by the first `bytes` bytes of its full descriptor.
+    ASSERT_EQ(fa.size(), a32.size());
+    ASSERT_EQ(fa.descriptors.cols, bytes);
+    EXPECT_EQ(cv::norm(fa.descriptors, a32.descriptors.colRange(0, bytes), cv::NORM_INF), 0.0) << bytes;
+    EXPECT_NE(options.Name(), full.Name());  // maps store the name: other widths are computed again
+    // Hamming matching of every width (one to three 64-bit words) finds the warp.
+    const std::vector<cv::DMatch> matches = MatchBinary(fa, fb, options);
+    EXPECT_GE(matches.size(), 100u) << bytes;
+    EXPECT_GE(FractionFollowing(fa, fb, matches, transform, 3.0), 0.9) << bytes << " bytes, " << matches.size();
+  }
+  BinaryFeatureOptions odd;
+  odd.descriptor_bytes = 12;
+  EXPECT_FALSE(odd.Check());
 }
 
 TEST(BinaryFeatures, OtherPlacesGiveFewMatches) {
@@ -69,7 +98,7 @@ TEST(BinaryFeatures, KeyPointsScaleWithTheImageOnlyWhenAskedAndBlankImagesHaveNo
   const WideBaselineFeatures blank = ExtractBinaryFeatures(cv::Mat(240, 320, CV_8U, cv::Scalar(90)), options);
   EXPECT_EQ(blank.size(), 0u);
   EXPECT_EQ(blank.descriptors.type(), CV_8U);
-  EXPECT_EQ(blank.descriptors.cols, 32);
+  EXPECT_EQ(blank.descriptors.cols, options.descriptor_bytes);
   EXPECT_TRUE(MatchBinary(blank, small, options).empty());
 }
 

@@ -104,14 +104,23 @@ void FuseInto(const std::vector<cv::KeyPoint>& candidates, double radius, std::v
 }
 
 // The nearest and second-nearest train descriptor of every query descriptor and the nearest query descriptor of
-// every train descriptor, by the Hamming distance of 32-byte descriptors (four 64-bit words each). One pass over all
-// pairs keeps only these running minima: a table of every distance (4 bytes per pair, 9.7 MB for a 1226x370 frame's
-// 2430 key-points against a key-image's 1000) would be written and read back through memory: a third slower.
-// Ties keep the first (lowest index), as a scan of such a table row by row would.
+// every train descriptor, by the Hamming distance of binary descriptors of 8-32 bytes (one to four 64-bit words
+// each). One pass over all pairs keeps only these running minima: a table of every distance (4 bytes per pair,
+// 9.7 MB for a 1226x370 frame's 2430 key-points against a key-image's 1000) would be written and read back through
+// memory: a third slower. Ties keep the first (lowest index), as a scan of such a table row by row would.
 struct HammingNearest {
   std::vector<int> best, best_d, second_d;        // per query
   std::vector<int> best_query_of_train, best_query_d;  // per train
 };
+
+// The Hamming distance of two descriptors of kWords 64-bit words (the word count a compile-time constant, so that
+// the loop unrolls as the hand-written four-word sum it replaces).
+template <int kWords>
+inline int HammingDistance(const uint64_t* a, const uint64_t* b) {
+  int d = 0;
+  for (int w = 0; w < kWords; ++w) d += __builtin_popcountll(a[w] ^ b[w]);
+  return d;
+}
 
 // The POPCNT instruction where the CPU has it (every x86-64 CPU since 2008; chosen at run time, the build targets
 // plain x86-64), else the compiler's portable bit count. OpenCV's batchDistance calls its normHamming once per pair,
@@ -123,12 +132,9 @@ struct HammingNearest {
   int* best_query_of_train = nearest->best_query_of_train.data();                                                 \
   for (int i = 0; i < n; ++i) {                                                                                   \
     const uint64_t* q = query.ptr<uint64_t>(i);                                                                   \
-    const uint64_t q0 = q[0], q1 = q[1], q2 = q[2], q3 = q[3];                                                    \
     int best = -1, best_d = std::numeric_limits<int>::max(), second_d = best_d;                                   \
     for (int j = 0; j < m; ++j) {                                                                                 \
-      const uint64_t* t = train.ptr<uint64_t>(j);                                                                 \
-      const int d = __builtin_popcountll(q0 ^ t[0]) + __builtin_popcountll(q1 ^ t[1]) +                           \
-                    __builtin_popcountll(q2 ^ t[2]) + __builtin_popcountll(q3 ^ t[3]);                            \
+      const int d = HammingDistance<kWords>(q, train.ptr<uint64_t>(j));                                           \
       if (d < best_d) {                                                                                           \
         second_d = best_d;                                                                                        \
         best_d = d;                                                                                               \
@@ -146,11 +152,13 @@ struct HammingNearest {
     nearest->second_d[i] = second_d;                                                                              \
   }
 
+template <int kWords>
 void HammingNearestPortable(const cv::Mat& query, const cv::Mat& train, HammingNearest* nearest) {
   RETRACE_HAMMING_NEAREST_BODY
 }
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+template <int kWords>
 __attribute__((target("popcnt"))) void HammingNearestPopcnt(const cv::Mat& query, const cv::Mat& train,
                                                             HammingNearest* nearest) {
   RETRACE_HAMMING_NEAREST_BODY
@@ -158,9 +166,22 @@ __attribute__((target("popcnt"))) void HammingNearestPopcnt(const cv::Mat& query
 #endif
 #undef RETRACE_HAMMING_NEAREST_BODY
 
+template <int kWords>
+void FindHammingNearestOfWords(const cv::Mat& query, const cv::Mat& train, HammingNearest* nearest) {
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+  if (__builtin_cpu_supports("popcnt")) {
+    HammingNearestPopcnt<kWords>(query, train, nearest);
+    return;
+  }
+#endif
+  HammingNearestPortable<kWords>(query, train, nearest);
+}
+
 HammingNearest FindHammingNearest(const cv::Mat& query_in, const cv::Mat& train_in) {
-  CV_Assert(query_in.cols == 32 && train_in.cols == 32);
-  // Rows of 32 bytes, 8-byte aligned (cv::Mat's data is 16-byte aligned; a continuous matrix keeps every row so).
+  const int bytes = query_in.cols;
+  CV_Assert(train_in.cols == bytes && bytes >= 8 && bytes <= 32 && bytes % 8 == 0);
+  // Rows of whole 64-bit words, 8-byte aligned (cv::Mat's data is 16-byte aligned; a continuous matrix keeps every
+  // row so).
   const cv::Mat query = query_in.isContinuous() ? query_in : query_in.clone();
   const cv::Mat train = train_in.isContinuous() ? train_in : train_in.clone();
   HammingNearest nearest;
@@ -169,13 +190,12 @@ HammingNearest FindHammingNearest(const cv::Mat& query_in, const cv::Mat& train_
   nearest.second_d.assign(query.rows, std::numeric_limits<int>::max());
   nearest.best_query_of_train.assign(train.rows, -1);
   nearest.best_query_d.assign(train.rows, std::numeric_limits<int>::max());
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-  if (__builtin_cpu_supports("popcnt")) {
-    HammingNearestPopcnt(query, train, &nearest);
-    return nearest;
+  switch (bytes / 8) {
+    case 1: FindHammingNearestOfWords<1>(query, train, &nearest); break;
+    case 2: FindHammingNearestOfWords<2>(query, train, &nearest); break;
+    case 3: FindHammingNearestOfWords<3>(query, train, &nearest); break;
+    default: FindHammingNearestOfWords<4>(query, train, &nearest); break;
   }
-#endif
-  HammingNearestPortable(query, train, &nearest);
   return nearest;
 }
 

@@ -47,7 +47,7 @@ enum class WideBaselineDetector : int { kDoG = 0, kHarris = 1, kMser = 2 };
 
 struct WideBaselineFeatures {
   std::vector<cv::KeyPoint> keypoints;
-  // One descriptor per key-point, same order: CV_32F SIFT (128 values), or CV_8U binary (32 bytes,
+  // One descriptor per key-point, same order: CV_32F SIFT (128 values), or CV_8U binary (8-32 bytes,
   // binary_features.h).
   cv::Mat descriptors;
 

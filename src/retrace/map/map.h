@@ -40,7 +40,7 @@ struct FeatureObservation {
 // repeat computes it when it loads such a map.
 struct KeyImageSignature {
   std::vector<cv::KeyPoint> keypoints;  // position (pt) and size; stored at 1/8 px
-  cv::Mat descriptors;                  // CV_8U, one 32-byte binary descriptor per key-point, same order
+  cv::Mat descriptors;                  // CV_8U, one binary descriptor (8-32 bytes) per key-point, same order
   cv::Mat appearance;                   // CV_8U quantised thumbnail (QuantizeGlobalDescriptor)
 
   bool empty() const { return descriptors.empty() && appearance.empty(); }

@@ -12,12 +12,14 @@
 #include <cstring>
 #include <fstream>
 #include <optional>
+#include <unordered_set>
 
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
+#include "retrace/map/feature_blobs.h"
 #include "retrace/util/error.h"
 #include "retrace/util/version.h"
 
@@ -192,9 +194,10 @@ std::vector<uint8_t> EncodeImage(const cv::Mat& image, const MapDatabaseOptions&
 }
 
 // A key-image's signature (map.h) as stored in table signatures: key-points as three little-endian uint16 each
-// (x, y and size in 1/8 px), descriptors as 32 bytes each, the appearance thumbnail as its bytes.
+// (x, y and size in 1/8 px), descriptors as 8-32 bytes each (the same for all; BinaryFeatureOptions::descriptor_bytes,
+// 32 before it existed), the appearance thumbnail as its bytes.
 constexpr int kKeypointBytes = 6;
-constexpr int kDescriptorBytes = 32;
+constexpr size_t kMaxDescriptorBytes = 32;
 constexpr double kKeypointUnit = 8.0;  // stored units per pixel
 
 // A signature from its stored columns (the key-points and descriptors only when `features`), or the reason it is
@@ -204,8 +207,10 @@ std::optional<std::string> DecodeSignature(const std::vector<uint8_t>& keypoints
                                            const std::vector<uint8_t>& appearance, int64_t image_width,
                                            int64_t image_height, bool features, KeyImageSignature* s) {
   const size_t count = keypoints.size() / kKeypointBytes;
-  if (keypoints.size() % kKeypointBytes != 0 || descriptors.size() != count * kDescriptorBytes ||
-      count > (1u << 20)) {
+  const size_t descriptor_bytes = count > 0 ? descriptors.size() / count : 0;
+  if (keypoints.size() % kKeypointBytes != 0 || descriptors.size() != count * descriptor_bytes ||
+      count > (1u << 20) || descriptor_bytes % 8 != 0 || descriptor_bytes > kMaxDescriptorBytes ||
+      (count > 0 && descriptor_bytes == 0)) {
     return "has key-points and descriptors of mismatched sizes";
   }
   if (width < 1 || height < 1 || width > 1024 || height > 1024 ||
@@ -222,7 +227,7 @@ std::optional<std::string> DecodeSignature(const std::vector<uint8_t>& keypoints
         return fmt::format("has key-point {} outside the {}x{} key-image", i, image_width, image_height);
       }
     }
-    s->descriptors = cv::Mat(static_cast<int>(count), kDescriptorBytes, CV_8UC1);
+    s->descriptors = cv::Mat(static_cast<int>(count), static_cast<int>(descriptor_bytes), CV_8UC1);
     if (count > 0) std::copy(descriptors.begin(), descriptors.end(), s->descriptors.data);
   }
   s->appearance = cv::Mat(static_cast<int>(height), static_cast<int>(width), CV_8UC1);
@@ -427,6 +432,10 @@ void MapDatabase::CheckSchema() {
     tables.push_back({"signatures", {"node_id", "keypoints", "descriptors", "appearance_width", "appearance_height",
                                      "appearance", "crc32"}});
   }
+  if (schema_version_ >= 6) {
+    tables.push_back({"node_features", {"node_id", "features", "crc32"}});
+    tables.push_back({"arc_point_lists", {"arc_id", "points", "crc32"}});
+  }
   SqliteStatement& columns = database_->Prepare("SELECT name FROM pragma_table_info(?);");
   for (const auto& [table, expected] : tables) {
     columns.Bind(1, table);
@@ -488,13 +497,23 @@ void MapDatabase::CheckReferences() {
     }
     query.Reset();
   }
+  std::vector<std::pair<const char*, const char*>> newer;  // query, message of the tables of newer schemas
   if (schema_version_ >= 4) {
-    SqliteStatement& query =
-        database_->Prepare("SELECT node_id FROM signatures WHERE node_id NOT IN (SELECT node_id FROM nodes) LIMIT 1;");
+    newer.emplace_back("SELECT node_id FROM signatures WHERE node_id NOT IN (SELECT node_id FROM nodes) LIMIT 1;",
+                       "relocalization signature of missing node {}");
+  }
+  if (schema_version_ >= 6) {
+    newer.emplace_back("SELECT node_id FROM node_features WHERE node_id NOT IN (SELECT node_id FROM nodes) LIMIT 1;",
+                       "features of missing node {}");
+    newer.emplace_back("SELECT arc_id FROM arc_point_lists WHERE arc_id NOT IN (SELECT arc_id FROM arcs) LIMIT 1;",
+                       "3D points of missing arc {}");
+  }
+  for (const auto& [sql, message] : newer) {
+    SqliteStatement& query = database_->Prepare(sql);
     if (query.Step()) {
-      const int64_t node = query.ColumnInt(0);
+      const int64_t id = query.ColumnInt(0);
       query.Reset();
-      throw InputError(source, kCorrupt + fmt::format("relocalization signature of missing node {}", node));
+      throw InputError(source, kCorrupt + fmt::format(fmt::runtime(message), id));
     }
     query.Reset();
   }
@@ -547,6 +566,20 @@ void MapDatabase::CheckKeyImages() {
     }
   }
   signatures.Reset();
+  if (schema_version_ < 6) return;
+  for (const auto& [sql, what] : {std::pair{"SELECT node_id, features, crc32 FROM node_features;", "features of node"},
+                                  std::pair{"SELECT arc_id, points, crc32 FROM arc_point_lists;", "3D points of arc"}}) {
+    SqliteStatement& blobs = database_->Prepare(sql);
+    while (blobs.Step()) {
+      const std::vector<uint8_t> bytes = blobs.ColumnBlob(1);
+      if (static_cast<uint32_t>(blobs.ColumnInt(2)) != Crc32(bytes.data(), bytes.size())) {
+        const int64_t id = blobs.ColumnInt(0);
+        blobs.Reset();
+        throw InputError(source, kCorrupt + fmt::format("{} {} are corrupt (checksum mismatch)", what, id));
+      }
+    }
+    blobs.Reset();
+  }
 }
 
 void MapDatabase::CreateTables() {
@@ -609,6 +642,14 @@ void MapDatabase::CreateTables() {
       appearance_height INTEGER NOT NULL,
       appearance BLOB NOT NULL,
       crc32 INTEGER NOT NULL);
+    CREATE TABLE IF NOT EXISTS node_features (
+      node_id INTEGER PRIMARY KEY NOT NULL REFERENCES nodes(node_id) ON DELETE CASCADE,
+      features BLOB NOT NULL,
+      crc32 INTEGER NOT NULL);
+    CREATE TABLE IF NOT EXISTS arc_point_lists (
+      arc_id INTEGER PRIMARY KEY NOT NULL REFERENCES arcs(arc_id) ON DELETE CASCADE,
+      points BLOB NOT NULL,
+      crc32 INTEGER NOT NULL);
   )sql");
 }
 
@@ -632,7 +673,8 @@ void MapDatabase::UpgradeSchema() {
       database_->Execute("ALTER TABLE nodes ADD COLUMN route INTEGER NOT NULL DEFAULT 0;");
       database_->Execute("ALTER TABLE arcs ADD COLUMN similarity REAL;");
     }
-    if (schema_version_ < 4) CreateTables();  // adds the signatures table; the others exist
+    // 4 adds the signatures table, 6 the blob tables (the rows of the tables before them stay, and are read).
+    if (schema_version_ < 6) CreateTables();
     // 5 changes no table: key-images may be stored at a reduced resolution, which older retraces cannot read.
     database_->Execute("PRAGMA user_version=" + std::to_string(kSchemaVersion) + ";");
   });
@@ -736,10 +778,12 @@ void MapDatabase::WriteNode(const MapNode& node) {
 void MapDatabase::WriteSignature(node_t node, const KeyImageSignature& signature) {
   if (schema_version_ < 4) throw InputError(path_.string(), "a map of schema < 4 cannot store signatures");
   const KeyImageSignature& s = signature;
-  if (s.descriptors.type() != CV_8UC1 || s.descriptors.cols != kDescriptorBytes ||
-      s.descriptors.rows != static_cast<int>(s.keypoints.size()) || s.appearance.type() != CV_8UC1 ||
-      s.appearance.empty()) {
-    throw std::invalid_argument("WriteSignature: needs 32-byte descriptors, one per key-point, and an appearance");
+  const size_t descriptor_bytes = static_cast<size_t>(s.descriptors.cols);
+  if (s.descriptors.type() != CV_8UC1 || descriptor_bytes % 8 != 0 || descriptor_bytes > kMaxDescriptorBytes ||
+      (!s.keypoints.empty() && descriptor_bytes == 0) || s.descriptors.rows != static_cast<int>(s.keypoints.size()) ||
+      s.appearance.type() != CV_8UC1 || s.appearance.empty()) {
+    throw std::invalid_argument(
+        "WriteSignature: needs descriptors of 8, 16, 24 or 32 bytes, one per key-point, and an appearance");
   }
   const std::vector<uint8_t> keypoints = EncodeKeypoints(s.keypoints, path_.string());
   const std::vector<uint8_t> descriptors = MatBytes(s.descriptors);
@@ -764,6 +808,35 @@ void MapDatabase::WriteSignature(node_t node, const KeyImageSignature& signature
 }
 
 void MapDatabase::WriteObservations(node_t node, const std::vector<FeatureObservation>& features) {
+  if (schema_version_ >= 6) {
+    InTransaction([&] {
+      // Added to the node's blob, if it has one already.
+      std::vector<FeatureObservation> all;
+      SqliteStatement& stored = database_->Prepare("SELECT features FROM node_features WHERE node_id = ?;");
+      stored.Bind(1, int64_t{node});
+      if (stored.Step()) {
+        if (const auto fault = DecodeFeatures(stored.ColumnBlob(0), &all)) {
+          stored.Reset();
+          throw InputError(path_.string(), kCorrupt + fmt::format("features of node {}: {}", node, *fault));
+        }
+      }
+      stored.Reset();
+      all.insert(all.end(), features.begin(), features.end());
+      std::vector<uint8_t> bytes;
+      try {
+        bytes = EncodeFeatures(std::move(all));
+      } catch (const std::invalid_argument& e) {
+        throw InputError(path_.string(), fmt::format("features of node {} cannot be stored: {}", node, e.what()));
+      }
+      static const uint8_t kNothing = 0;
+      database_->Prepare("INSERT OR REPLACE INTO node_features (node_id, features, crc32) VALUES (?, ?, ?);")
+          .Bind(1, int64_t{node})
+          .BindBlob(2, bytes.empty() ? &kNothing : bytes.data(), bytes.size())
+          .Bind(3, int64_t{Crc32(bytes.data(), bytes.size())})
+          .Run();
+    });
+    return;
+  }
   InTransaction([&] {
     SqliteStatement& insert_observation = database_->Prepare(
         "INSERT INTO observations (node_id, feature_id, x, y, patch_size, patch) VALUES (?, ?, ?, ?, ?, ?);");
@@ -811,6 +884,21 @@ void MapDatabase::WriteArc(const MapArc& arc) {
         .Bind(7, arc.sigma_p)
         .Bind(8, static_cast<int64_t>(arc.points.size()))
         .Run();
+    if (schema_version_ >= 6) {
+      std::vector<uint8_t> bytes;
+      try {
+        bytes = EncodeArcPoints(arc.points);
+      } catch (const std::invalid_argument& e) {
+        throw InputError(path_.string(), fmt::format("3D points of arc {} cannot be stored: {}", arc.id, e.what()));
+      }
+      static const uint8_t kNothing = 0;
+      database_->Prepare("INSERT INTO arc_point_lists (arc_id, points, crc32) VALUES (?, ?, ?);")
+          .Bind(1, int64_t{arc.id})
+          .BindBlob(2, bytes.empty() ? &kNothing : bytes.data(), bytes.size())
+          .Bind(3, int64_t{Crc32(bytes.data(), bytes.size())})
+          .Run();
+      return;
+    }
     SqliteStatement& insert_point =
         database_->Prepare("INSERT INTO arc_points (arc_id, feature_id, x, y, z) VALUES (?, ?, ?, ?, ?);");
     for (const ArcPoint& p : arc.points) {
@@ -925,6 +1013,16 @@ Map MapDatabase::ReadMap(bool load_images, bool load_signature_features) {
   }
   nodes.Reset();
 
+  // Features lie in their key-image (tracked positions may reach half a pixel beyond the border).
+  const auto outside_key_image = [&](node_t node_id, const FeatureObservation& f) -> std::optional<std::string> {
+    const auto [width, height] = image_sizes[node_id];
+    if (!finite({f.position.x(), f.position.y()}) || f.position.x() < -1 || f.position.y() < -1 ||
+        f.position.x() > width || f.position.y() > height) {
+      return fmt::format("feature {} of node {} lies outside its {}x{} key-image", f.feature_id, node_id, width,
+                         height);
+    }
+    return std::nullopt;
+  };
   SqliteStatement& observations =
       database_->Prepare("SELECT node_id, feature_id, x, y, patch_size, patch FROM observations ORDER BY node_id;");
   while (observations.Step()) {
@@ -934,13 +1032,7 @@ Map MapDatabase::ReadMap(bool load_images, bool load_signature_features) {
     f.position = Vector2d(observations.ColumnDouble(2), observations.ColumnDouble(3));
     MapNode* node = map.MutableNode(node_id);
     if (node == nullptr) fail(observations, fmt::format("features of missing node {}", node_id));
-    // Features lie in their key-image (tracked positions may reach half a pixel beyond the border).
-    const auto [width, height] = image_sizes[node_id];
-    if (!finite({f.position.x(), f.position.y()}) || f.position.x() < -1 || f.position.y() < -1 ||
-        f.position.x() > width || f.position.y() > height) {
-      fail(observations, fmt::format("feature {} of node {} lies outside its {}x{} key-image", f.feature_id, node_id,
-                                     width, height));
-    }
+    if (const auto fault = outside_key_image(node_id, f)) fail(observations, *fault);
     const int64_t size = observations.ColumnInt(4);
     if (!observations.ColumnIsNull(5)) {
       const std::vector<uint8_t> bytes = observations.ColumnBlob(5);
@@ -953,6 +1045,29 @@ Map MapDatabase::ReadMap(bool load_images, bool load_signature_features) {
     node->features.push_back(std::move(f));
   }
   observations.Reset();
+  if (schema_version_ >= 6) {
+    SqliteStatement& blobs = database_->Prepare("SELECT node_id, features FROM node_features ORDER BY node_id;");
+    std::vector<FeatureObservation> features;
+    while (blobs.Step()) {
+      const node_t node_id = blobs.ColumnInt(0);
+      MapNode* node = map.MutableNode(node_id);
+      if (node == nullptr) fail(blobs, fmt::format("features of missing node {}", node_id));
+      if (const auto fault = DecodeFeatures(blobs.ColumnBlob(1), &features)) {
+        fail(blobs, fmt::format("features of node {}: {}", node_id, *fault));
+      }
+      // A map upgraded from schema < 6 may hold rows of this node too: no feature twice.
+      std::unordered_set<feature_t> ids;
+      for (const FeatureObservation& f : node->features) ids.insert(f.feature_id);
+      for (FeatureObservation& f : features) {
+        if (const auto fault = outside_key_image(node_id, f)) fail(blobs, *fault);
+        if (!ids.empty() && ids.count(f.feature_id) > 0) {
+          fail(blobs, fmt::format("feature {} of node {} is stored twice", f.feature_id, node_id));
+        }
+        node->features.push_back(std::move(f));
+      }
+    }
+    blobs.Reset();
+  }
   // push_back's growth leaves up to half of each list unused: 13 MB on a map of 1264 key-images.
   for (const MapNode& node : map.nodes()) map.MutableNode(node.id)->features.shrink_to_fit();
 
@@ -1034,6 +1149,22 @@ Map MapDatabase::ReadMap(bool load_images, bool load_signature_features) {
     arc->points.push_back(point);
   }
   points.Reset();
+  if (schema_version_ >= 6) {
+    SqliteStatement& blobs = database_->Prepare("SELECT arc_id, points FROM arc_point_lists ORDER BY arc_id;");
+    std::vector<ArcPoint> decoded;
+    while (blobs.Step()) {
+      const arc_t arc_id = blobs.ColumnInt(0);
+      MapArc* arc = map.MutableArc(arc_id);
+      if (arc == nullptr) fail(blobs, fmt::format("3D points of missing arc {}", arc_id));
+      if (const auto fault = DecodeArcPoints(blobs.ColumnBlob(1), &decoded)) {
+        fail(blobs, fmt::format("3D points of arc {}: {}", arc_id, *fault));
+      }
+      if (!arc->points.empty()) fail(blobs, fmt::format("3D points of arc {} are stored twice", arc_id));
+      arc->points = std::move(decoded);
+      decoded.clear();
+    }
+    blobs.Reset();
+  }
 
   SqliteStatement& scales = database_->Prepare("SELECT node_id, arc_in, arc_out, scale FROM node_scales;");
   while (scales.Step()) {

@@ -73,8 +73,10 @@ class MapDatabase {
  public:
   // Written by this retrace. 2: key-image checksums; 3: arcs.similarity and nodes.route (graphs of several drives);
   // 4: key-image relocalization signatures; 5: key-images stored at a reduced resolution (MapDatabaseOptions::
-  // max_image_downscale).
-  static constexpr int kSchemaVersion = 5;
+  // max_image_downscale); 6: a key-image's features and an arc's 3D points as one blob each (tables node_features
+  // and arc_point_lists, feature_blobs.h) instead of a row per feature and per point (tables observations and
+  // arc_points, still read: a map upgraded for `teach --append` keeps its old rows).
+  static constexpr int kSchemaVersion = 6;
   static constexpr int kOldestSchemaVersion = 1;  // oldest schema still read
   static constexpr int kApplicationId = 0x52545243;  // "RTRC"
   // Metadata key of teach's progress: kIncomplete from the start of teach, kComplete when it finished. Maps

@@ -265,9 +265,18 @@ TEST(MapDatabase, DamagedMapsAreRefusedWithTheFault) {
                           "corrupt map: arc 0 starts at missing node 9");
   ExpectDamagedMapRefused("node_deleted", "DELETE FROM nodes WHERE node_id = 2;", "ends at missing node 2");
   ExpectDamagedMapRefused("self_arc", "UPDATE arcs SET to_node = 1 WHERE arc_id = 1;", "leads from node 1 to itself");
-  ExpectDamagedMapRefused("orphan_features", "UPDATE observations SET node_id = 5 WHERE node_id = 2;",
+  ExpectDamagedMapRefused("orphan_features", "UPDATE node_features SET node_id = 5 WHERE node_id = 2;",
                           "features of missing node 5");
-  ExpectDamagedMapRefused("orphan_points", "UPDATE arc_points SET arc_id = 4 WHERE arc_id = 1;",
+  ExpectDamagedMapRefused("corrupt_features", "UPDATE node_features SET features = zeroblob(40) WHERE node_id = 1;",
+                          "corrupt map: features of node 1 are corrupt (checksum mismatch)");
+  ExpectDamagedMapRefused("corrupt_points", "UPDATE arc_point_lists SET points = zeroblob(40) WHERE arc_id = 1;",
+                          "corrupt map: 3D points of arc 1 are corrupt (checksum mismatch)");
+  // Rows of the tables before schema 6 (a map upgraded for `teach --append` keeps them) are checked as before.
+  ExpectDamagedMapRefused("row_twice", "INSERT INTO observations VALUES (1, 1003, 1.5, 2.5, 0, NULL);",
+                          "feature 1003 of node 1 is stored twice");
+  ExpectDamagedMapRefused("orphan_row", "INSERT INTO observations VALUES (6, 1, 1.5, 2.5, 0, NULL);",
+                          "features of missing node 6");
+  ExpectDamagedMapRefused("orphan_points", "UPDATE arc_point_lists SET arc_id = 4 WHERE arc_id = 1;",
                           "3D points of missing arc 4");
   ExpectDamagedMapRefused("scale_elsewhere", "UPDATE node_scales SET node_id = 2;",
                           "scale at node 2 does not join arc 0 to arc 1 there");
@@ -276,7 +285,7 @@ TEST(MapDatabase, DamagedMapsAreRefusedWithTheFault) {
                           "corrupt map: key-image of node 1 is corrupt (checksum mismatch)");
   ExpectDamagedMapRefused("nan_rotation", "UPDATE arcs SET rotation = zeroblob(72) WHERE arc_id = 0;",
                           "geometry of arc 0 is not a rotation and a unit translation");
-  ExpectDamagedMapRefused("feature_outside", "UPDATE observations SET x = 1e300 WHERE node_id = 1;",
+  ExpectDamagedMapRefused("feature_outside", "INSERT INTO observations VALUES (1, 99, 1e300, 2.5, 0, NULL);",
                           "lies outside its 64x48 key-image");
   ExpectDamagedMapRefused("corrupt_signature",
                           "UPDATE signatures SET descriptors = zeroblob(640) WHERE node_id = 2;",
@@ -294,11 +303,48 @@ TEST(MapDatabase, DamagedMapsAreRefusedWithTheFault) {
                           "corrupt map: ");
 }
 
-// A map of two key-images joined by one arc, for the tests that downgrade it to an older schema.
+// A map of two key-images (10 features each) joined by one arc (4 points), written as schema 5 wrote it (a row per
+// feature and per point), for the tests that downgrade it to an older schema.
 void WriteTwoNodeMap(const std::filesystem::path& path) {
-  auto db = MapDatabase::Create(path);
+  MapDatabase::Create(path);
+  {
+    SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
+    raw.Execute("DROP TABLE node_features; DROP TABLE arc_point_lists; PRAGMA user_version=5;");
+  }
+  auto db = MapDatabase::Open(path, /*writable=*/true);
   for (int i = 0; i < 2; ++i) db->WriteNode(MakeNode(i, 10));
   db->WriteArc(MakeArc(0, 0, 1, 4));
+}
+
+// The features and points of WriteTwoNodeMap's map, read back.
+void ExpectTwoNodeMapsFeatures(const Map& map) {
+  ASSERT_EQ(map.nodes().size(), 2u);
+  for (const MapNode& node : map.nodes()) {
+    const MapNode written = MakeNode(node.id, 10);
+    ASSERT_EQ(node.features.size(), 10u);
+    for (size_t i = 0; i < 10; ++i) {
+      EXPECT_EQ(node.features[i].feature_id, written.features[i].feature_id);
+      EXPECT_EQ(node.features[i].position, written.features[i].position);  // rows keep doubles
+    }
+  }
+  ASSERT_EQ(map.arcs().size(), 1u);
+  EXPECT_EQ(map.arcs()[0].points.size(), 4u);
+}
+
+TEST(MapDatabase, FeaturesOutsideTheirKeyImageAreRefusedFromBlobsToo) {
+  const auto dir = testing::MakeTempDir("map_feature_blob");
+  const auto path = dir / "route.db";
+  {
+    auto db = MapDatabase::Create(path);
+    MapNode node = MakeNode(0, 3);
+    node.features[1].position.x() = 1e6;  // storable as a float, but not in the 64x48 key-image
+    db->WriteNode(node);
+    MapNode far = MakeNode(1, 3);
+    far.features[0].position.y() = 1e300;  // not storable
+    ExpectInputError([&] { db->WriteNode(far); }, path, "features of node 1 cannot be stored");
+  }
+  ExpectInputError([&] { MapDatabase::Open(path)->ReadMap(); }, path,
+                   "corrupt map: feature 1 of node 0 lies outside its 64x48 key-image");
 }
 
 TEST(MapDatabase, SignaturesRoundTrip) {
@@ -309,6 +355,9 @@ TEST(MapDatabase, SignaturesRoundTrip) {
     auto db = MapDatabase::Create(path);
     for (int i = 0; i < 3; ++i) {
       written.push_back(MakeNode(i, 5));
+      // Descriptors of 32 bytes (maps before BinaryFeatureOptions::descriptor_bytes) and of 16 (now) both keep
+      // their width.
+      if (i == 1) written.back().signature.descriptors = written.back().signature.descriptors.colRange(0, 16).clone();
       db->WriteNode(written.back());
     }
     // A key-image without key-points (a blank image) still stores its appearance.
@@ -318,7 +367,11 @@ TEST(MapDatabase, SignaturesRoundTrip) {
     db->WriteNode(blank);
     written.push_back(blank);
     db->WriteArc(MakeArc(0, 0, 1, 4));
-    EXPECT_EQ(db->SignatureBytes(), 3 * (20 * 6 + 20 * 32 + 9 * 12) + 9 * 12);
+    EXPECT_EQ(db->SignatureBytes(), 2 * (20 * 6 + 20 * 32 + 9 * 12) + (20 * 6 + 20 * 16 + 9 * 12) + 9 * 12);
+    // A descriptor width the matcher cannot take is refused.
+    MapNode odd = MakeNode(4, 0);
+    odd.signature.descriptors = odd.signature.descriptors.colRange(0, 12).clone();
+    EXPECT_THROW(db->WriteNode(odd), std::invalid_argument);
   }
   const Map map = MapDatabase::Open(path)->ReadMap();
   ASSERT_EQ(map.nodes().size(), written.size());
@@ -332,6 +385,7 @@ TEST(MapDatabase, SignaturesRoundTrip) {
     }
     EXPECT_EQ(b.descriptors.rows, static_cast<int>(a.keypoints.size()));
     if (!a.keypoints.empty()) {
+      EXPECT_EQ(b.descriptors.cols, a.descriptors.cols);
       EXPECT_EQ(cv::norm(a.descriptors, b.descriptors, cv::NORM_INF), 0.0);
     }
     EXPECT_EQ(cv::norm(a.appearance, b.appearance, cv::NORM_INF), 0.0);
@@ -379,7 +433,7 @@ TEST(MapDatabase, MapsOfSchemaThreeAreReadWithoutSignatures) {
   EXPECT_EQ(db->schema_version(), 3);
   EXPECT_EQ(db->SignatureBytes(), 0);
   const Map map = db->ReadMap();
-  ASSERT_EQ(map.nodes().size(), 2u);
+  ExpectTwoNodeMapsFeatures(map);
   for (const MapNode& node : map.nodes()) EXPECT_TRUE(node.signature.empty());
 }
 
@@ -391,7 +445,7 @@ TEST(MapDatabase, MapsOfSchemaOneAreRead) {
     SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
     raw.Execute("DROP TABLE signatures; ALTER TABLE nodes DROP COLUMN image_crc32; PRAGMA user_version=1;");
   }
-  EXPECT_EQ(MapDatabase::Open(path)->ReadMap().nodes().size(), 2u);
+  ExpectTwoNodeMapsFeatures(MapDatabase::Open(path)->ReadMap());
   // Without checksums a truncated JPEG is still found by its missing end.
   {
     SqliteDatabase raw(path, SqliteDatabase::Mode::kReadWrite);
@@ -498,6 +552,18 @@ TEST(StagedMap, AppendUpgradesACopyAndReplacesTheMapOnlyOnCommit) {
   // The upgrade added the signatures table: the appended key-image keeps its signature, the old ones have none.
   EXPECT_FALSE(map.FindNode(2)->signature.empty());
   EXPECT_TRUE(map.FindNode(0)->signature.empty());
+  // The old key-images' features and arc's points stay in their rows, the appended ones are in blobs (schema 6):
+  // both are read.
+  EXPECT_EQ(map.FindNode(0)->features.size(), 10u);
+  EXPECT_EQ(map.FindNode(2)->features.size(), 3u);
+  EXPECT_EQ(map.FindArc(0)->points.size(), 4u);
+  EXPECT_EQ(map.FindArc(1)->points.size(), 2u);
+  {
+    auto raw = MapDatabase::Open(path, /*writable=*/true);
+    // Features found later are added to a key-image's blob.
+    raw->WriteObservations(2, {MakeNode(9, 2).features});
+  }
+  EXPECT_EQ(MapDatabase::Open(path)->ReadMap().FindNode(2)->features.size(), 5u);
   // A missing map cannot be appended to.
   ExpectInputError([&] { StagedMap::BeginAppend(dir / "missing.db"); }, dir / "missing.db", "no such map");
   // Nor an incomplete one.

@@ -39,10 +39,28 @@ if [[ -d $data/kitti07 && -f $tmp/repeat_route.db ]]; then
   # Issue 16: a map written before key-images stored their relocalization signatures (schema 3) still localizes,
   # with a note that they were computed; every odd frame correct from the first, without a start arc.
   cp "$tmp/repeat_route.db" "$tmp/repeat_schema3.db"
+  # The features and points go back to a row each (schema < 6; the blob layout of map/feature_blobs.h).
   python3 -c '
-import sqlite3, sys
+import sqlite3, struct, sys
+def entries(blob, floats):
+    i, previous = 0, -1
+    while i < len(blob):
+        value = shift = 0
+        while True:
+            byte = blob[i]; i += 1
+            value |= (byte & 0x7F) << shift; shift += 7
+            if byte < 0x80: break
+        previous = value if previous < 0 else previous + value
+        coordinates = struct.unpack_from("<%df" % floats, blob, i); i += 4 * floats
+        if floats == 2:
+            assert blob[i] == 0; i += 1  # no patch
+        yield (previous,) + coordinates
 c = sqlite3.connect(sys.argv[1])
-c.executescript("DROP TABLE signatures; PRAGMA user_version=3;")
+for node, blob in c.execute("SELECT node_id, features FROM node_features").fetchall():
+    c.executemany("INSERT INTO observations VALUES (?, ?, ?, ?, 0, NULL)", [(node,) + e for e in entries(blob, 2)])
+for arc, blob in c.execute("SELECT arc_id, points FROM arc_point_lists").fetchall():
+    c.executemany("INSERT INTO arc_points VALUES (?, ?, ?, ?, ?)", [(arc,) + e for e in entries(blob, 3)])
+c.executescript("DROP TABLE node_features; DROP TABLE arc_point_lists; DROP TABLE signatures; PRAGMA user_version=3;")
 c.close()' "$tmp/repeat_schema3.db" &&
     expect repeat-old-map-signatures-computed 0 "have no stored relocalization signature.*teach the map again" -- \
       "$bin" repeat --map "$tmp/repeat_schema3.db" --sequence "$k" --every 2 --offset 1 --output "$tmp/r3.csv" \
