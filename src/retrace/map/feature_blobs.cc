@@ -87,16 +87,24 @@ void SortByFeatureId(std::vector<Item>* items, const char* what) {
   }
 }
 
-// The next feature id of a list read so far (`previous`: the last one, -1 at the start), or why it is wrong.
-std::optional<std::string> ReadFeatureId(ByteReader* reader, size_t index, feature_t previous, feature_t* id) {
+// Writes `id` as its difference from `*previous` (-1 at the start: the id itself), and makes it the previous one.
+void WriteFeatureId(ByteWriter* writer, feature_t id, feature_t* previous) {
+  writer->Varint(static_cast<uint64_t>(*previous < 0 ? id : id - *previous));
+  *previous = id;
+}
+
+// The next feature id of a list read so far (`*previous`: the last one, -1 at the start; it becomes the new one),
+// or why it is wrong.
+std::optional<std::string> ReadFeatureId(ByteReader* reader, size_t index, feature_t* previous, feature_t* id) {
   uint64_t delta = 0;
   if (!reader->Varint(&delta)) return fmt::format("end of data in the id of entry {}", index);
   // Every id after the first is larger than the one before (sorted, distinct), and all are below kFeatureIdLimit.
-  const uint64_t base = previous < 0 ? 0 : static_cast<uint64_t>(previous);
-  if ((previous >= 0 && delta == 0) || delta >= static_cast<uint64_t>(kFeatureIdLimit) - base) {
+  const uint64_t base = *previous < 0 ? 0 : static_cast<uint64_t>(*previous);
+  if ((*previous >= 0 && delta == 0) || delta >= static_cast<uint64_t>(kFeatureIdLimit) - base) {
     return fmt::format("entry {} has an invalid feature id", index);
   }
   *id = static_cast<feature_t>(base + delta);
+  *previous = *id;
   return std::nullopt;
 }
 
@@ -107,8 +115,7 @@ std::vector<uint8_t> EncodeFeatures(std::vector<FeatureObservation> features) {
   ByteWriter writer;
   feature_t previous = -1;
   for (const FeatureObservation& f : features) {
-    writer.Varint(static_cast<uint64_t>(previous < 0 ? f.feature_id : f.feature_id - previous));
-    previous = f.feature_id;
+    WriteFeatureId(&writer, f.feature_id, &previous);
     if (!writer.Float(f.position.x()) || !writer.Float(f.position.y())) {
       throw std::invalid_argument(fmt::format("EncodeFeatures: the position of feature {} is not storable",
                                               f.feature_id));
@@ -133,8 +140,7 @@ std::optional<std::string> DecodeFeatures(const std::vector<uint8_t>& bytes, std
   while (!reader.AtEnd()) {
     const size_t index = features->size();
     FeatureObservation f;
-    if (auto fault = ReadFeatureId(&reader, index, previous, &f.feature_id)) return fault;
-    previous = f.feature_id;
+    if (auto fault = ReadFeatureId(&reader, index, &previous, &f.feature_id)) return fault;
     double x = 0.0, y = 0.0;
     if (!reader.Float(&x) || !reader.Float(&y)) return fmt::format("feature {} has no finite position", f.feature_id);
     f.position = Vector2d(x, y);
@@ -157,8 +163,7 @@ std::vector<uint8_t> EncodeArcPoints(std::vector<ArcPoint> points) {
   ByteWriter writer;
   feature_t previous = -1;
   for (const ArcPoint& p : points) {
-    writer.Varint(static_cast<uint64_t>(previous < 0 ? p.feature_id : p.feature_id - previous));
-    previous = p.feature_id;
+    WriteFeatureId(&writer, p.feature_id, &previous);
     for (int i = 0; i < 3; ++i) {
       if (!writer.Float(p.point_in_from[i])) {
         throw std::invalid_argument(fmt::format("EncodeArcPoints: the 3D point of feature {} is not storable",
@@ -175,8 +180,7 @@ std::optional<std::string> DecodeArcPoints(const std::vector<uint8_t>& bytes, st
   feature_t previous = -1;
   while (!reader.AtEnd()) {
     ArcPoint p;
-    if (auto fault = ReadFeatureId(&reader, points->size(), previous, &p.feature_id)) return fault;
-    previous = p.feature_id;
+    if (auto fault = ReadFeatureId(&reader, points->size(), &previous, &p.feature_id)) return fault;
     for (int i = 0; i < 3; ++i) {
       if (!reader.Float(&p.point_in_from[i])) return fmt::format("3D point of feature {} is not finite", p.feature_id);
     }

@@ -64,6 +64,16 @@ bool LooksLikeWholeImage(const std::vector<uint8_t>& bytes) {
   return false;
 }
 
+// Runs `sql` (an insert of an id, a blob and its checksum) on `bytes` (schema 6's tables of features and points).
+void InsertChecksummedBlob(SqliteDatabase* database, const char* sql, int64_t id, const std::vector<uint8_t>& bytes) {
+  static const uint8_t kNothing = 0;  // a null pointer would bind SQL NULL; no features stores an empty blob
+  database->Prepare(sql)
+      .Bind(1, id)
+      .BindBlob(2, bytes.empty() ? &kNothing : bytes.data(), bytes.size())
+      .Bind(3, int64_t{Crc32(bytes.data(), bytes.size())})
+      .Run();
+}
+
 // The side files SQLite may keep beside a database.
 std::vector<std::filesystem::path> SideFiles(const std::filesystem::path& path) {
   return {path.string() + "-wal", path.string() + "-shm", path.string() + "-journal"};
@@ -828,12 +838,9 @@ void MapDatabase::WriteObservations(node_t node, const std::vector<FeatureObserv
       } catch (const std::invalid_argument& e) {
         throw InputError(path_.string(), fmt::format("features of node {} cannot be stored: {}", node, e.what()));
       }
-      static const uint8_t kNothing = 0;
-      database_->Prepare("INSERT OR REPLACE INTO node_features (node_id, features, crc32) VALUES (?, ?, ?);")
-          .Bind(1, int64_t{node})
-          .BindBlob(2, bytes.empty() ? &kNothing : bytes.data(), bytes.size())
-          .Bind(3, int64_t{Crc32(bytes.data(), bytes.size())})
-          .Run();
+      InsertChecksummedBlob(database_.get(),
+                            "INSERT OR REPLACE INTO node_features (node_id, features, crc32) VALUES (?, ?, ?);", node,
+                            bytes);
     });
     return;
   }
@@ -891,12 +898,8 @@ void MapDatabase::WriteArc(const MapArc& arc) {
       } catch (const std::invalid_argument& e) {
         throw InputError(path_.string(), fmt::format("3D points of arc {} cannot be stored: {}", arc.id, e.what()));
       }
-      static const uint8_t kNothing = 0;
-      database_->Prepare("INSERT INTO arc_point_lists (arc_id, points, crc32) VALUES (?, ?, ?);")
-          .Bind(1, int64_t{arc.id})
-          .BindBlob(2, bytes.empty() ? &kNothing : bytes.data(), bytes.size())
-          .Bind(3, int64_t{Crc32(bytes.data(), bytes.size())})
-          .Run();
+      InsertChecksummedBlob(database_.get(), "INSERT INTO arc_point_lists (arc_id, points, crc32) VALUES (?, ?, ?);",
+                            arc.id, bytes);
       return;
     }
     SqliteStatement& insert_point =
