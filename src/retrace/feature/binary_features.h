@@ -66,8 +66,8 @@ struct BinaryFeatureOptions {
   std::string Name() const;
 };
 
-// Key-points and binary descriptors of options.descriptor_bytes bytes (CV_8U, one row per key-point) of an 8-bit gray image, as
-// WideBaselineFeatures so that MatchWideBaseline matches them (by Hamming distance).
+// Key-points and binary descriptors of options.descriptor_bytes bytes (CV_8U, one row per key-point) of an 8-bit
+// gray image, as WideBaselineFeatures so that MatchWideBaseline matches them (by Hamming distance).
 WideBaselineFeatures ExtractBinaryFeatures(const cv::Mat& image, const BinaryFeatureOptions& options = {});
 
 // MatchWideBaseline with the ratio and cross-check of `options`.

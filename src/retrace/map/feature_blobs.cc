@@ -80,7 +80,8 @@ void SortByFeatureId(std::vector<Item>* items, const char* what) {
   std::sort(items->begin(), items->end(), [](const Item& a, const Item& b) { return a.feature_id < b.feature_id; });
   for (size_t i = 0; i < items->size(); ++i) {
     const feature_t id = (*items)[i].feature_id;
-    if (id < 0 || id >= kFeatureIdLimit) throw std::invalid_argument(fmt::format("{}: feature id {} is out of range", what, id));
+    if (id < 0 || id >= kFeatureIdLimit)
+      throw std::invalid_argument(fmt::format("{}: feature id {} is out of range", what, id));
     if (i > 0 && id == (*items)[i - 1].feature_id) {
       throw std::invalid_argument(fmt::format("{}: feature {} appears twice", what, id));
     }
@@ -117,12 +118,13 @@ std::vector<uint8_t> EncodeFeatures(std::vector<FeatureObservation> features) {
   for (const FeatureObservation& f : features) {
     WriteFeatureId(&writer, f.feature_id, &previous);
     if (!writer.Float(f.position.x()) || !writer.Float(f.position.y())) {
-      throw std::invalid_argument(fmt::format("EncodeFeatures: the position of feature {} is not storable",
-                                              f.feature_id));
+      throw std::invalid_argument(
+          fmt::format("EncodeFeatures: the position of feature {} is not storable", f.feature_id));
     }
-    if (!f.patch.empty() && (f.patch.type() != CV_8UC1 || f.patch.rows != f.patch.cols || f.patch.rows > kMaxPatchSide)) {
-      throw std::invalid_argument(fmt::format("EncodeFeatures: the patch of feature {} is not square 8-bit gray",
-                                              f.feature_id));
+    if (!f.patch.empty() &&
+        (f.patch.type() != CV_8UC1 || f.patch.rows != f.patch.cols || f.patch.rows > kMaxPatchSide)) {
+      throw std::invalid_argument(
+          fmt::format("EncodeFeatures: the patch of feature {} is not square 8-bit gray", f.feature_id));
     }
     writer.Varint(static_cast<uint64_t>(f.patch.rows));
     if (!f.patch.empty()) {
@@ -133,7 +135,8 @@ std::vector<uint8_t> EncodeFeatures(std::vector<FeatureObservation> features) {
   return writer.Take();
 }
 
-std::optional<std::string> DecodeFeatures(const std::vector<uint8_t>& bytes, std::vector<FeatureObservation>* features) {
+std::optional<std::string> DecodeFeatures(const std::vector<uint8_t>& bytes,
+                                          std::vector<FeatureObservation>* features) {
   features->clear();
   ByteReader reader(bytes);
   feature_t previous = -1;
@@ -150,8 +153,8 @@ std::optional<std::string> DecodeFeatures(const std::vector<uint8_t>& bytes, std
     }
     if (side > 0) {
       f.patch = cv::Mat(static_cast<int>(side), static_cast<int>(side), CV_8UC1);
-      if (!reader.Bytes(f.patch.total(), f.patch.data)) return fmt::format("end of data in the patch of feature {}",
-                                                                           f.feature_id);
+      if (!reader.Bytes(f.patch.total(), f.patch.data))
+        return fmt::format("end of data in the patch of feature {}", f.feature_id);
     }
     features->push_back(std::move(f));
   }
@@ -166,8 +169,8 @@ std::vector<uint8_t> EncodeArcPoints(std::vector<ArcPoint> points) {
     WriteFeatureId(&writer, p.feature_id, &previous);
     for (int i = 0; i < 3; ++i) {
       if (!writer.Float(p.point_in_from[i])) {
-        throw std::invalid_argument(fmt::format("EncodeArcPoints: the 3D point of feature {} is not storable",
-                                                p.feature_id));
+        throw std::invalid_argument(
+            fmt::format("EncodeArcPoints: the 3D point of feature {} is not storable", p.feature_id));
       }
     }
   }

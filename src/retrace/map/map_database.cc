@@ -577,8 +577,10 @@ void MapDatabase::CheckKeyImages() {
   }
   signatures.Reset();
   if (schema_version_ < 6) return;
-  for (const auto& [sql, what] : {std::pair{"SELECT node_id, features, crc32 FROM node_features;", "features of node"},
-                                  std::pair{"SELECT arc_id, points, crc32 FROM arc_point_lists;", "3D points of arc"}}) {
+  static const std::pair<const char*, const char*> kBlobTables[] = {
+      {"SELECT node_id, features, crc32 FROM node_features;", "features of node"},
+      {"SELECT arc_id, points, crc32 FROM arc_point_lists;", "3D points of arc"}};
+  for (const auto& [sql, what] : kBlobTables) {
     SqliteStatement& blobs = database_->Prepare(sql);
     while (blobs.Step()) {
       const std::vector<uint8_t> bytes = blobs.ColumnBlob(1);
