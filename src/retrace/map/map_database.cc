@@ -833,6 +833,20 @@ void MapDatabase::WriteObservations(node_t node, const std::vector<FeatureObserv
         }
       }
       stored.Reset();
+      // A map upgraded from schema < 6 keeps its rows: a feature there must not be stored again (ReadMap would
+      // refuse the map; the rows' primary key refused it here before).
+      SqliteStatement& rows =
+          database_->Prepare("SELECT feature_id FROM observations WHERE node_id = ? AND feature_id = ?;");
+      for (const FeatureObservation& f : features) {
+        rows.Bind(1, int64_t{node}).Bind(2, int64_t{f.feature_id});
+        const bool present = rows.Step();
+        rows.Reset();
+        if (present) {
+          throw InputError(path_.string(),
+                           fmt::format("features of node {} cannot be stored: feature {} is stored already", node,
+                                       f.feature_id));
+        }
+      }
       all.insert(all.end(), features.begin(), features.end());
       std::vector<uint8_t> bytes;
       try {

@@ -564,6 +564,16 @@ TEST(StagedMap, AppendUpgradesACopyAndReplacesTheMapOnlyOnCommit) {
     raw->WriteObservations(2, {MakeNode(9, 2).features});
   }
   EXPECT_EQ(MapDatabase::Open(path)->ReadMap().FindNode(2)->features.size(), 5u);
+  {
+    // A feature of an old key-image's rows, or of a blob, is not stored twice: refused when written, the map stays
+    // readable.
+    auto raw = MapDatabase::Open(path, /*writable=*/true);
+    ExpectInputError([&] { raw->WriteObservations(0, {MakeNode(0, 2).features[1]}); }, path,
+                     "features of node 0 cannot be stored: feature 1 is stored already");
+    ExpectInputError([&] { raw->WriteObservations(2, {MakeNode(2, 1).features[0]}); }, path,
+                     "features of node 2 cannot be stored: EncodeFeatures: feature 2000 appears twice");
+  }
+  EXPECT_EQ(MapDatabase::Open(path)->ReadMap().FindNode(0)->features.size(), 10u);
   // A missing map cannot be appended to.
   ExpectInputError([&] { StagedMap::BeginAppend(dir / "missing.db"); }, dir / "missing.db", "no such map");
   // Nor an incomplete one.
