@@ -835,13 +835,14 @@ void MapDatabase::WriteObservations(node_t node, const std::vector<FeatureObserv
       stored.Reset();
       // A map upgraded from schema < 6 keeps its rows: a feature there must not be stored again (ReadMap would
       // refuse the map; the rows' primary key refused it here before).
-      SqliteStatement& rows =
-          database_->Prepare("SELECT feature_id FROM observations WHERE node_id = ? AND feature_id = ?;");
+      // One query for the node's rows (none in a map written with schema 6).
+      std::unordered_set<feature_t> in_rows;
+      SqliteStatement& rows = database_->Prepare("SELECT feature_id FROM observations WHERE node_id = ?;");
+      rows.Bind(1, int64_t{node});
+      while (rows.Step()) in_rows.insert(rows.ColumnInt(0));
+      rows.Reset();
       for (const FeatureObservation& f : features) {
-        rows.Bind(1, int64_t{node}).Bind(2, int64_t{f.feature_id});
-        const bool present = rows.Step();
-        rows.Reset();
-        if (present) {
+        if (in_rows.count(f.feature_id) > 0) {
           throw InputError(path_.string(),
                            fmt::format("features of node {} cannot be stored: feature {} is stored already", node,
                                        f.feature_id));
@@ -1074,12 +1075,12 @@ Map MapDatabase::ReadMap(bool load_images, bool load_signature_features) {
       if (const auto fault = DecodeFeatures(blobs.ColumnBlob(1), &features)) {
         fail(blobs, fmt::format("features of node {}: {}", node_id, *fault));
       }
-      // A map upgraded from schema < 6 may hold rows of this node too: no feature twice.
-      std::unordered_set<feature_t> ids;
-      for (const FeatureObservation& f : node->features) ids.insert(f.feature_id);
+      // A map upgraded from schema < 6 may hold rows of this node too (read above): no feature twice.
+      std::unordered_set<feature_t> in_rows;
+      for (const FeatureObservation& f : node->features) in_rows.insert(f.feature_id);
       for (FeatureObservation& f : features) {
         if (const auto fault = outside_key_image(node_id, f)) fail(blobs, *fault);
-        if (!ids.empty() && ids.count(f.feature_id) > 0) {
+        if (in_rows.count(f.feature_id) > 0) {
           fail(blobs, fmt::format("feature {} of node {} is stored twice", f.feature_id, node_id));
         }
         node->features.push_back(std::move(f));
