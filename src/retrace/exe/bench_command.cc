@@ -10,8 +10,9 @@
 //
 //   retrace bench kidnap --map big.db --sequence drive_repeat --starts 100 --frames 3 [--lost-sequence other]
 //
-// retrace bench retrieval: for every frame of a drive, the rank of its true arc's key-images by appearance
-// (recall@1, @5), by the float thumbnails of before issue 16 and by the quantised index the localizer now uses.
+// retrace bench retrieval: for every frame of a drive (or every --every-th), the rank of its true arc's key-images
+// (recall@1, @5, @20) by the float thumbnails of before issue 16, by the quantised index of their appearance, by
+// visual words and by both fused (what the localizer ranks the whole map by).
 
 #include <algorithm>
 #include <array>
@@ -30,7 +31,9 @@
 
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/dataset/sequence.h"
+#include "retrace/feature/binary_features.h"
 #include "retrace/feature/global_descriptor.h"
+#include "retrace/feature/visual_words.h"
 #include "retrace/exe/commands.h"
 #include "retrace/image/image_utils.h"
 #include "retrace/repeat/evaluation.h"
@@ -216,63 +219,88 @@ void RunKidnap(const KidnapArguments& args) {
 struct RetrievalArguments {
   std::filesystem::path map;
   std::filesystem::path sequence;
+  size_t every = 1;
   LocalizerOptions options;
+  VisualVocabularyOptions vocabulary;
 };
 
+
 // Retrieval quality: for every frame of the drive, the rank of the first key-image of its true arc (either end)
-// among all key-images, by today's float thumbnails (RankByGlobalDescriptor) and by the quantised index the
-// localizer uses (AppearanceIndex over the signatures stored in the map).
+// among all key-images, by the float thumbnails (RankByGlobalDescriptor), by the quantised index the localizer used
+// (AppearanceIndex over the signatures stored in the map), by visual words (VisualWordIndex over the signatures'
+// binary descriptors) and by both fused.
 void RunRetrieval(const RetrievalArguments& args) {
   BenchDrive drive = LoadBenchDrive(args.map, args.sequence, args.options);
   MapForLocalizer& loaded = drive.loaded;
-  const std::vector<TimedPose>& key_truth = drive.key_truth;
-  const std::vector<TimedPose>& repeat_truth = drive.repeat_truth;
   std::unique_ptr<Sequence>& sequence = drive.sequence;
   const Map& map = loaded.map;
   const GlobalDescriptorOptions& options = loaded.options.retrieval;
   std::vector<GlobalDescriptor> thumbnails;
   AppearanceIndex index(options);
   std::vector<size_t> all;
+  std::vector<cv::Mat> descriptors;
   for (const MapNode& node : map.nodes()) {
     thumbnails.push_back(ComputeGlobalDescriptor(map.KeyImage(node.id), options));
     all.push_back(index.Add(node.signature.appearance));
+    descriptors.push_back(map.Signature(node.id).descriptors);
   }
+  auto start = std::chrono::steady_clock::now();
+  const VisualWords visual_words = BuildVisualWords(descriptors, args.vocabulary);
+  const VisualVocabulary& vocabulary = visual_words.vocabulary;
+  const VisualWordIndex& words = visual_words.index;
+  std::cout << fmt::format("vocabulary: {} words in {:.2f} s\n", vocabulary.size(),
+                           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  descriptors.clear();
   std::vector<Frame> frames;
   std::vector<RepeatRecord> records;
-  for (size_t i = 0; i < sequence->size(); ++i) {
+  for (size_t i = 0; i < sequence->size(); i += args.every) {
     frames.push_back(ReadFrame(*sequence, i, *loaded.camera));
     records.push_back({frames.back().source_index, false, kInvalidArcId});
   }
-  const TopologicalEvaluation truth = EvaluateTopological(map, key_truth, repeat_truth, records);
+  const TopologicalEvaluation truth = EvaluateTopological(map, drive.key_truth, drive.repeat_truth, records);
   const std::vector<arc_t> route = RouteArcs(map);
+  constexpr int kMethods = 4;
+  const std::array<const char*, kMethods> names = {"float thumbnails", "quantised index", "visual words",
+                                                   "index + words"};
   int queries = 0;
-  std::array<int, 2> at1{}, at5{};
-  std::array<double, 2> seconds{};
-  for (size_t i = 0; i < frames.size(); ++i) {
-    const int arc_index = truth.per_frame[i].true_arc_index;
+  std::array<int, kMethods> at1{}, at5{}, at20{};
+  std::array<double, kMethods> seconds{};
+  for (size_t q = 0; q < frames.size(); ++q) {
+    const int arc_index = truth.per_frame[q].true_arc_index;
     if (arc_index < 0) continue;
+    const Frame& frame = frames[q];
     const MapArc* arc = map.FindArc(route[arc_index]);
     ++queries;
-    for (int method = 0; method < 2; ++method) {
-      const auto start = std::chrono::steady_clock::now();
-      const GlobalDescriptor query = ComputeGlobalDescriptor(frames[i].image, options);
-      const std::vector<size_t> order = method == 0 ? RankByGlobalDescriptor(query, thumbnails, options)
-                                                    : index.Rank(QuantizeGlobalDescriptor(query), all);
+    std::array<std::vector<size_t>, kMethods> orders;
+    for (int method = 0; method < kMethods; ++method) {
+      start = std::chrono::steady_clock::now();
+      if (method <= 1) {
+        const GlobalDescriptor query = ComputeGlobalDescriptor(frame.image, options);
+        orders[method] = method == 0 ? RankByGlobalDescriptor(query, thumbnails, options)
+                                     : index.Rank(QuantizeGlobalDescriptor(query), all);
+      } else if (method == 2) {
+        const WideBaselineFeatures features = ExtractBinaryFeatures(frame.image, loaded.options.relocalization_features);
+        orders[method] = words.Rank(vocabulary.Words(features.descriptors), all);
+      } else {
+        orders[method] = FuseRankings(orders[1], orders[2]);
+      }
       seconds[method] += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      const std::vector<size_t>& order = orders[method];
       size_t rank = 0;
       while (rank < order.size() && map.nodes()[order[rank]].id != arc->from && map.nodes()[order[rank]].id != arc->to) {
         ++rank;
       }
       at1[method] += rank < 1;
       at5[method] += rank < 5;
+      at20[method] += rank < 20;
     }
   }
   if (queries == 0) throw InputError(args.sequence.string(), "no frame has a true arc");
-  for (int method = 0; method < 2; ++method) {
+  for (int method = 0; method < kMethods; ++method) {
     std::cout << fmt::format("retrieval ({}): {} frames, {} key-images: recall@1 {:.1f} %, recall@5 {:.1f} %, "
-                             "{:.2f} ms per query\n",
-                             method == 0 ? "float thumbnails" : "quantised index", queries, map.nodes().size(),
-                             100.0 * at1[method] / queries, 100.0 * at5[method] / queries,
+                             "recall@20 {:.1f} %, {:.2f} ms per query\n",
+                             names[method], queries, map.nodes().size(), 100.0 * at1[method] / queries,
+                             100.0 * at5[method] / queries, 100.0 * at20[method] / queries,
                              1000.0 * seconds[method] / queries);
   }
 }
@@ -340,6 +368,8 @@ void RegisterBenchCommand(CLI::App& app) {
                   "Verification stops at the first key-image with this many inliers")->capture_default_str();
   cmd->add_flag("!--sift", args->options.binary_relocalization,
                 "Relocalize with SIFT extracted at run time (as before issue 16), not the stored binary key-points");
+  cmd->add_flag("!--no-visual-words", args->options.visual_word_retrieval,
+                "Rank the whole map by appearance thumbnails alone, not fused with visual words");
   cmd->callback([args]() {
     std::string error;
     if (!args->options.Check(&error)) throw InputError("bench options", error);
@@ -351,6 +381,9 @@ void RegisterBenchCommand(CLI::App& app) {
       "retrieval", "Retrieval quality: rank of the true arc's key-images for every frame of a drive (recall@1, @5)");
   rcmd->add_option("--map", retrieval->map, "Map file written by `retrace teach`")->required();
   rcmd->add_option("--sequence", retrieval->sequence, "Drive with KITTI poses.txt")->required();
+  rcmd->add_option("--every", retrieval->every, "Query every N-th frame of the drive")->check(CLI::PositiveNumber);
+  rcmd->add_option("--vocabulary-branching", retrieval->vocabulary.branching, "Visual words: children per node");
+  rcmd->add_option("--vocabulary-depth", retrieval->vocabulary.depth, "Visual words: levels of the tree");
   rcmd->callback([retrieval]() { RunRetrieval(*retrieval); });
 
   RegisterBenchHeadingCommand(bench);

@@ -515,6 +515,9 @@ void RegisterRepeatCommand(CLI::App& app) {
   cmd->add_flag("!--sift", args->options.binary_relocalization,
                 "Relocalize with SIFT from three detectors extracted at run time (as before issue 16), not with the "
                 "binary key-points the map stores");
+  cmd->add_flag("!--no-visual-words", args->options.visual_word_retrieval,
+                "Rank the whole map's key-images for relocalization by their appearance thumbnails alone, not fused "
+                "with their visual words");
   cmd->add_flag("!--no-absolute-pose", args->options.place_by_absolute_pose,
                 "Place the camera on the arc by the current geometries alone (the paper), not by its absolute pose in "
                 "the arc's reconstruction");

@@ -33,7 +33,9 @@ TEST(FeatureBlobs, FeaturesRoundTripSortedByIdWithFloatPositionsAndExactPatches)
     EXPECT_EQ(r->position.y(), static_cast<double>(static_cast<float>(w.position.y())));
     EXPECT_NEAR(r->position.x(), w.position.x(), 1e-4);
     ASSERT_EQ(r->patch.size(), w.patch.size());
-    if (!w.patch.empty()) EXPECT_EQ(cv::norm(r->patch, w.patch, cv::NORM_INF), 0.0);
+    if (!w.patch.empty()) {
+      EXPECT_EQ(cv::norm(r->patch, w.patch, cv::NORM_INF), 0.0);
+    }
   }
   std::vector<FeatureObservation> none;
   EXPECT_TRUE(EncodeFeatures({}).empty());

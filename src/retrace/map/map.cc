@@ -10,6 +10,7 @@ node_t Map::AddNode(MapNode node) {
   if (node_index_.count(node.id) != 0) throw std::invalid_argument("Map::AddNode: duplicate node id");
   node_index_[node.id] = nodes_.size();
   nodes_.push_back(std::move(node));
+  visual_words_.reset();
   return nodes_.back().id;
 }
 
@@ -33,7 +34,10 @@ const MapArc* Map::FindArc(arc_t id) const {
   return it == arc_index_.end() ? nullptr : &arcs_[it->second];
 }
 
-MapNode* Map::MutableNode(node_t id) { return const_cast<MapNode*>(FindNode(id)); }
+MapNode* Map::MutableNode(node_t id) {
+  visual_words_.reset();
+  return const_cast<MapNode*>(FindNode(id));
+}
 
 MapArc* Map::MutableArc(arc_t id) { return const_cast<MapArc*>(FindArc(id)); }
 

@@ -13,6 +13,7 @@
 // The paper's graphs are linear or circular; this structure allows any graph (several routes, junctions, loops).
 
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <unordered_map>
@@ -38,6 +39,8 @@ struct FeatureObservation {
 // 16): binary key-points for the verification by matching (feature/binary_features.h) and the key-image's quantised
 // appearance thumbnail for retrieval (feature/global_descriptor.h). Empty in maps written before (schema < 4):
 // repeat computes it when it loads such a map.
+struct VisualWords;
+
 struct KeyImageSignature {
   std::vector<cv::KeyPoint> keypoints;  // position (pt) and size; stored at 1/8 px
   cv::Mat descriptors;                  // CV_8U, one binary descriptor (8-32 bytes) per key-point, same order
@@ -138,6 +141,12 @@ class Map {
   void SetSignatureLoader(SignatureLoader loader) { signature_loader_ = std::move(loader); }
   KeyImageSignature Signature(node_t id) const;
 
+  // Retrieval by visual words (feature/visual_words.h) over the signatures' descriptors, entry i the i-th node: built
+  // once for a map opened to localize in (LoadMapForLocalizer, or the first Localizer given the map) and shared by
+  // its copies; AddNode and MutableNode drop it (the signatures it indexes may change).
+  const std::shared_ptr<const VisualWords>& visual_words() const { return visual_words_; }
+  void SetVisualWords(std::shared_ptr<const VisualWords> words) { visual_words_ = std::move(words); }
+
  private:
   std::vector<MapNode> nodes_;
   std::vector<MapArc> arcs_;
@@ -146,6 +155,7 @@ class Map {
   std::unordered_map<arc_t, size_t> arc_index_;
   KeyImageLoader key_image_loader_;
   SignatureLoader signature_loader_;
+  std::shared_ptr<const VisualWords> visual_words_;
 };
 
 }  // namespace retrace

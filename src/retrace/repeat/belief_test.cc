@@ -103,7 +103,7 @@ TEST(PlaceBelief, WithoutASpeedOneFrameMovesTheCameraAFewTeachFrames) {
   // unknown_speed_max (4): an outlier, not reported. Where key-images are one teach frame apart — one frame of the
   // sequence, or 5 of a drive taught with `--every 5` (teach_frame_step) — 3 teach frames are within reach and the
   // camera is there.
-  for (const auto [frames_per_arc, step] : {std::pair{5, 1}, std::pair{1, 1}, std::pair{5, 5}}) {
+  for (const auto& [frames_per_arc, step] : {std::pair{5, 1}, std::pair{1, 1}, std::pair{5, 5}}) {
     SCOPED_TRACE(::testing::Message() << frames_per_arc << " frames per arc, step " << step);
     PlaceBeliefOptions options;
     ASSERT_DOUBLE_EQ(options.unknown_speed_max, 4.0);

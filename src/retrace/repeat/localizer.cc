@@ -86,6 +86,7 @@ bool LocalizerOptions::Check(std::string* error) const {
   std::string matching_error;
   if (!matching.Check(&matching_error)) return fail("matching: " + matching_error);
   if (!relocalization_features.Check(&matching_error)) return fail("relocalization_features: " + matching_error);
+  if (!vocabulary.Check(&matching_error)) return fail("vocabulary: " + matching_error);
   if (!(retrieval_ambiguity_ratio >= 0.0 && retrieval_ambiguity_ratio <= 1.0)) {
     return fail("retrieval_ambiguity_ratio must be in [0, 1]");
   }
@@ -159,6 +160,7 @@ Localizer::Localizer(Map map, const CameraModel& camera, const LocalizerOptions&
     appearance_entry_[node.id] = appearance_index_.Add(appearance);
     appearance_nodes_.push_back(node.id);
   }
+  if (!map_.visual_words()) map_.SetVisualWords(BuildMapVisualWords(map_, options_));
   for (const MapArc& arc : map_.arcs()) {
     auto data = std::make_unique<ArcData>();
     data->arc = &arc;
@@ -259,6 +261,17 @@ KeyImageSignature Localizer::ComputeSignature(const cv::Mat& image, const Locali
   signature.descriptors = features.descriptors;
   signature.appearance = QuantizeGlobalDescriptor(ComputeGlobalDescriptor(image, options.retrieval));
   return signature;
+}
+
+std::shared_ptr<const VisualWords> Localizer::BuildMapVisualWords(const Map& map, const LocalizerOptions& options) {
+  if (!options.binary_relocalization || !options.visual_word_retrieval) return nullptr;
+  // Signatures held by the map, or read from its file one at a time (40 MB of descriptors for 1264 key-images).
+  const std::vector<MapNode>& nodes = map.nodes();
+  size_t total = 0;
+  for (const MapNode& node : nodes) total += map.Signature(node.id).descriptors.rows;
+  if (total == 0) return nullptr;
+  return std::make_shared<const VisualWords>(BuildVisualWords(
+      nodes.size(), total, [&](size_t i) { return map.Signature(nodes[i].id).descriptors; }, options.vocabulary));
 }
 
 const ReferencePatch* Localizer::Reference(node_t node_id, feature_t feature) {

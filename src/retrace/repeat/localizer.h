@@ -78,8 +78,8 @@
 // given start arc, or — without one — against every key-image (retrieval); after a loss only the key-images within
 // `relocalization_neighbourhood` arcs of where it was lost, widened by `relocalization_widening` arcs per frame
 // since, and the whole map only after `global_relocalization_frames` (look-alike streets elsewhere verify too).
-// Candidates are ranked by whole-image appearance (the quantised thumbnails stored in the map, AppearanceIndex) and
-// verified geometrically (relative pose on the matches) in that order, within a budget: at most
+// Candidates are ranked by whole-image appearance (the quantised thumbnails stored in the map, AppearanceIndex) fused
+// with their visual words (VisualWords of the stored descriptors; `visual_word_retrieval`) and verified geometrically (relative pose on the matches) in that order, within a budget: at most
 // `retrieval_shortlist` of them (`start_retrieval_shortlist` before the first localization), stopping at the first
 // with `retrieval_confident_inliers` (issue 16: a relocalizing frame costs the same on a map of any size). The
 // verified key-image with most inliers wins. Its arc is chosen by which side of the key-image the camera is on (the
@@ -108,6 +108,7 @@
 #include "retrace/feature/feature_tracker.h"
 #include "retrace/feature/global_descriptor.h"
 #include "retrace/feature/image_pyramid.h"
+#include "retrace/feature/visual_words.h"
 #include "retrace/feature/wide_baseline.h"
 #include "retrace/geometry/absolute_pose.h"
 #include "retrace/geometry/point_transfer.h"
@@ -269,6 +270,15 @@ struct LocalizerOptions {
   // key-image of another place gives few inliers and would run the estimator's 5000 samples (100 ms at 320x240).
   int relocalization_max_samples = 300;
   GlobalDescriptorOptions retrieval;
+  // Retrieval over the whole map also by visual words (feature/visual_words.h: a vocabulary tree trained on the map's
+  // stored binary descriptors, tf-idf scores through an inverted file), fused with the appearance ranking by
+  // reciprocal rank (FuseRankings). `retrace bench retrieval`, a key-image of the true arc among the first 1 / 5 / 20:
+  // on the map of 1264 key-images (every 10th repeat frame) thumbnails 62.3 / 76.1 / 85.1 %, words 69.4 / 84.0 /
+  // 91.4 %, both 75.6 / 91.4 / 96.5 %; the seven validation drives (every frame) thumbnails 82.5 / 96.8 / 99.8 %,
+  // both 93.4 / 99.5 / 100 %. The window of arcs around a loss keeps the thumbnails alone (relocalization.cc).
+  // Needs binary_relocalization.
+  bool visual_word_retrieval = true;
+  VisualVocabularyOptions vocabulary;
   // Key-images whose derived data (image pyramid, cut references, wide-baseline key-points; 1-4 MB each at 320 to
   // 1226 px width) is kept between frames, the least recently used released first. Bounds repeat's memory on a drive
   // of any length: without it every key-image visited stayed in memory (kitti07's 1226 px: +4.2 MB per key-image).
@@ -423,6 +433,10 @@ class Localizer {
   // A key-image's relocalization signature as this localizer uses it (binary key-points and quantised appearance
   // made with `options`): what teach stores, and what LoadMapForLocalizer computes for maps without one.
   static KeyImageSignature ComputeSignature(const cv::Mat& image, const LocalizerOptions& options);
+  // The visual words of `map`'s stored signatures (entry i its i-th node) with options.vocabulary, or null when
+  // retrieval by words is off or no key-image has stored descriptors. LoadMapForLocalizer sets them on the map it
+  // opens (Map::SetVisualWords); a Localizer given a map without them builds them.
+  static std::shared_ptr<const VisualWords> BuildMapVisualWords(const Map& map, const LocalizerOptions& options);
 
  private:
   struct NodeData;
@@ -451,11 +465,12 @@ class Localizer {
     std::vector<double> size_ratios;                   // key-point size in the frame / in the key-image
   };
   // Verifies `candidates` by wide-baseline matching, the most similar in appearance to `image` first, at most
-  // `shortlist` of them (0: all; see LocalizerOptions::retrieval_shortlist), screened as MatchKeyImages when
-  // `screening`; every candidate tried is added to `tried`.
+  // `shortlist` of them (0: all; see LocalizerOptions::retrieval_shortlist); every candidate tried is added to
+  // `tried`. A retrieval over the whole map (`whole_map`) also ranks by visual words (visual_word_retrieval) and
+  // screens its candidates (MatchKeyImages).
   std::vector<MatchedKeyImage> RetrieveKeyImages(const cv::Mat& image, const WideBaselineFeatures& current,
                                                  const std::vector<node_t>& candidates, std::vector<node_t>* tried,
-                                                 int shortlist, bool screening);
+                                                 int shortlist, bool whole_map);
   // Verifies each candidate by a relative pose on the matches; `screening` (retrieval over the whole map) bounds
   // the samples by what finds a model of min_inliers inliers (relocalization.cc).
   std::vector<MatchedKeyImage> MatchKeyImages(const WideBaselineFeatures& current,

@@ -92,6 +92,14 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
                    stored ? "" : " made with these settings",
                    std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
     }
+    // Retrieval by visual words, built once here and shared by every localizer given a copy of this map.
+    const auto words_start = std::chrono::steady_clock::now();
+    loaded.map.SetVisualWords(Localizer::BuildMapVisualWords(loaded.map, loaded.options));
+    if (loaded.map.visual_words()) {
+      spdlog::debug("{}: visual words: {} words for {} key-images in {:.2f} s", PrintableText(path.string()),
+                    loaded.map.visual_words()->vocabulary.size(), loaded.map.nodes().size(),
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - words_start).count());
+    }
   }
   return loaded;
 }

@@ -7,9 +7,10 @@
 //
 //
 // BM_FindStart*: the latency of the first frame without a start arc (retrieval over every key-image + wide-baseline
-// verification), with an appearance shortlist of 5 (the argument, LocalizerOptions::start_retrieval_shortlist, whose
-// default is 20; on kitti07 the first candidate verified is confident, so both stop there) and verifying every
-// key-image (0).
+// verification), with a verification budget of 5 and 20 (the first argument, LocalizerOptions::start_retrieval_shortlist,
+// whose default is 20; on kitti07 the first candidate verified is confident, so both stop there) and verifying every
+// key-image (0); the second argument: 1 ranks by appearance and visual words fused (the default), 0 by appearance
+// alone (LocalizerOptions::visual_word_retrieval). The map's visual words are built once, outside the timing.
 // BM_ExtractKeyImage*: what retrieval pays once for each key-image it verifies (wide-baseline key-points and
 // descriptors of one key-image, cached by the localizer afterwards).
 //
@@ -64,6 +65,8 @@ const Setup* GetSetup(int width) {
   }
   teacher.Finish();
   setup->map = teacher.map();
+  // As LoadMapForLocalizer: the visual words built once, shared by every Localizer given a copy of the map.
+  setup->map.SetVisualWords(Localizer::BuildMapVisualWords(setup->map, LocalizerOptions()));
   SubsampledSequence odd(OpenSequence(kitti), 2, 1);
   while (auto frame = odd.Next()) {
     resize(&*frame);
@@ -86,6 +89,8 @@ const Setup* GetSimSetup() {
   for (const Frame& frame : teach.frames) teacher.AddFrame(frame);
   teacher.Finish();
   setup->map = teacher.map();
+  // As LoadMapForLocalizer: the visual words built once, shared by every Localizer given a copy of the map.
+  setup->map.SetVisualWords(Localizer::BuildMapVisualWords(setup->map, LocalizerOptions()));
   setup->repeat_frames = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kRepeat)).frames;
   cached = std::move(setup);
   return cached.get();
@@ -155,6 +160,7 @@ BENCHMARK(BM_RepeatSimAffine)->Unit(benchmark::kMillisecond)->Iterations(1);
 void RunFindStart(const Setup& setup, size_t frame, benchmark::State& state) {
   LocalizerOptions options;
   options.start_retrieval_shortlist = static_cast<int>(state.range(0));  // the budget of a first frame
+  options.visual_word_retrieval = state.range(1) != 0;
   int64_t localized = 0, runs = 0;
   for (auto _ : state) {
     Localizer localizer(setup.map, *setup.camera, options);
@@ -173,10 +179,10 @@ void BM_FindStartKitti(benchmark::State& state) {
   }
   RunFindStart(*setup, 40, state);  // odd frame 81, the "start in the middle"
 }
-BENCHMARK(BM_FindStartKitti)->Arg(5)->Arg(0)->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_FindStartKitti)->Args({5, 1})->Args({20, 1})->Args({20, 0})->Args({0, 1})->Unit(benchmark::kMillisecond)->Iterations(1);
 
 void BM_FindStartSim(benchmark::State& state) { RunFindStart(*GetSimSetup(), 100, state); }
-BENCHMARK(BM_FindStartSim)->Arg(5)->Arg(0)->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_FindStartSim)->Args({5, 1})->Args({20, 1})->Args({20, 0})->Args({0, 1})->Unit(benchmark::kMillisecond)->Iterations(1);
 
 void ExtractKeyImages(const Setup& setup, benchmark::State& state) {
   const WideBaselineOptions matching = LocalizerOptions().matching;

@@ -6,6 +6,7 @@
 // (Segvic 2009, eq. (10)) points where the taught path goes.
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <iostream>
 #include <string>
@@ -21,6 +22,14 @@
 namespace retrace {
 namespace {
 
+// The map teach makes of `drive` with the default options.
+Map Teach(const RecordedDrive& drive) {
+  Teacher teacher(*drive.camera, TeachOptions(), nullptr);
+  for (const Frame& frame : drive.frames) teacher.AddFrame(frame);
+  teacher.Finish();
+  return teacher.map();
+}
+
 // Teaches the scenario's drive (200 frames), repeats its repeat variant and checks the issue's acceptance: at least
 // 99 % of the frames on the correct arc (±1 near a node), none two or more arcs off, at most 1 % lost; and the
 // steering command against ground truth (when the drive turns).
@@ -31,10 +40,7 @@ void RepeatAndCheck(const Scenario& base, const std::string& label, bool check_s
   const RecordedDrive repeat = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kRepeat));
   ASSERT_EQ(repeat.frames.size(), 200u);
 
-  Teacher teacher(*teach.camera, TeachOptions(), nullptr);
-  for (const Frame& frame : teach.frames) teacher.AddFrame(frame);
-  teacher.Finish();
-  const Map& map = teacher.map();
+  const Map map = Teach(teach);
   ASSERT_GE(map.arcs().size(), 10u);
 
   LocalizerOptions options;
@@ -139,10 +145,7 @@ TEST(RepeatSim, BoundedKeyImageCacheChangesNothingButMemory) {
   scenario.num_frames = 80;
   const RecordedDrive teach = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kTeach));
   const RecordedDrive repeat = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kRepeat));
-  Teacher teacher(*teach.camera, TeachOptions(), nullptr);
-  for (const Frame& frame : teach.frames) teacher.AddFrame(frame);
-  teacher.Finish();
-  const Map& map = teacher.map();
+  const Map map = Teach(teach);
   ASSERT_GE(map.nodes().size(), 8u);
 
   LocalizerOptions bounded_options;
@@ -168,6 +171,52 @@ TEST(RepeatSim, BoundedKeyImageCacheChangesNothingButMemory) {
   // The bound was exercised: unbounded, the localizer held many more key-images.
   EXPECT_GE(largest_unbounded, 8);
   EXPECT_GE(tracking, 140);
+}
+
+// Kidnapped starts (issue 16): a fresh localizer without a start arc at 20 frames of the repeat drive, the whole map
+// ranked by appearance and visual words fused (the default) and by appearance alone. Never a wrong place, and the
+// words find the place at the first frame at least as often. The map's words are built once (as LoadMapForLocalizer
+// does) and shared by every localizer given a copy of it.
+TEST(RepeatSim, KidnappedStartsRankedByAppearanceAndVisualWords) {
+  Scenario scenario;
+  scenario.num_frames = 200;
+  const RecordedDrive teach = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kTeach));
+  const RecordedDrive repeat = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kRepeat));
+  const Map taught = Teach(teach);
+  Map map = taught;
+  LocalizerOptions options;
+  map.SetVisualWords(Localizer::BuildMapVisualWords(map, options));
+  ASSERT_NE(map.visual_words(), nullptr);
+  EXPECT_EQ(map.visual_words()->index.size(), map.nodes().size());
+  EXPECT_GE(map.visual_words()->vocabulary.size(), 100);
+
+  std::array<int, 2> localized{}, wrong{};
+  for (const bool words : {true, false}) {
+    options.visual_word_retrieval = words;
+    std::vector<RepeatRecord> records;
+    for (size_t start = 5; start < repeat.frames.size(); start += 10) {
+      Localizer localizer(map, *repeat.camera, options);
+      const FrameResult result = localizer.ProcessFrame(repeat.frames[start]);
+      records.push_back({repeat.frames[start].source_index, result.state == LocalizerState::kTracking, result.arc});
+    }
+    const TopologicalEvaluation evaluation = EvaluateTopological(map, teach.truth, repeat.truth, records);
+    for (const FrameTruth& t : evaluation.per_frame) {
+      localized[words] += t.correct;
+      wrong[words] += !t.lost && !t.correct;
+    }
+  }
+  std::cout << "kidnapped starts localized at the first frame: " << localized[1] << " of 20 with visual words, "
+            << localized[0] << " by appearance alone\n";
+  EXPECT_EQ(wrong[1], 0);
+  EXPECT_EQ(wrong[0], 0);
+  EXPECT_GE(localized[1], localized[0]);
+  EXPECT_GE(localized[1], 17);
+  // Retrieval by words off: a localizer given a map without words builds none.
+  options.visual_word_retrieval = false;
+  EXPECT_EQ(Localizer(taught, *repeat.camera, options).map().visual_words(), nullptr);
+  // A map changed after its words were built drops them.
+  map.MutableNode(map.nodes().front().id);
+  EXPECT_EQ(map.visual_words(), nullptr);
 }
 
 }  // namespace
