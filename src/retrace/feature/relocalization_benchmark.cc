@@ -2,12 +2,16 @@
 //  - BM_ExtractBinary: upright ORB key-points and descriptors of one image (binary_features.h), 320x240 and
 //    1226x370, against BM_ExtractWideBaseline (SIFT from three detectors, wide_baseline.h) on the same images;
 //  - BM_MatchBinary: the Hamming table, ratio test and cross-check of two 320x240 images;
-//  - BM_AppearanceIndexRank/N: ranking N key-images by their quantised thumbnails (global_descriptor.h).
+//  - BM_AppearanceIndexRank/N: ranking N key-images by their quantised thumbnails (global_descriptor.h);
+//  - BM_VisualWordsQuantize: the words of a 320x240 frame's ORB descriptors in a vocabulary of about 10^4 words;
+//  - BM_VisualWordIndexRank/N: ranking N key-images of 1000 words each by tf-idf through the inverted file
+//    (visual_words.h).
 //
 //   build/src/retrace/feature/bench_feature_relocalization --benchmark_repetitions=5
 //     --benchmark_report_aggregates_only=true
 
 #include <numeric>
+#include <random>
 
 #include <benchmark/benchmark.h>
 #include <opencv2/imgproc.hpp>
@@ -15,6 +19,7 @@
 #include "retrace/feature/binary_features.h"
 #include "retrace/feature/global_descriptor.h"
 #include "retrace/feature/synthetic_texture.h"
+#include "retrace/feature/visual_words.h"
 
 namespace retrace {
 namespace {
@@ -75,6 +80,44 @@ void BM_AppearanceIndexRank(benchmark::State& state) {
   state.counters["key_images"] = n;
 }
 BENCHMARK(BM_AppearanceIndexRank)->Arg(1000)->Arg(4000)->Unit(benchmark::kMillisecond);
+
+// A vocabulary trained on the ORB descriptors of 200 textured images (200 000 descriptors at most, as a map's), the
+// frame one more image.
+void BM_VisualWordsQuantize(benchmark::State& state) {
+  std::vector<cv::Mat> descriptors;
+  for (int i = 0; i < 200; ++i) descriptors.push_back(ExtractBinaryFeatures(Texture(320, 240, 100 + i)).descriptors);
+  const VisualWords words = BuildVisualWords(descriptors);
+  const cv::Mat frame = ExtractBinaryFeatures(Texture(320, 240, 7)).descriptors;
+  for (auto _ : state) benchmark::DoNotOptimize(words.vocabulary.Words(frame));
+  state.counters["words"] = words.vocabulary.size();
+  state.counters["descriptors"] = frame.rows;
+}
+BENCHMARK(BM_VisualWordsQuantize)->Unit(benchmark::kMillisecond);
+
+void BM_VisualWordIndexRank(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  constexpr int kWords = 10000, kPerImage = 1000;
+  // Word frequencies as in a natural vocabulary (Zipf: the r-th most common word r times rarer than the first).
+  std::mt19937_64 rng(5);
+  std::vector<double> zipf(kWords);
+  for (int w = 0; w < kWords; ++w) zipf[w] = 1.0 / (w + 1);
+  std::discrete_distribution<int> word(zipf.begin(), zipf.end());
+  const auto image = [&] {
+    std::vector<int> words(kPerImage);
+    for (int& w : words) w = word(rng);
+    return words;
+  };
+  VisualWordIndex index(kWords);
+  for (int i = 0; i < n; ++i) index.Add(image());
+  index.ShrinkToFit();
+  const std::vector<int> query = image();
+  std::vector<size_t> all(n);
+  std::iota(all.begin(), all.end(), 0);
+  benchmark::DoNotOptimize(index.Rank(query, all));  // the idf weights, computed once
+  for (auto _ : state) benchmark::DoNotOptimize(index.Rank(query, all));
+  state.counters["key_images"] = n;
+}
+BENCHMARK(BM_VisualWordIndexRank)->Arg(1000)->Arg(4000)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace retrace
