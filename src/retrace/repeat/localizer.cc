@@ -160,7 +160,10 @@ Localizer::Localizer(Map map, const CameraModel& camera, const LocalizerOptions&
     appearance_entry_[node.id] = appearance_index_.Add(appearance);
     appearance_nodes_.push_back(node.id);
   }
-  if (!map_.visual_words()) map_.SetVisualWords(BuildMapVisualWords(map_, options_));
+  // Entry i of the words' index is the i-th node, as in the appearance index above.
+  if (!map_.visual_words() || map_.visual_words()->index.size() != map_.nodes().size()) {
+    map_.SetVisualWords(BuildMapVisualWords(map_, options_));
+  }
   for (const MapArc& arc : map_.arcs()) {
     auto data = std::make_unique<ArcData>();
     data->arc = &arc;

@@ -108,8 +108,8 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
   // key-images (recall@5 97 % in the validation drives), and over the validation matrix the fused order relocalized
   // 2-3 m beside the route on key-images whose tracks then lagged an arc (26 frames on a wrong arc instead of 19).
   const std::shared_ptr<const VisualWords>& words = map_.visual_words();
-  if (whole_map && options_.visual_word_retrieval && words && !current.descriptors.empty() && current.descriptors.type() == CV_8U &&
-      current.descriptors.cols == words->vocabulary.descriptor_bytes()) {
+  if (whole_map && options_.visual_word_retrieval && words && !current.descriptors.empty() &&
+      current.descriptors.type() == CV_8U && current.descriptors.cols == words->vocabulary.descriptor_bytes()) {
     order = FuseRankings(order, words->index.Rank(words->vocabulary.Words(current.descriptors), entries));
   }
   std::vector<node_t> ranked;
