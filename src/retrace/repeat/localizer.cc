@@ -516,7 +516,7 @@ Localizer::CurrentGeometry Localizer::EstimateCurrentGeometry(node_t node_id) {
   return current;
 }
 
-AbsolutePose Localizer::EstimatePoseInArc(const ArcData& arc) const {
+AbsolutePose Localizer::EstimatePoseInArc(const ArcData& arc, PoseSpread* spread) const {
   std::vector<Vector3d> points, bearings;
   for (const TrackedFeature& f : tracker_.Features()) {
     const auto point = arc.points.find(f.id);
@@ -525,7 +525,12 @@ AbsolutePose Localizer::EstimatePoseInArc(const ArcData& arc) const {
     points.push_back(point->second);
     bearings.push_back(bearing->second);
   }
-  return EstimateAbsolutePose(points, bearings, camera_->FocalLength(), pose_options_);
+  AbsolutePose pose = EstimateAbsolutePose(points, bearings, camera_->FocalLength(), pose_options_);
+  if (spread != nullptr && pose.success) {
+    *spread =
+        SpreadOfInliers(pose, points, bearings, CameraCentre(arc.arc->to_from_from).norm(), camera_->FocalLength());
+  }
+  return pose;
 }
 
 namespace {
@@ -650,7 +655,8 @@ void Localizer::Localize(FrameResult* result) {
   }
   // ... and by its absolute pose in the arc's reconstruction (σ_p gated like the current geometries).
   if (options_.place_by_absolute_pose) {
-    const AbsolutePose pose = EstimatePoseInArc(*arc);
+    PoseSpread spread;
+    const AbsolutePose pose = EstimatePoseInArc(*arc, &spread);
     last_pose_.reset();
     if (pose.success) {
       last_pose_ = LastPose{arc_, pose.cam_from_world, frame_counter_, pose.sigma_p < max_sigma_p_px_,
@@ -661,7 +667,7 @@ void Localizer::Localize(FrameResult* result) {
       if (position_pose.valid) result->position_via_pose = position_pose.along;
       if (position_pose.valid && pose.sigma_p < max_sigma_p_px_) {
         placements.pose =
-            PoseMeasurement(arc_, position_pose, pose, arc->arc->to_from_from, options_.placement, arc->bounds);
+            PoseMeasurement(arc_, position_pose, pose, arc->arc->to_from_from, options_.placement, arc->bounds, spread);
       }
     }
   }
@@ -672,14 +678,14 @@ void Localizer::Localize(FrameResult* result) {
     int best_inliers = 0;
     for (const ArcData* neighbour : {next, previous}) {
       if (neighbour == nullptr || !options_.place_by_absolute_pose) continue;
-      const AbsolutePose pose = EstimatePoseInArc(*neighbour);
+      PoseSpread spread;
+      const AbsolutePose pose = EstimatePoseInArc(*neighbour, &spread);
       if (!pose.success || !(pose.sigma_p < max_sigma_p_px_) || pose.num_inliers <= best_inliers) continue;
       const ArcPosition placed = LocateOnArc(pose.cam_from_world, neighbour->arc->to_from_from, neighbour->bounds);
       if (!placed.valid) continue;
       best_inliers = pose.num_inliers;
-      placements.neighbour =
-          PoseMeasurement(neighbour->arc->id, placed, pose, neighbour->arc->to_from_from, options_.placement,
-                          neighbour->bounds);
+      placements.neighbour = PoseMeasurement(neighbour->arc->id, placed, pose, neighbour->arc->to_from_from,
+                                             options_.placement, neighbour->bounds, spread);
     }
     if (!placements.neighbour) {
       // W_t:b relates the camera to the next arc's first key-image, W_t:a to the previous arc's second.

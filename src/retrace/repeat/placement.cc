@@ -146,18 +146,42 @@ bool PlacementModel::Check(std::string* error) const {
     return fail("placement sigmas must be positive");
   }
   if (!(geometry_extrapolation_length > 0)) return fail("geometry_extrapolation_length must be positive");
+  if (!(pose_shared_error_px >= 0)) return fail("pose_shared_error_px must be >= 0");
   for (const double p : {pose_outlier_probability, geometry_outlier_probability, key_image_outlier_probability}) {
     if (!(p > 0) || !(p < 1)) return fail("placement outlier probabilities must be in (0, 1)");
   }
   return true;
 }
 
+PoseSpread SpreadOfInliers(const AbsolutePose& pose, const std::vector<Vector3d>& points_in_world,
+                           const std::vector<Vector3d>& bearings, double arc_length, double focal_length_px) {
+  std::vector<double> depths;
+  double sum_squares = 0.0;
+  for (size_t i = 0; i < points_in_world.size() && i < pose.inlier_mask.size() && i < bearings.size(); ++i) {
+    if (!pose.inlier_mask[i]) continue;
+    depths.push_back((pose.cam_from_world * points_in_world[i]).norm());
+    // The angle from the optical axis (any camera model): a relative scale change δs of the image moves it by δs.
+    const double angle = std::atan2(bearings[i].head<2>().norm(), bearings[i].z());
+    sum_squares += angle * angle;
+  }
+  PoseSpread spread;
+  if (depths.empty() || !(arc_length > 0)) return spread;
+  std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
+  spread.median_depth = depths[depths.size() / 2] / arc_length;
+  spread.rms_radius_px = focal_length_px * std::sqrt(sum_squares / depths.size());
+  return spread;
+}
+
 PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const AbsolutePose& pose,
-                                 const Rigid3d& arc_b_from_a, const PlacementModel& model, const ArcBounds& bounds) {
+                                 const Rigid3d& arc_b_from_a, const PlacementModel& model, const ArcBounds& bounds,
+                                 const PoseSpread& spread) {
   double sigma = model.pose_sigma_floor;
   if (pose.covariance_valid) {
     const double fitted = AlongSigma(pose.centre_covariance, arc_b_from_a, CameraCentre(pose.cam_from_world), bounds);
     sigma = std::isfinite(fitted) ? std::hypot(fitted, model.pose_sigma_floor) : 1.0;
+  }
+  if (spread.median_depth > 0 && spread.rms_radius_px > 0) {
+    sigma = std::hypot(sigma, model.pose_shared_error_px / spread.rms_radius_px * spread.median_depth);
   }
   return {arc, position.along, sigma, model.pose_outlier_probability};
 }

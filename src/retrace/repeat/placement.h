@@ -103,6 +103,16 @@ struct PlacementModel {
   double pose_sigma_floor = 0.02;
   // ... and 1.2 % of its placements were more than 0.15 arc lengths from the truth.
   double pose_outlier_probability = 0.02;
+  // The tracked positions also share an error that does not average out over the features (the pose's covariance
+  // assumes independent errors): aligned against references cut from key-images taken elsewhere, they are biased
+  // together. A shared relative scale error δs of the image moves the pose along its viewing direction by δs times
+  // the depth of its points (Segvic 2009's distant features: a facade 30 arc lengths ahead, 1 % of scale is 0.3 arc
+  // lengths). δs has σ = this many pixels over the inliers' RMS distance from the optical axis (PoseSpread): the
+  // tracked features' error against the truth's projections, 0.17-0.24 px on seeds 1-3 (README, "Why those poses
+  // lag"). Over the validation matrix the pose's error relative to its points' median depth had a 95th percentile of
+  // 1.2 % on the seven tuning drives at 320x240 and 0.2 % on kitti07 (about 4 times the pixels per radian); without
+  // this term 22.6 % of the placements resting on points 20-40 arc lengths away were more than 4 σ off.
+  double pose_shared_error_px = 0.2;
   // A current geometry W_t:a / W_t:b through the decomposed transfer: its scale and translation direction come
   // from fewer, often distant features. Its placement error: median 0.010, 90th percentile 0.10 (σ = 0.06), above
   // 0.15 in 7.0-7.7 % of the frames (same measurement).
@@ -125,10 +135,22 @@ struct PlacementModel {
   bool Check(std::string* error = nullptr) const;
 };
 
-// The measurements of the belief from one placement on `arc`.
+// Where an absolute pose's inliers lie: their median depth in the current camera (arc lengths) and their RMS angle
+// from its optical axis times the focal length (pixels). Zero depth: unknown.
+struct PoseSpread {
+  double median_depth = 0.0;
+  double rms_radius_px = 0.0;
+};
+// The spread of the inliers of `pose`, estimated from `points_in_world` (the arc's reconstruction, whose key-images
+// are `arc_length` apart) and `bearings`.
+PoseSpread SpreadOfInliers(const AbsolutePose& pose, const std::vector<Vector3d>& points_in_world,
+                           const std::vector<Vector3d>& bearings, double arc_length, double focal_length_px);
+
+// The measurements of the belief from one placement on `arc`. A pose's σ: its covariance (AlongSigma), the floor,
+// and the shared scale error of its points' `spread` (PlacementModel::pose_shared_error_px) when known.
 PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const AbsolutePose& pose,
                                  const Rigid3d& arc_b_from_a, const PlacementModel& model,
-                                 const ArcBounds& bounds = ArcBounds());
+                                 const ArcBounds& bounds = ArcBounds(), const PoseSpread& spread = PoseSpread());
 // `key`: the key-image of `arc` the current geometry relates the camera to (W_t:a: kA, W_t:b: kB).
 PlaceMeasurement GeometryMeasurement(arc_t arc, const ArcPosition& position, ArcImage key, const PlacementModel& model);
 // The camera is at key-image `node` of `arc` (its start or its end), picked among `candidates` key-images.

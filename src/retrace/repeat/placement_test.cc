@@ -271,6 +271,52 @@ TEST(AlongSigma, ProjectsTheCentreCovarianceOnTheArcDirection) {
   EXPECT_NEAR(AlongSigma(covariance, b_from_a), 0.0, 1e-12);
 }
 
+// The premise of PlacementModel::pose_shared_error_px: tracked positions that share a relative scale error δs (every
+// feature δs farther from the optical axis) move the absolute pose along its viewing direction by about δs times the
+// depth of its points, whatever their number; and the pose's σ takes it into account.
+TEST(PlacementModel, ASharedScaleErrorMovesAPoseOnDistantPointsAlongTheArc) {
+  // Points of a facade 28-32 arc lengths ahead of the camera (the arc's key-images 1 apart along z), 40 of them.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> across(-6.0, 6.0), depth(28.0, 32.0);
+  std::vector<Vector3d> points, bearings, scaled;
+  for (int i = 0; i < 40; ++i) {
+    points.emplace_back(across(rng), 0.5 * across(rng), depth(rng));
+    bearings.push_back(points.back().normalized());  // camera at the arc's first key-image, looking along it
+    // The image 1 % larger about the optical axis: each ray's angle from the axis 1 % larger.
+    const double angle = std::atan2(bearings.back().head<2>().norm(), bearings.back().z()) * 1.01;
+    const Vector2d direction = bearings.back().head<2>().normalized();
+    scaled.emplace_back(direction.x() * std::sin(angle), direction.y() * std::sin(angle), std::cos(angle));
+  }
+  AbsolutePoseOptions options;
+  const double focal = 300.0;
+  const AbsolutePose exact = EstimateAbsolutePose(points, bearings, focal, options);
+  const AbsolutePose biased = EstimateAbsolutePose(points, scaled, focal, options);
+  ASSERT_TRUE(exact.success);
+  ASSERT_TRUE(biased.success);
+  const Rigid3d b_from_a = CamFromWorld(Vector3d(0.0, 0.0, 1.0));
+  const double along_exact = LocateOnArc(exact.cam_from_world, b_from_a).along;
+  const double along_biased = LocateOnArc(biased.cam_from_world, b_from_a).along;
+  EXPECT_NEAR(along_exact, 0.0, 1e-6);
+  // Closer by 1 % of the depth: the points look 1 % larger.
+  EXPECT_NEAR(along_biased - along_exact, 0.01 * 30.0, 0.05);
+  // The fit explains the scaled rays with almost no residual: its covariance knows nothing of the move ...
+  const PlacementModel model;
+  const PlaceMeasurement fitted_only = PoseMeasurement(1, AlongArc(along_biased), biased, b_from_a, model);
+  EXPECT_LT(fitted_only.sigma, 0.05);
+  // ... the spread of its points does: median depth ~30 arc lengths, RMS radius from the axis in pixels.
+  const PoseSpread spread = SpreadOfInliers(biased, points, scaled, 1.0, focal);
+  EXPECT_NEAR(spread.median_depth, 29.7, 1.0);
+  double sum_squares = 0.0;
+  for (const Vector3d& b : scaled) sum_squares += std::pow(std::atan2(b.head<2>().norm(), b.z()), 2);
+  EXPECT_NEAR(spread.rms_radius_px, focal * std::sqrt(sum_squares / scaled.size()), 1e-9);
+  const PlaceMeasurement m = PoseMeasurement(1, AlongArc(along_biased), biased, b_from_a, model, ArcBounds(), spread);
+  const double shared = model.pose_shared_error_px / spread.rms_radius_px * spread.median_depth;
+  EXPECT_NEAR(m.sigma, std::hypot(fitted_only.sigma, shared), 1e-12);
+  // The placement error, 0.3 arc lengths, is within 3 σ of it (and 6 σ or more of the fit alone).
+  EXPECT_LT(std::abs(along_biased - along_exact), 3.0 * m.sigma);
+  EXPECT_GT(std::abs(along_biased - along_exact), 6.0 * fitted_only.sigma);
+}
+
 TEST(PlacementModel, MeasurementsCarryTheirUncertainty) {
   const PlacementModel model;
   EXPECT_TRUE(model.Check());
