@@ -34,8 +34,13 @@ int Hamming(const uchar* a, const uchar* b, int bytes) { return cv::hal::normHam
 // The nearest of `count` centres (rows of `stride` bytes from `centres`) to `descriptor` of `bytes` bytes, by
 // Hamming distance over 64-bit words (descriptors of 8-32 bytes, BinaryFeatureOptions::descriptor_bytes); ties to
 // the first. Built for POPCNT and plain x86-64, chosen at run time (as wide_baseline.cc's nearest neighbours).
-__attribute__((target_clones("popcnt", "default"))) int NearestCentre(const uchar* descriptor, const uchar* centres,
-                                                                      int count, size_t stride, int bytes) {
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define RETRACE_POPCNT_CLONES __attribute__((target_clones("popcnt", "default")))
+#else
+#define RETRACE_POPCNT_CLONES
+#endif
+RETRACE_POPCNT_CLONES int NearestCentre(const uchar* descriptor, const uchar* centres, int count, size_t stride,
+                                        int bytes) {
   const int words = bytes / 8;
   uint64_t d[4];
   std::memcpy(d, descriptor, words * 8);
@@ -228,6 +233,7 @@ VisualVocabulary VisualVocabulary::Train(const cv::Mat& descriptors, const Visua
 }
 
 int VisualVocabulary::Word(const uchar* descriptor) const {
+  if (nodes_.empty()) return 0;  // a default-constructed vocabulary: one word
   int node = 0;
   while (nodes_[node].first_child >= 0) {
     node = nodes_[node].first_child + NearestCentre(descriptor, centres_.ptr<uchar>(nodes_[node].first_child),

@@ -72,8 +72,12 @@ TEST(VisualVocabulary, SmallNodesAreNotSplitAndTrainingIsDeterministic) {
   const VisualVocabulary b = VisualVocabulary::Train(rows, options);
   EXPECT_EQ(a.size(), 4);
   EXPECT_EQ(a.Words(rows), b.Words(rows));
-  // An empty input: one word, every descriptor in it.
+  // An empty input: one word, every descriptor in it; a default-constructed vocabulary answers word 0.
   EXPECT_EQ(VisualVocabulary::Train(cv::Mat(), options).size(), 1);
+  EXPECT_EQ(VisualVocabulary::Train(cv::Mat(), options).Word(rows.ptr<uchar>(0)), 0);
+  EXPECT_EQ(VisualVocabulary().Word(rows.ptr<uchar>(0)), 0);
+  // Descriptors of another width than 8-32 bytes in steps of 8 are refused.
+  EXPECT_THROW(VisualVocabulary::Train(cv::Mat(4, 12, CV_8U, cv::Scalar(1)), options), std::invalid_argument);
 }
 
 TEST(VisualVocabulary, OptionsAreChecked) {
