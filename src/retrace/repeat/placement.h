@@ -106,12 +106,12 @@ struct PlacementModel {
   // The tracked positions also share an error that does not average out over the features (the pose's covariance
   // assumes independent errors): aligned against references cut from key-images taken elsewhere, they are biased
   // together. A shared relative scale error δs of the image moves the pose along its viewing direction by δs times
-  // the depth of its points (Segvic 2009's distant features: a facade 30 arc lengths ahead, 1 % of scale is 0.3 arc
-  // lengths). δs has σ = this many pixels over the inliers' RMS distance from the optical axis (PoseSpread): the
-  // tracked features' error against the truth's projections, 0.17-0.24 px on seeds 1-3 (README, "Why those poses
-  // lag"). Over the validation matrix the pose's error relative to its points' median depth had a 95th percentile of
-  // 1.2 % on the seven tuning drives at 320x240 and 0.2 % on kitti07 (about 4 times the pixels per radian); without
-  // this term 22.6 % of the placements resting on points 20-40 arc lengths away were more than 4 σ off.
+  // the depth of its points (a facade 30 arc lengths ahead: 1 % of scale is 0.3 arc lengths; placement_test). δs has
+  // σ = this many pixels over the inliers' RMS distance from the optical axis (PoseSpread): the tracked features' error
+  // against the truth's projections, 0.17-0.24 px on seeds 1-3 (README, "Why those poses lag"). Over the validation
+  // matrix the pose's error relative to its points' median depth had a 95th percentile of 1.2 % on the seven tuning
+  // drives at 320x240 and 0.2 % on kitti07 (about 4 times the pixels per radian); without this term 22.6 % of the
+  // placements resting on points 20-40 arc lengths away were more than 4 σ off.
   double pose_shared_error_px = 0.2;
   // A current geometry W_t:a / W_t:b through the decomposed transfer: its scale and translation direction come
   // from fewer, often distant features. Its placement error: median 0.010, 90th percentile 0.10 (σ = 0.06), above
