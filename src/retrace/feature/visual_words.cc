@@ -34,13 +34,8 @@ int Hamming(const uchar* a, const uchar* b, int bytes) { return cv::hal::normHam
 // The nearest of `count` centres (rows of `stride` bytes from `centres`) to `descriptor` of `bytes` bytes, by
 // Hamming distance over 64-bit words (descriptors of 8-32 bytes, BinaryFeatureOptions::descriptor_bytes); ties to
 // the first. Built for POPCNT and plain x86-64, chosen at run time (as wide_baseline.cc's nearest neighbours).
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#define RETRACE_POPCNT_CLONES __attribute__((target_clones("popcnt", "default")))
-#else
-#define RETRACE_POPCNT_CLONES
-#endif
-RETRACE_POPCNT_CLONES int NearestCentre(const uchar* descriptor, const uchar* centres, int count, size_t stride,
-                                        int bytes) {
+__attribute__((always_inline)) inline int NearestCentreBody(const uchar* descriptor, const uchar* centres, int count,
+                                                            size_t stride, int bytes) {
   const int words = bytes / 8;
   uint64_t d[4];
   std::memcpy(d, descriptor, words * 8);
@@ -53,6 +48,20 @@ RETRACE_POPCNT_CLONES int NearestCentre(const uchar* descriptor, const uchar* ce
     if (distance < best_distance) best_distance = distance, best = c;
   }
   return best;
+}
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+__attribute__((target("popcnt"))) int NearestCentrePopcnt(const uchar* descriptor, const uchar* centres, int count,
+                                                          size_t stride, int bytes) {
+  return NearestCentreBody(descriptor, centres, count, stride, bytes);
+}
+#endif
+
+int NearestCentre(const uchar* descriptor, const uchar* centres, int count, size_t stride, int bytes) {
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+  if (__builtin_cpu_supports("popcnt")) return NearestCentrePopcnt(descriptor, centres, count, stride, bytes);
+#endif
+  return NearestCentreBody(descriptor, centres, count, stride, bytes);
 }
 
 // Per-bit counts of many descriptors: each byte adds its 8 bits to 8 byte-wide counters packed in one 64-bit word
