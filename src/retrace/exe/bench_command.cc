@@ -221,9 +221,7 @@ struct RetrievalArguments {
   std::filesystem::path sequence;
   size_t every = 1;
   LocalizerOptions options;
-  VisualVocabularyOptions vocabulary;
 };
-
 
 // Retrieval quality: for every frame of the drive, the rank of the first key-image of its true arc (either end)
 // among all key-images, by the float thumbnails (RankByGlobalDescriptor), by the quantised index the localizer used
@@ -238,19 +236,19 @@ void RunRetrieval(const RetrievalArguments& args) {
   std::vector<GlobalDescriptor> thumbnails;
   AppearanceIndex index(options);
   std::vector<size_t> all;
-  std::vector<cv::Mat> descriptors;
   for (const MapNode& node : map.nodes()) {
     thumbnails.push_back(ComputeGlobalDescriptor(map.KeyImage(node.id), options));
     all.push_back(index.Add(node.signature.appearance));
-    descriptors.push_back(map.Signature(node.id).descriptors);
   }
-  auto start = std::chrono::steady_clock::now();
-  const VisualWords visual_words = BuildVisualWords(descriptors, args.vocabulary);
-  const VisualVocabulary& vocabulary = visual_words.vocabulary;
-  const VisualWordIndex& words = visual_words.index;
-  std::cout << fmt::format("vocabulary: {} words in {:.2f} s\n", vocabulary.size(),
-                           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-  descriptors.clear();
+  // The visual words LoadMapForLocalizer built (entry i the i-th node, as `all`), and the frame's key-points as the
+  // localizer extracts them.
+  if (!map.visual_words()) throw InputError(args.map.string(), "no stored binary descriptors for visual words");
+  const VisualVocabulary& vocabulary = map.visual_words()->vocabulary;
+  const VisualWordIndex& words = map.visual_words()->index;
+  std::cout << fmt::format("vocabulary: {} words\n", vocabulary.size());
+  BinaryFeatureOptions frame_features = loaded.options.relocalization_features;
+  frame_features.max_keypoints = loaded.options.relocalization_frame_keypoints;
+  frame_features.scale_with_area = true;
   std::vector<Frame> frames;
   std::vector<RepeatRecord> records;
   for (size_t i = 0; i < sequence->size(); i += args.every) {
@@ -273,13 +271,13 @@ void RunRetrieval(const RetrievalArguments& args) {
     ++queries;
     std::array<std::vector<size_t>, kMethods> orders;
     for (int method = 0; method < kMethods; ++method) {
-      start = std::chrono::steady_clock::now();
+      const auto start = std::chrono::steady_clock::now();
       if (method <= 1) {
         const GlobalDescriptor query = ComputeGlobalDescriptor(frame.image, options);
         orders[method] = method == 0 ? RankByGlobalDescriptor(query, thumbnails, options)
                                      : index.Rank(QuantizeGlobalDescriptor(query), all);
       } else if (method == 2) {
-        const WideBaselineFeatures features = ExtractBinaryFeatures(frame.image, loaded.options.relocalization_features);
+        const WideBaselineFeatures features = ExtractBinaryFeatures(frame.image, frame_features);
         orders[method] = words.Rank(vocabulary.Words(features.descriptors), all);
       } else {
         orders[method] = FuseRankings(orders[1], orders[2]);
@@ -382,8 +380,10 @@ void RegisterBenchCommand(CLI::App& app) {
   rcmd->add_option("--map", retrieval->map, "Map file written by `retrace teach`")->required();
   rcmd->add_option("--sequence", retrieval->sequence, "Drive with KITTI poses.txt")->required();
   rcmd->add_option("--every", retrieval->every, "Query every N-th frame of the drive")->check(CLI::PositiveNumber);
-  rcmd->add_option("--vocabulary-branching", retrieval->vocabulary.branching, "Visual words: children per node");
-  rcmd->add_option("--vocabulary-depth", retrieval->vocabulary.depth, "Visual words: levels of the tree");
+  rcmd->add_option("--vocabulary-branching", retrieval->options.vocabulary.branching, "Visual words: children per node")
+      ->capture_default_str();
+  rcmd->add_option("--vocabulary-depth", retrieval->options.vocabulary.depth, "Visual words: levels of the tree")
+      ->capture_default_str();
   rcmd->callback([retrieval]() { RunRetrieval(*retrieval); });
 
   RegisterBenchHeadingCommand(bench);

@@ -346,22 +346,19 @@ std::vector<size_t> VisualWordIndex::Rank(const std::vector<int>& query_words,
   return ranked;
 }
 
-VisualWords BuildVisualWords(size_t num_images, size_t num_descriptors,
-                             const std::function<cv::Mat(size_t)>& descriptors_of,
+VisualWords BuildVisualWords(size_t num_images, const std::function<cv::Mat(size_t)>& descriptors_of,
                              const VisualVocabularyOptions& options) {
-  // Evenly spaced rows of each image, as many from each in proportion to its descriptors.
-  const double keep = num_descriptors > static_cast<size_t>(options.max_training_descriptors)
-                          ? static_cast<double>(options.max_training_descriptors) / num_descriptors
-                          : 1.0;
+  // Evenly spaced rows of each image, at most an equal share of the training budget from each (every row of a map
+  // of up to 200 key-images of 1000 descriptors).
+  const size_t budget = static_cast<size_t>(options.max_training_descriptors);
+  const size_t share = num_images == 0 ? 0 : (budget + num_images - 1) / num_images;
   std::vector<uchar> rows;  // the training descriptors, one after the other
   int bytes = 0;
   for (size_t image = 0; image < num_images; ++image) {
     const cv::Mat d = descriptors_of(image);
     if (d.empty() || d.type() != CV_8U || (bytes != 0 && d.cols != bytes)) continue;
     bytes = d.cols;
-    if (rows.empty())
-      rows.reserve(std::min(num_descriptors, static_cast<size_t>(options.max_training_descriptors)) * bytes);
-    const int take = std::max(1, static_cast<int>(std::floor(d.rows * keep)));
+    const int take = static_cast<int>(std::min(static_cast<size_t>(d.rows), share));
     for (int i = 0; i < take; ++i) {
       const uchar* row = d.ptr<uchar>(static_cast<int>(static_cast<int64_t>(i) * d.rows / take));
       rows.insert(rows.end(), row, row + bytes);
@@ -382,10 +379,8 @@ VisualWords BuildVisualWords(size_t num_images, size_t num_descriptors,
 }
 
 VisualWords BuildVisualWords(const std::vector<cv::Mat>& descriptors, const VisualVocabularyOptions& options) {
-  size_t total = 0;
-  for (const cv::Mat& d : descriptors) total += d.rows;
   return BuildVisualWords(
-      descriptors.size(), total, [&descriptors](size_t i) { return descriptors[i]; }, options);
+      descriptors.size(), [&descriptors](size_t i) { return descriptors[i]; }, options);
 }
 
 std::vector<size_t> FuseRankings(const std::vector<size_t>& a, const std::vector<size_t>& b, double k) {

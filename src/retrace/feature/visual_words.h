@@ -111,14 +111,12 @@ struct VisualWords {
   VisualWordIndex index;
 };
 
-// Trains a vocabulary on up to options.max_training_descriptors rows drawn evenly from each image's `descriptors`
-// and indexes every image, in order (image i is entry i).
+// Trains a vocabulary on up to options.max_training_descriptors rows, at most an equal share of them from each
+// image's `descriptors` (evenly spaced), and indexes every image, in order (image i is entry i).
 VisualWords BuildVisualWords(const std::vector<cv::Mat>& descriptors, const VisualVocabularyOptions& options = {});
 // The same for `num_images` images whose descriptors `descriptors_of(i)` gives (called twice per image: a map's
-// descriptors are read from its file one key-image at a time, never all in memory at once) and
-// `num_descriptors` descriptors in all.
-VisualWords BuildVisualWords(size_t num_images, size_t num_descriptors,
-                             const std::function<cv::Mat(size_t)>& descriptors_of,
+// descriptors are read from its file one key-image at a time, never all in memory at once).
+VisualWords BuildVisualWords(size_t num_images, const std::function<cv::Mat(size_t)>& descriptors_of,
                              const VisualVocabularyOptions& options = {});
 
 // Reciprocal rank fusion (Cormack, Clarke & Büttcher, SIGIR 2009) of two rankings of the same items: each item scored

@@ -270,11 +270,10 @@ std::shared_ptr<const VisualWords> Localizer::BuildMapVisualWords(const Map& map
   if (!options.binary_relocalization || !options.visual_word_retrieval) return nullptr;
   // Signatures held by the map, or read from its file one at a time (40 MB of descriptors for 1264 key-images).
   const std::vector<MapNode>& nodes = map.nodes();
-  size_t total = 0;
-  for (const MapNode& node : nodes) total += map.Signature(node.id).descriptors.rows;
-  if (total == 0) return nullptr;
-  return std::make_shared<const VisualWords>(BuildVisualWords(
-      nodes.size(), total, [&](size_t i) { return map.Signature(nodes[i].id).descriptors; }, options.vocabulary));
+  auto words = std::make_shared<const VisualWords>(BuildVisualWords(
+      nodes.size(), [&](size_t i) { return map.Signature(nodes[i].id).descriptors; }, options.vocabulary));
+  // One word: no stored descriptors (a map given without signatures), or too few to tell key-images apart.
+  return words->vocabulary.size() > 1 ? words : nullptr;
 }
 
 const ReferencePatch* Localizer::Reference(node_t node_id, feature_t feature) {

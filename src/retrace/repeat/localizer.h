@@ -273,8 +273,8 @@ struct LocalizerOptions {
   // Retrieval over the whole map also by visual words (feature/visual_words.h: a vocabulary tree trained on the map's
   // stored binary descriptors, tf-idf scores through an inverted file), fused with the appearance ranking by
   // reciprocal rank (FuseRankings). `retrace bench retrieval`, a key-image of the true arc among the first 1 / 5 / 20:
-  // on the map of 1264 key-images (every 10th repeat frame) thumbnails 62.3 / 76.1 / 85.1 %, words 69.4 / 84.0 /
-  // 91.4 %, both 75.6 / 91.4 / 96.5 %; the seven validation drives (every frame) thumbnails 82.5 / 96.8 / 99.8 %,
+  // on the map of 1264 key-images (every 10th repeat frame) thumbnails 62.3 / 76.1 / 85.1 %, words 69.1 / 82.6 /
+  // 90.0 %, both 75.1 / 90.3 / 96.5 %; the seven validation drives (every frame) thumbnails 82.5 / 96.8 / 99.8 %,
   // both 93.4 / 99.5 / 100 %. The window of arcs around a loss keeps the thumbnails alone (relocalization.cc).
   // Needs binary_relocalization.
   bool visual_word_retrieval = true;
