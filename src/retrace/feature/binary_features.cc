@@ -57,6 +57,37 @@ WideBaselineFeatures ExtractBinaryFeatures(const cv::Mat& image, const BinaryFea
   return features;
 }
 
+cv::Mat DescribeBinaryKeyPoints(const cv::Mat& image, const std::vector<cv::KeyPoint>& keypoints,
+                                const BinaryFeatureOptions& options) {
+  CV_Assert(image.type() == CV_8UC1);
+  std::string error;
+  if (!options.Check(&error)) throw std::invalid_argument("BinaryFeatureOptions: " + error);
+  cv::Mat descriptors = cv::Mat::zeros(static_cast<int>(keypoints.size()), options.descriptor_bytes, CV_8U);
+  if (keypoints.empty()) return descriptors;
+  const cv::Ptr<cv::ORB> orb = cv::ORB::create(
+      static_cast<int>(keypoints.size()), static_cast<float>(options.scale_factor), options.levels, options.patch_size,
+      /*firstLevel=*/0, /*WTA_K=*/2, cv::ORB::HARRIS_SCORE, options.patch_size, options.fast_threshold);
+  // ORB describes each key-point on its pyramid level (octave) at orientation 0 (upright, as extracted); it may drop
+  // key-points near the border, so each carries its index.
+  std::vector<cv::KeyPoint> described(keypoints);
+  const double log_scale = std::log(options.scale_factor);
+  for (size_t i = 0; i < described.size(); ++i) {
+    cv::KeyPoint& k = described[i];
+    const double level = k.size > 0 ? std::log(k.size / options.patch_size) / log_scale : 0.0;
+    k.octave = std::clamp(static_cast<int>(std::lround(level)), 0, options.levels - 1);
+    k.angle = 0.0f;
+    k.class_id = static_cast<int>(i);
+  }
+  cv::Mat computed;
+  orb->compute(image, described, computed);
+  for (size_t j = 0; j < described.size() && static_cast<int>(j) < computed.rows; ++j) {
+    computed.row(static_cast<int>(j))
+        .colRange(0, options.descriptor_bytes)
+        .copyTo(descriptors.row(described[j].class_id));
+  }
+  return descriptors;
+}
+
 std::vector<cv::DMatch> MatchBinary(const WideBaselineFeatures& query, const WideBaselineFeatures& train,
                                     const BinaryFeatureOptions& options) {
   WideBaselineOptions matching;

@@ -70,6 +70,13 @@ struct BinaryFeatureOptions {
 // gray image, as WideBaselineFeatures so that MatchWideBaseline matches them (by Hamming distance).
 WideBaselineFeatures ExtractBinaryFeatures(const cv::Mat& image, const BinaryFeatureOptions& options = {});
 
+// The descriptors ExtractBinaryFeatures gives `keypoints` of `image` (position, and size, from which the pyramid level
+// follows: patch_size · scale_factor^level), one row per key-point in their order; a key-point too near the border to
+// be described gets a row of zeros. Maps store key-image descriptors as their differences from these, computed on
+// the key-image as stored (map/descriptor_coding.h).
+cv::Mat DescribeBinaryKeyPoints(const cv::Mat& image, const std::vector<cv::KeyPoint>& keypoints,
+                                const BinaryFeatureOptions& options = {});
+
 // MatchWideBaseline with the ratio and cross-check of `options`.
 std::vector<cv::DMatch> MatchBinary(const WideBaselineFeatures& query, const WideBaselineFeatures& train,
                                     const BinaryFeatureOptions& options = {});

@@ -1,6 +1,7 @@
 #include "retrace/feature/binary_features.h"
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "retrace/feature/synthetic_texture.h"
@@ -75,6 +76,45 @@ TEST(BinaryFeatures, ShorterDescriptorsAreTheLeadingBytesAndStillMatchTheRightPo
   BinaryFeatureOptions odd;
   odd.descriptor_bytes = 12;
   EXPECT_FALSE(odd.Check());
+}
+
+TEST(BinaryFeatures, DescribingTheExtractedKeyPointsAgainGivesTheirDescriptors) {
+  const cv::Mat image = ClutteredTexture(320, 240, 11);
+  for (const int bytes : {32, 16}) {
+    BinaryFeatureOptions options;
+    options.descriptor_bytes = bytes;
+    const WideBaselineFeatures extracted = ExtractBinaryFeatures(image, options);
+    ASSERT_GE(extracted.size(), 500u);
+    // The key-points as given (position, size; level and angle recovered): the same descriptors, bit for bit.
+    std::vector<cv::KeyPoint> keypoints;
+    for (const cv::KeyPoint& k : extracted.keypoints) keypoints.emplace_back(k.pt, k.size);
+    const cv::Mat described = DescribeBinaryKeyPoints(image, keypoints, options);
+    ASSERT_EQ(described.rows, extracted.descriptors.rows);
+    ASSERT_EQ(described.cols, bytes);
+    EXPECT_EQ(cv::norm(described, extracted.descriptors, cv::NORM_HAMMING), 0.0);
+    // As a map stores them (1/8 px) on the image after a lossy codec: a few bits of 8 x bytes differ.
+    std::vector<cv::KeyPoint> rounded;
+    for (const cv::KeyPoint& k : keypoints) {
+      rounded.emplace_back(cv::Point2f(std::round(8 * k.pt.x) / 8, std::round(8 * k.pt.y) / 8),
+                           std::round(8 * k.size) / 8);
+    }
+    std::vector<uint8_t> jpeg;
+    cv::imencode(".jpg", image, jpeg, {cv::IMWRITE_JPEG_QUALITY, 90});
+    const cv::Mat stored = DescribeBinaryKeyPoints(cv::imdecode(jpeg, cv::IMREAD_GRAYSCALE), rounded, options);
+    double bits = 0.0;
+    for (int i = 0; i < stored.rows; ++i)
+      bits += cv::norm(stored.row(i), extracted.descriptors.row(i), cv::NORM_HAMMING);
+    EXPECT_LT(bits / stored.rows, 0.05 * 8 * bytes);
+  }
+  // A key-point too near the border to be described: a row of zeros, the others in place.
+  const std::vector<cv::KeyPoint> edge = {cv::KeyPoint(160, 120, 31), cv::KeyPoint(2, 2, 31),
+                                          cv::KeyPoint(100, 80, 37.2f)};
+  const cv::Mat described = DescribeBinaryKeyPoints(image, edge);
+  ASSERT_EQ(described.rows, 3);
+  EXPECT_EQ(cv::countNonZero(described.row(1)), 0);
+  EXPECT_GT(cv::countNonZero(described.row(0)), 0);
+  EXPECT_GT(cv::countNonZero(described.row(2)), 0);
+  EXPECT_EQ(DescribeBinaryKeyPoints(image, {}).rows, 0);
 }
 
 TEST(BinaryFeatures, OtherPlacesGiveFewMatches) {

@@ -1,6 +1,7 @@
 // What a relocalizing frame pays in the feature layer (issue 16), 1 thread:
 //  - BM_ExtractBinary: upright ORB key-points and descriptors of one image (binary_features.h), 320x240 and
 //    1226x370, against BM_ExtractWideBaseline (SIFT from three detectors, wide_baseline.h) on the same images;
+//  - BM_DescribeBinaryKeyPoints: the same descriptors of given key-points (reading a key-image's stored differences);
 //  - BM_MatchBinary: the Hamming table, ratio test and cross-check of two 320x240 images;
 //  - BM_AppearanceIndexRank/N: ranking N key-images by their quantised thumbnails (global_descriptor.h);
 //  - BM_VisualWordsQuantize: the words of a 320x240 frame's ORB descriptors in a vocabulary of about 10^4 words;
@@ -42,6 +43,17 @@ void BM_ExtractBinary(benchmark::State& state) {
   state.counters["keypoints"] = static_cast<double>(keypoints);
 }
 BENCHMARK(BM_ExtractBinary)->Args({320, 240})->Args({1226, 370})->Unit(benchmark::kMillisecond);
+
+// Describing a stored key-image again at its 1000 stored key-points: what reading back descriptors stored as
+// differences costs (map/descriptor_coding.h), besides decoding the key-image.
+void BM_DescribeBinaryKeyPoints(benchmark::State& state) {
+  const cv::Mat image = Texture(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)), 1);
+  const std::vector<cv::KeyPoint> keypoints = ExtractBinaryFeatures(image).keypoints;
+  int rows = 0;
+  for (auto _ : state) rows = DescribeBinaryKeyPoints(image, keypoints).rows;
+  state.counters["keypoints"] = rows;
+}
+BENCHMARK(BM_DescribeBinaryKeyPoints)->Args({320, 240})->Args({1226, 370})->Unit(benchmark::kMillisecond);
 
 void BM_ExtractWideBaseline(benchmark::State& state) {
   const cv::Mat image = Texture(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)), 1);

@@ -12,6 +12,7 @@
 //
 // The paper's graphs are linear or circular; this structure allows any graph (several routes, junctions, loops).
 
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -44,9 +45,12 @@ struct VisualWords;
 struct KeyImageSignature {
   std::vector<cv::KeyPoint> keypoints;  // position (pt) and size; stored at 1/8 px
   cv::Mat descriptors;                  // CV_8U, one binary descriptor (8-32 bytes) per key-point, same order
-  cv::Mat appearance;                   // CV_8U quantised thumbnail (QuantizeGlobalDescriptor)
+  // ... or, as read from a map that stores them so (schema 7), their differences from the descriptors of the stored
+  // key-image at these key-points (descriptor_coding.h), `descriptors` empty until the reader resolves them.
+  std::vector<uint8_t> descriptor_residual;
+  cv::Mat appearance;  // CV_8U quantised thumbnail (QuantizeGlobalDescriptor)
 
-  bool empty() const { return descriptors.empty() && appearance.empty(); }
+  bool empty() const { return descriptors.empty() && descriptor_residual.empty() && appearance.empty(); }
 };
 
 struct MapNode {

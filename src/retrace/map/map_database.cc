@@ -19,6 +19,7 @@
 #include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
+#include "retrace/map/descriptor_coding.h"
 #include "retrace/map/feature_blobs.h"
 #include "retrace/util/error.h"
 #include "retrace/util/version.h"
@@ -209,18 +210,40 @@ std::vector<uint8_t> EncodeImage(const cv::Mat& image, const MapDatabaseOptions&
 constexpr int kKeypointBytes = 6;
 constexpr size_t kMaxDescriptorBytes = 32;
 constexpr double kKeypointUnit = 8.0;  // stored units per pixel
+// signatures.descriptor_coding (schema 7): the descriptors themselves, or their differences from the stored
+// key-image's (descriptor_coding.h).
+constexpr int64_t kDescriptorsVerbatim = 0;
+constexpr int64_t kDescriptorDifferences = 1;
+
+// The key-points as DecodeSignature reads them back.
+std::vector<cv::KeyPoint> StoredKeypoints(const std::vector<uint8_t>& bytes) {
+  std::vector<cv::KeyPoint> keypoints(bytes.size() / kKeypointBytes);
+  for (size_t i = 0; i < keypoints.size(); ++i) {
+    const uint8_t* k = bytes.data() + i * kKeypointBytes;
+    const auto value = [k](int j) { return static_cast<float>((k[2 * j] | (k[2 * j + 1] << 8)) / kKeypointUnit); };
+    keypoints[i] = cv::KeyPoint(value(0), value(1), value(2));
+  }
+  return keypoints;
+}
 
 // A signature from its stored columns (the key-points and descriptors only when `features`), or the reason it is
 // damaged. Key-points must lie in the `image_width` x `image_height` key-image.
 std::optional<std::string> DecodeSignature(const std::vector<uint8_t>& keypoints,
                                            const std::vector<uint8_t>& descriptors, int64_t width, int64_t height,
                                            const std::vector<uint8_t>& appearance, int64_t image_width,
-                                           int64_t image_height, bool features, KeyImageSignature* s) {
+                                           int64_t image_height, bool features, KeyImageSignature* s,
+                                           int64_t coding = kDescriptorsVerbatim) {
   const size_t count = keypoints.size() / kKeypointBytes;
-  const size_t descriptor_bytes = count > 0 ? descriptors.size() / count : 0;
-  if (keypoints.size() % kKeypointBytes != 0 || descriptors.size() != count * descriptor_bytes ||
-      count > (1u << 20) || descriptor_bytes % 8 != 0 || descriptor_bytes > kMaxDescriptorBytes ||
-      (count > 0 && descriptor_bytes == 0)) {
+  if (coding == kDescriptorDifferences) {
+    if (keypoints.size() % kKeypointBytes != 0 || count > (1u << 20)) return "has key-points of a wrong size";
+    if (auto fault = CheckDescriptorResidual(descriptors, count)) return fault;
+  } else if (coding != kDescriptorsVerbatim) {
+    return fmt::format("has an unknown descriptor coding {}", coding);
+  }
+  const size_t descriptor_bytes = count > 0 && coding == kDescriptorsVerbatim ? descriptors.size() / count : 0;
+  if (coding == kDescriptorsVerbatim &&
+      (keypoints.size() % kKeypointBytes != 0 || descriptors.size() != count * descriptor_bytes || count > (1u << 20) ||
+       descriptor_bytes % 8 != 0 || descriptor_bytes > kMaxDescriptorBytes || (count > 0 && descriptor_bytes == 0))) {
     return "has key-points and descriptors of mismatched sizes";
   }
   if (width < 1 || height < 1 || width > 1024 || height > 1024 ||
@@ -228,17 +251,18 @@ std::optional<std::string> DecodeSignature(const std::vector<uint8_t>& keypoints
     return "has an appearance of the wrong size";
   }
   if (features) {
-    s->keypoints.resize(count);
+    s->keypoints = StoredKeypoints(keypoints);
     for (size_t i = 0; i < count; ++i) {
-      const uint8_t* k = keypoints.data() + i * kKeypointBytes;
-      const auto value = [k](int j) { return static_cast<float>((k[2 * j] | (k[2 * j + 1] << 8)) / kKeypointUnit); };
-      s->keypoints[i] = cv::KeyPoint(value(0), value(1), value(2));
       if (s->keypoints[i].pt.x > image_width || s->keypoints[i].pt.y > image_height) {
         return fmt::format("has key-point {} outside the {}x{} key-image", i, image_width, image_height);
       }
     }
-    s->descriptors = cv::Mat(static_cast<int>(count), static_cast<int>(descriptor_bytes), CV_8UC1);
-    if (count > 0) std::copy(descriptors.begin(), descriptors.end(), s->descriptors.data);
+    if (coding == kDescriptorDifferences) {
+      s->descriptor_residual = descriptors;
+    } else {
+      s->descriptors = cv::Mat(static_cast<int>(count), static_cast<int>(descriptor_bytes), CV_8UC1);
+      if (count > 0) std::copy(descriptors.begin(), descriptors.end(), s->descriptors.data);
+    }
   }
   s->appearance = cv::Mat(static_cast<int>(height), static_cast<int>(width), CV_8UC1);
   std::copy(appearance.begin(), appearance.end(), s->appearance.data);
@@ -442,6 +466,7 @@ void MapDatabase::CheckSchema() {
     tables.push_back({"signatures", {"node_id", "keypoints", "descriptors", "appearance_width", "appearance_height",
                                      "appearance", "crc32"}});
   }
+  if (schema_version_ >= 7) tables.back().second.push_back("descriptor_coding");
   if (schema_version_ >= 6) {
     tables.push_back({"node_features", {"node_id", "features", "crc32"}});
     tables.push_back({"arc_point_lists", {"arc_id", "points", "crc32"}});
@@ -653,7 +678,8 @@ void MapDatabase::CreateTables() {
       appearance_width INTEGER NOT NULL,
       appearance_height INTEGER NOT NULL,
       appearance BLOB NOT NULL,
-      crc32 INTEGER NOT NULL);
+      crc32 INTEGER NOT NULL,
+      descriptor_coding INTEGER NOT NULL DEFAULT 0);
     CREATE TABLE IF NOT EXISTS node_features (
       node_id INTEGER PRIMARY KEY NOT NULL REFERENCES nodes(node_id) ON DELETE CASCADE,
       features BLOB NOT NULL,
@@ -685,7 +711,17 @@ void MapDatabase::UpgradeSchema() {
       database_->Execute("ALTER TABLE nodes ADD COLUMN route INTEGER NOT NULL DEFAULT 0;");
       database_->Execute("ALTER TABLE arcs ADD COLUMN similarity REAL;");
     }
-    // 4 adds the signatures table, 6 the blob tables (the rows of the tables before them stay, and are read).
+    // 4 adds the signatures table, 6 the blob tables (the rows of the tables before them stay, and are read), 7
+    // the signatures' descriptor coding (their rows stay verbatim).
+    if (schema_version_ >= 4 && schema_version_ < 7) {
+      SqliteStatement& column =
+          database_->Prepare("SELECT COUNT(*) FROM pragma_table_info('signatures') WHERE name = 'descriptor_coding';");
+      const bool present = column.Step() && column.ColumnInt(0) > 0;
+      column.Reset();
+      if (!present) {
+        database_->Execute("ALTER TABLE signatures ADD COLUMN descriptor_coding INTEGER NOT NULL DEFAULT 0;");
+      }
+    }
     if (schema_version_ < 6) CreateTables();
     // 5 changes no table: key-images may be stored at a reduced resolution, which older retraces cannot read.
     database_->Execute("PRAGMA user_version=" + std::to_string(kSchemaVersion) + ";");
@@ -798,24 +834,45 @@ void MapDatabase::WriteSignature(node_t node, const KeyImageSignature& signature
         "WriteSignature: needs descriptors of 8, 16, 24 or 32 bytes, one per key-point, and an appearance");
   }
   const std::vector<uint8_t> keypoints = EncodeKeypoints(s.keypoints, path_.string());
-  const std::vector<uint8_t> descriptors = MatBytes(s.descriptors);
   const std::vector<uint8_t> appearance = MatBytes(s.appearance);
+  // The differences from what the stored key-image predicts, when it is stored and a prediction is set.
+  int64_t coding = kDescriptorsVerbatim;
+  std::vector<uint8_t> descriptors;
+  if (descriptor_prediction_ && schema_version_ >= 7 && !s.keypoints.empty()) {
+    SqliteStatement& stored = database_->Prepare("SELECT image IS NOT NULL FROM nodes WHERE node_id = ?;");
+    stored.Bind(1, int64_t{node});
+    const bool has_image = stored.Step() && stored.ColumnInt(0) != 0;
+    stored.Reset();
+    if (has_image) {
+      const cv::Mat predicted = descriptor_prediction_(ReadKeyImage(node), StoredKeypoints(keypoints));
+      if (predicted.type() != CV_8UC1 || predicted.rows != s.descriptors.rows || predicted.cols != s.descriptors.cols) {
+        throw std::invalid_argument("WriteSignature: the descriptor prediction has another size than the descriptors");
+      }
+      descriptors = EncodeDescriptorResidual(s.descriptors, predicted);
+      coding = kDescriptorDifferences;
+    }
+  }
+  if (coding == kDescriptorsVerbatim) descriptors = MatBytes(s.descriptors);
   // A null pointer would bind SQL NULL; a key-image without key-points (a blank image) stores an empty blob.
   static const uint8_t kNothing = 0;
   const auto data = [](const std::vector<uint8_t>& v) -> const void* { return v.empty() ? &kNothing : v.data(); };
   InTransaction([&] {
-    database_
-        ->Prepare(
-            "INSERT OR REPLACE INTO signatures (node_id, keypoints, descriptors, appearance_width, appearance_height, "
-            "appearance, crc32) VALUES (?, ?, ?, ?, ?, ?, ?);")
-        .Bind(1, int64_t{node})
-        .BindBlob(2, data(keypoints), keypoints.size())
-        .BindBlob(3, data(descriptors), descriptors.size())
-        .Bind(4, int64_t{s.appearance.cols})
-        .Bind(5, int64_t{s.appearance.rows})
-        .BindBlob(6, appearance.data(), appearance.size())
-        .Bind(7, int64_t{SignatureCrc32(keypoints, descriptors, appearance)})
-        .Run();
+    SqliteStatement& insert =
+        database_
+            ->Prepare(schema_version_ >= 7
+                          ? "INSERT OR REPLACE INTO signatures (node_id, keypoints, descriptors, appearance_width, "
+                            "appearance_height, appearance, crc32, descriptor_coding) VALUES (?, ?, ?, ?, ?, ?, ?, ?);"
+                          : "INSERT OR REPLACE INTO signatures (node_id, keypoints, descriptors, appearance_width, "
+                            "appearance_height, appearance, crc32) VALUES (?, ?, ?, ?, ?, ?, ?);")
+            .Bind(1, int64_t{node})
+            .BindBlob(2, data(keypoints), keypoints.size())
+            .BindBlob(3, data(descriptors), descriptors.size())
+            .Bind(4, int64_t{s.appearance.cols})
+            .Bind(5, int64_t{s.appearance.rows})
+            .BindBlob(6, appearance.data(), appearance.size())
+            .Bind(7, int64_t{SignatureCrc32(keypoints, descriptors, appearance)});
+    if (schema_version_ >= 7) insert.Bind(8, coding);
+    insert.Run();
   });
 }
 
@@ -971,12 +1028,13 @@ KeyImageSignature MapDatabase::ReadSignature(node_t id) {
   const int64_t image_width = found ? node.ColumnInt(0) : 0, image_height = found ? node.ColumnInt(1) : 0;
   node.Reset();
   SqliteStatement& row = database_->Prepare(
-      "SELECT keypoints, descriptors, appearance_width, appearance_height, appearance FROM signatures "
-      "WHERE node_id = ?;");
+      std::string("SELECT keypoints, descriptors, appearance_width, appearance_height, appearance, ") +
+      (schema_version_ >= 7 ? "descriptor_coding" : "0") + " FROM signatures WHERE node_id = ?;");
   row.Bind(1, id);
   if (row.Step()) {
-    const auto fault = DecodeSignature(row.ColumnBlob(0), row.ColumnBlob(1), row.ColumnInt(2), row.ColumnInt(3),
-                                       row.ColumnBlob(4), image_width, image_height, /*features=*/true, &signature);
+    const auto fault =
+        DecodeSignature(row.ColumnBlob(0), row.ColumnBlob(1), row.ColumnInt(2), row.ColumnInt(3), row.ColumnBlob(4),
+                        image_width, image_height, /*features=*/true, &signature, row.ColumnInt(5));
     row.Reset();
     if (fault) throw InputError(path_.string(), fmt::format("{}relocalization signature of node {} {}", kCorrupt, id,
                                                             *fault));
@@ -1093,16 +1151,17 @@ Map MapDatabase::ReadMap(bool load_images, bool load_signature_features) {
 
   if (schema_version_ >= 4) {
     SqliteStatement& signatures = database_->Prepare(
-        "SELECT node_id, keypoints, descriptors, appearance_width, appearance_height, appearance FROM signatures;");
+        std::string("SELECT node_id, keypoints, descriptors, appearance_width, appearance_height, appearance, ") +
+        (schema_version_ >= 7 ? "descriptor_coding" : "0") + " FROM signatures;");
     while (signatures.Step()) {
       const node_t node_id = signatures.ColumnInt(0);
       MapNode* node = map.MutableNode(node_id);
       if (node == nullptr) fail(signatures, fmt::format("relocalization signature of missing node {}", node_id));
       const auto [image_width, image_height] = image_sizes[node_id];
-      if (const auto fault = DecodeSignature(signatures.ColumnBlob(1), signatures.ColumnBlob(2),
-                                             signatures.ColumnInt(3), signatures.ColumnInt(4),
-                                             signatures.ColumnBlob(5), image_width, image_height,
-                                             load_signature_features, &node->signature)) {
+      if (const auto fault =
+              DecodeSignature(signatures.ColumnBlob(1), signatures.ColumnBlob(2), signatures.ColumnInt(3),
+                              signatures.ColumnInt(4), signatures.ColumnBlob(5), image_width, image_height,
+                              load_signature_features, &node->signature, signatures.ColumnInt(6))) {
         fail(signatures, fmt::format("relocalization signature of node {} {}", node_id, *fault));
       }
     }

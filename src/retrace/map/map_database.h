@@ -34,6 +34,7 @@
 // moved onto `<map>` only when teach succeeded; one writer per map path at a time.
 
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -75,9 +76,10 @@ class MapDatabase {
   // 4: key-image relocalization signatures; 5: key-images stored at a reduced resolution (MapDatabaseOptions::
   // max_image_downscale); 6: a key-image's features and an arc's 3D points as one blob each (tables node_features
   // and arc_point_lists, feature_blobs.h) instead of a row per feature and per point (tables observations and
-  // arc_points, still read: a map upgraded for `teach --append` keeps its old rows).
-  static constexpr int kSchemaVersion = 6;
-  static constexpr int kOldestSchemaVersion = 1;  // oldest schema still read
+  // arc_points, still read: a map upgraded for `teach --append` keeps its old rows); 7: relocalization descriptors
+  // stored as their differences from the stored key-image's (signatures.descriptor_coding, descriptor_coding.h).
+  static constexpr int kSchemaVersion = 7;
+  static constexpr int kOldestSchemaVersion = 1;     // oldest schema still read
   static constexpr int kApplicationId = 0x52545243;  // "RTRC"
   // Metadata key of teach's progress: kIncomplete from the start of teach, kComplete when it finished. Maps
   // written before it was recorded have no such key and count as complete.
@@ -121,7 +123,15 @@ class MapDatabase {
   // Adds observations to a node written before (e.g. features found later by wide-baseline matching).
   void WriteObservations(node_t node, const std::vector<FeatureObservation>& features);
   // Stores a node's relocalization signature (also done by WriteNode when the node has one). Schema >= 3 only.
+  // With a descriptor prediction set (schema >= 7) and the node's key-image stored before, the descriptors are
+  // stored as their differences from the prediction on the key-image as it is read back (descriptor_coding.h).
   void WriteSignature(node_t node, const KeyImageSignature& signature);
+  // The descriptors of `keypoints` (as stored: positions and sizes rounded to 1/8 px) computed on a decoded key-image,
+  // one row per key-point; teach's is DescribeBinaryKeyPoints with its signature settings. Readers resolve the
+  // stored differences (KeyImageSignature::descriptor_residual) with the same function.
+  using DescriptorPrediction =
+      std::function<cv::Mat(const cv::Mat& key_image, const std::vector<cv::KeyPoint>& keypoints)>;
+  void SetDescriptorPrediction(DescriptorPrediction prediction) { descriptor_prediction_ = std::move(prediction); }
   void WriteArc(const MapArc& arc);
   void WriteScale(const NodeScale& scale);
   std::unique_ptr<SqliteTransaction> BeginTransaction();
@@ -168,6 +178,7 @@ class MapDatabase {
   std::unique_ptr<SqliteDatabase> database_;
   bool writable_;
   int schema_version_ = kSchemaVersion;
+  DescriptorPrediction descriptor_prediction_;
 };
 
 // A map written beside its destination and moved into place only when complete; what retrace teach writes with.

@@ -11,6 +11,7 @@
 #include "retrace/control/steering.h"
 #include "retrace/geometry/absolute_pose.h"
 #include "retrace/geometry/relative_pose.h"
+#include "retrace/map/descriptor_coding.h"
 #include "retrace/repeat/localizer_internal.h"
 #include "retrace/util/error.h"
 
@@ -73,6 +74,7 @@ bool LocalizerOptions::Check(std::string* error) const {
     return fail("global_features_per_log_candidates must be >= 0 and global_gate_candidates >= 1");
   }
   if (max_cached_key_images < 1) return fail("max_cached_key_images must be >= 1");
+  if (max_resident_signatures < 0) return fail("max_resident_signatures must be >= 0");
   if (retrieval_shortlist < 0 || start_retrieval_shortlist < 0 || retrieval_confident_inliers < 0) {
     return fail("retrieval_shortlist, start_retrieval_shortlist and retrieval_confident_inliers must be >= 0");
   }
@@ -246,6 +248,9 @@ const WideBaselineFeatures& Localizer::NodeWideBaseline(node_t id) {
     node.wide_baseline = ExtractWideBaselineFeatures(NodeImage(id), options_.matching);
   } else if (!node.wide_baseline) {
     KeyImageSignature signature = map_.Signature(id);  // held by the map, or read from its file
+    if (!signature.descriptor_residual.empty()) {
+      signature.descriptors = SignatureDescriptors(signature, NodeImage(id), options_);
+    }
     if (!signature.descriptors.empty() || (signature.keypoints.empty() && !signature.appearance.empty())) {
       // Stored by teach (the descriptors shared, not copied).
       node.wide_baseline = WideBaselineFeatures{std::move(signature.keypoints), signature.descriptors};
@@ -266,12 +271,28 @@ KeyImageSignature Localizer::ComputeSignature(const cv::Mat& image, const Locali
   return signature;
 }
 
+cv::Mat Localizer::SignatureDescriptors(const KeyImageSignature& signature, const cv::Mat& key_image,
+                                        const LocalizerOptions& options) {
+  if (signature.descriptor_residual.empty()) return signature.descriptors;
+  if (key_image.empty() || key_image.type() != CV_8UC1) return cv::Mat();
+  const cv::Mat predicted = DescribeBinaryKeyPoints(key_image, signature.keypoints, options.relocalization_features);
+  cv::Mat descriptors;
+  // A code that does not fit the prediction (other descriptor settings) gives none: the key-image is described
+  // afresh instead (NodeWideBaseline).
+  if (DecodeDescriptorResidual(signature.descriptor_residual, predicted, &descriptors)) return cv::Mat();
+  return descriptors;
+}
+
 std::shared_ptr<const VisualWords> Localizer::BuildMapVisualWords(const Map& map, const LocalizerOptions& options) {
   if (!options.binary_relocalization || !options.visual_word_retrieval) return nullptr;
   // Signatures held by the map, or read from its file one at a time (40 MB of descriptors for 1264 key-images).
   const std::vector<MapNode>& nodes = map.nodes();
-  auto words = std::make_shared<const VisualWords>(BuildVisualWords(
-      nodes.size(), [&](size_t i) { return map.Signature(nodes[i].id).descriptors; }, options.vocabulary));
+  const auto descriptors = [&](size_t i) {
+    const KeyImageSignature signature = map.Signature(nodes[i].id);
+    return signature.descriptor_residual.empty() ? signature.descriptors
+                                                 : SignatureDescriptors(signature, map.KeyImage(nodes[i].id), options);
+  };
+  auto words = std::make_shared<const VisualWords>(BuildVisualWords(nodes.size(), descriptors, options.vocabulary));
   // One word: no stored descriptors (a map given without signatures), or too few to tell key-images apart.
   return words->vocabulary.size() > 1 ? words : nullptr;
 }

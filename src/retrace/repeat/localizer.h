@@ -258,6 +258,14 @@ struct LocalizerOptions {
   // detectors (`matching` below), extracted from the frame (45 ms at 320x240) and from every key-image verified
   // (30 ms each at 320x240, 187 ms at 1226x370), as before issue 16.
   bool binary_relocalization = true;
+  // Maps that store the key-images' descriptors as their differences from the key-image's own (map schema 7,
+  // map/descriptor_coding.h) need the key-image decoded and described to read them back: 1.8 ms per 320x240
+  // key-image (the 1264 of the big map), 6 ms at 1226x370 (kitti07's 16 in 0.10 s). Maps of up to this many
+  // key-images have them all reconstructed when loaded (LoadMapForLocalizer) and kept (60 kB each: 24 MB for 400), so
+  // that relocalization pays nothing; larger maps reconstruct those a relocalization verifies (kept with the other
+  // derived data, max_cached_key_images): on the big map the kidnapped starts' first frame took 27-31 ms CPU median
+  // and 73-83 ms at the 95th percentile instead of 24-26 / 52-57 ms, a lost frame 16.7 ms instead of 13.4.
+  int max_resident_signatures = 400;
   // The key-images' key-points must be made with the same settings as teach's (TeachOptions::signature_features,
   // stored in the map's metadata), or they are computed again when the map is loaded.
   BinaryFeatureOptions relocalization_features;
@@ -433,6 +441,12 @@ class Localizer {
   // A key-image's relocalization signature as this localizer uses it (binary key-points and quantised appearance
   // made with `options`): what teach stores, and what LoadMapForLocalizer computes for maps without one.
   static KeyImageSignature ComputeSignature(const cv::Mat& image, const LocalizerOptions& options);
+  // The descriptors of a stored signature: as stored, or, for a map that stores their differences from the key-image's
+  // own (KeyImageSignature::descriptor_residual, map/descriptor_coding.h), resolved against `key_image` (the decoded
+  // key-image of that node) described at the stored key-points (DescribeBinaryKeyPoints with
+  // options.relocalization_features, the settings teach stored them with). Empty when there are none.
+  static cv::Mat SignatureDescriptors(const KeyImageSignature& signature, const cv::Mat& key_image,
+                                      const LocalizerOptions& options);
   // The visual words of `map`'s stored signatures (entry i its i-th node) with options.vocabulary, or null when
   // retrieval by words is off or no key-image has stored descriptors. LoadMapForLocalizer sets them on the map it
   // opens (Map::SetVisualWords); a Localizer given a map without them builds them.

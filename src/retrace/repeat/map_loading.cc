@@ -77,8 +77,27 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
                         database->Metadata("signature_appearance").value_or("") == appearance;
     // Read on demand only when made with these settings; otherwise all are computed below, and kept.
     if (stored) loaded.map.SetSignatureLoader([database](node_t id) { return database->ReadSignature(id); });
-    size_t computed = 0;
     const auto start = std::chrono::steady_clock::now();
+    // Descriptors stored as differences from the key-image's own (map schema 7) are reconstructed from the key-image:
+    // once, now, for a map small enough to keep them all (LocalizerOptions::max_resident_signatures).
+    if (stored && loaded.map.nodes().size() <= static_cast<size_t>(loaded.options.max_resident_signatures)) {
+      size_t resolved = 0;
+      for (const MapNode& node : loaded.map.nodes()) {
+        KeyImageSignature signature = database->ReadSignature(node.id);
+        if (signature.descriptor_residual.empty()) continue;
+        signature.descriptors =
+            Localizer::SignatureDescriptors(signature, loaded.map.KeyImage(node.id), loaded.options);
+        signature.descriptor_residual.clear();
+        if (signature.descriptors.empty()) continue;  // described afresh when used (NodeWideBaseline)
+        loaded.map.MutableNode(node.id)->signature = std::move(signature);
+        ++resolved;
+      }
+      if (resolved > 0) {
+        spdlog::debug("{}: descriptors of {} key-images reconstructed in {:.2f} s", PrintableText(path.string()),
+                      resolved, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+      }
+    }
+    size_t computed = 0;
     for (const MapNode& node : loaded.map.nodes()) {
       if (stored && !node.signature.empty()) continue;
       loaded.map.MutableNode(node.id)->signature =

@@ -12,8 +12,10 @@
 #include "retrace/dataset/sequence.h"
 #include "retrace/image/image_utils.h"
 #include "retrace/image/perturbation.h"
+#include "retrace/map/map_database.h"
 #include "retrace/repeat/evaluation.h"
 #include "retrace/repeat/localizer.h"
+#include "retrace/repeat/map_loading.h"
 #include "retrace/teach/teacher.h"
 #include "retrace/util/testing.h"
 
@@ -247,6 +249,47 @@ TEST_F(RepeatKitti, StoredSignaturesAreThoseComputedForOlderMaps) {
   // retrieval_shortlist candidates, plus the key-images of the chosen arc and its neighbours that retrieval did not
   // try.
   EXPECT_LE(stored.key_images_matched, LocalizerOptions().retrieval_shortlist + 4);
+}
+
+// A map that stores the descriptors as their differences from its key-images' own (map schema 7, issue 16: kitti07's
+// signatures 5 times smaller) gives the localizer the descriptors teach extracted, bit for bit: reconstructed when
+// the map is opened, or on demand for a map too large to keep them (max_resident_signatures).
+TEST_F(RepeatKitti, DescriptorsStoredAsDifferencesReadBackAsTaught) {
+  const auto dir = testing::MakeTempDir("repeat_descriptor_differences");
+  int64_t verbatim_bytes = 0, difference_bytes = 0;
+  for (const bool differences : {false, true}) {
+    auto database = MapDatabase::Create(dir / (differences ? "differences.db" : "verbatim.db"));
+    const BinaryFeatureOptions features = TeachOptions().signature_features;
+    if (differences) {
+      database->SetDescriptorPrediction([features](const cv::Mat& image, const std::vector<cv::KeyPoint>& keypoints) {
+        return DescribeBinaryKeyPoints(image, keypoints, features);
+      });
+    }
+    for (const MapNode& node : map_->nodes()) database->WriteNode(node);
+    for (const MapArc& arc : map_->arcs()) database->WriteArc(arc);
+    database->SetMetadata("signature_features", features.Name());
+    database->SetMetadata("signature_appearance", TeachOptions().signature_appearance.Name());
+    (differences ? difference_bytes : verbatim_bytes) = database->SignatureBytes();
+  }
+  // The key-points and thumbnails are stored alike; the descriptors cost a fifth at most.
+  int64_t descriptor_bytes = 0;
+  for (const MapNode& node : map_->nodes()) descriptor_bytes += node.signature.descriptors.total();
+  const int64_t common = verbatim_bytes - descriptor_bytes;
+  std::cout << "descriptors: " << descriptor_bytes << " bytes verbatim, " << difference_bytes - common
+            << " as differences\n";
+  EXPECT_LT(difference_bytes - common, descriptor_bytes / 5);
+  for (const int resident : {400, 0}) {
+    LocalizerOptions options;
+    options.max_resident_signatures = resident;
+    const MapForLocalizer loaded = LoadMapForLocalizer(dir / "differences.db", options);
+    for (const MapNode& node : map_->nodes()) {
+      const KeyImageSignature read = loaded.map.Signature(node.id);
+      EXPECT_EQ(read.descriptor_residual.empty(), resident > 0) << "node " << node.id;
+      const cv::Mat descriptors = Localizer::SignatureDescriptors(read, loaded.map.KeyImage(node.id), loaded.options);
+      ASSERT_EQ(descriptors.rows, node.signature.descriptors.rows) << "node " << node.id;
+      EXPECT_EQ(cv::norm(descriptors, node.signature.descriptors, cv::NORM_HAMMING), 0.0) << "node " << node.id;
+    }
+  }
 }
 
 // The same repeat at 320 px width (320x97), the resolution of the throughput target: key-images are denser there
