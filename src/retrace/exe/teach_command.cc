@@ -305,15 +305,13 @@ void RegisterTeachCommand(CLI::App& app) {
                   "and is smaller (1: always full resolution)")
       ->check(CLI::Range(1, 8))
       ->capture_default_str();
-  cmd->add_flag(
-      "--no-loop-closing", [args](int64_t) { args->options.close_loop = false; },
-      "Do not try to close the loop between the first and last key-image");
+  cmd->add_flag("--no-loop-closing", [args](int64_t) { args->options.close_loop = false; },
+                "Do not try to close the loop between the first and last key-image");
+  cmd->add_flag("--no-gap-recovery", [args](int64_t) { args->options.recover_gaps = false; },
+                "Do not relate frames across tracking failures by matching");
   cmd->add_flag("--verbatim-descriptors", args->verbatim_descriptors,
                 "Store the key-images' relocalization descriptors as they are, not as their differences from the "
                 "stored key-image's (a larger map; its descriptors are read without decoding key-images)");
-  cmd->add_flag(
-      "--no-gap-recovery", [args](int64_t) { args->options.recover_gaps = false; },
-      "Do not relate frames across tracking failures by matching");
   cmd->callback([args]() {
     std::string error;
     args->options.method =
