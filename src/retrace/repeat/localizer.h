@@ -91,7 +91,8 @@
 // the arc's own first, the neighbours' outer ones only when too few features were located through those.
 // A bootstrap over the whole map is a multiple test against look-alike places: it also needs a second key-image of
 // those arcs verified and more located features the more key-images it searched (min_global_agreeing_key_images,
-// GlobalBootstrapFeatures).
+// GlobalBootstrapFeatures), and, when a place elsewhere verified too, the place whose key-image locates clearly more
+// mapped features (retrieval_ambiguity_ratio).
 
 #include <array>
 #include <limits>
@@ -204,7 +205,11 @@ struct LocalizerOptions {
   int min_binary_inliers = 30;
   // Without a start arc, a verification is ambiguous, and the frame is not localized, when a key-image more than
   // two arcs from the best one verified with at least this fraction of its inliers (a look-alike street: the
-  // ratio test of Segvic 2009 §4.1 at the level of places). 0 disables the test.
+  // ratio test of Segvic 2009 §4.1 at the level of places). 0 disables the test. Over the whole map the same ratio
+  // is also applied to the mapped features the best key-image and the strongest one elsewhere each locate, and the
+  // one locating more is taken: on the map of 1264 key-images a look-alike 470 arcs away verified with 68 inliers
+  // where the place had 49, and located 44 features where the place locates 100 (the only wrong start of 1000,
+  // `retrace bench kidnap --seed 1..10`; none with this).
   double retrieval_ambiguity_ratio = 0.8;
   // ... and fewest mapped features located in the frame for the bootstrap to succeed (enough for the current
   // geometries; the arc itself is already decided by the verified key-image). Under another sun many mapped

@@ -248,8 +248,8 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
                                                    [](const MatchedKeyImage& x, const MatchedKeyImage& y) {
                                                      return x.geometry.num_inliers < y.geometry.num_inliers;
                                                    });
-  const node_t best_node = best->node;
-  const int best_inliers = best->geometry.num_inliers;
+  node_t best_node = best->node;
+  int best_inliers = best->geometry.num_inliers;
   if (!use_start_arc && options_.retrieval_ambiguity_ratio > 0.0 && verified.size() > 1) {
     // A look-alike place elsewhere verified almost as well: which one is right is not decided by this frame.
     arc_t near_arc = kInvalidArcId;
@@ -259,12 +259,48 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
       }
     }
     const std::vector<node_t> near = NodesNear(near_arc, 2);
+    const MatchedKeyImage* rival = nullptr;  // the place elsewhere that verified best
     for (const MatchedKeyImage& other : verified) {
       if (std::find(near.begin(), near.end(), other.node) != near.end()) continue;
       if (other.geometry.num_inliers >= options_.retrieval_ambiguity_ratio * best_inliers) {
         spdlog::debug("repeat: bootstrap at frame {} ambiguous: key-image {} ({} inliers) and key-image {} ({})",
                       frame.index, best_node, best_inliers, other.node, other.geometry.num_inliers);
         return false;
+      }
+      if (rival == nullptr || other.geometry.num_inliers > rival->geometry.num_inliers) rival = &other;
+    }
+    // Over the whole map, the place elsewhere that verified best is weighed by what decides a place there, the mapped
+    // features each locates through its own key-image (GlobalBootstrapFeatures): a look-alike street may match the
+    // frame's key-points better than the place itself (rows of equal blocks, another sun) but it does not show the
+    // place's mapped features. The one locating more is taken, unless the other locates almost as many (the same
+    // ratio as above).
+    if (rival != nullptr && global) {
+      const auto located_through = [&](const MatchedKeyImage& key_image) {
+        std::array<const ArcData*, 3> arcs{};
+        size_t k = 0;
+        for (const auto& [id, data] : arcs_) {
+          if (k < arcs.size() && HasEnd(*data->arc, key_image.node)) arcs[k++] = data.get();
+        }
+        std::unordered_set<feature_t> seen;
+        const int located = LocateMappedFeatures(key_image, arcs, &seen);
+        ClearTracks();
+        return located;
+      };
+      const int best_located = located_through(*best), rival_located = located_through(*rival);
+      if (std::min(best_located, rival_located) >=
+          options_.retrieval_ambiguity_ratio * std::max(best_located, rival_located)) {
+        spdlog::debug("repeat: bootstrap at frame {} ambiguous: key-image {} locates {} features, key-image {} {}",
+                      frame.index, best_node, best_located, rival->node, rival_located);
+        return false;
+      }
+      if (rival_located > best_located) {
+        spdlog::debug("repeat: bootstrap at frame {}: key-image {} ({} inliers) locates {} features, key-image {} ({}) "
+                      "{}: the latter taken",
+                      frame.index, best_node, best_inliers, best_located, rival->node, rival->geometry.num_inliers,
+                      rival_located);
+        best = rival;
+        best_node = best->node;
+        best_inliers = best->geometry.num_inliers;
       }
     }
   }
