@@ -233,18 +233,17 @@ std::optional<std::string> DecodeSignature(const std::vector<uint8_t>& keypoints
                                            const std::vector<uint8_t>& appearance, int64_t image_width,
                                            int64_t image_height, bool features, KeyImageSignature* s,
                                            int64_t coding = kDescriptorsVerbatim) {
+  const bool differences = coding == kDescriptorDifferences;
+  if (!differences && coding != kDescriptorsVerbatim) return fmt::format("has an unknown descriptor coding {}", coding);
   const size_t count = keypoints.size() / kKeypointBytes;
-  if (coding == kDescriptorDifferences) {
-    if (keypoints.size() % kKeypointBytes != 0 || count > (1u << 20)) return "has key-points of a wrong size";
-    if (auto fault = CheckDescriptorResidual(descriptors, count)) return fault;
-  } else if (coding != kDescriptorsVerbatim) {
-    return fmt::format("has an unknown descriptor coding {}", coding);
-  }
-  const size_t descriptor_bytes = count > 0 && coding == kDescriptorsVerbatim ? descriptors.size() / count : 0;
-  if (coding == kDescriptorsVerbatim &&
-      (keypoints.size() % kKeypointBytes != 0 || descriptors.size() != count * descriptor_bytes || count > (1u << 20) ||
-       descriptor_bytes % 8 != 0 || descriptor_bytes > kMaxDescriptorBytes || (count > 0 && descriptor_bytes == 0))) {
+  const size_t descriptor_bytes = count > 0 && !differences ? descriptors.size() / count : 0;
+  if (keypoints.size() % kKeypointBytes != 0 || count > (1u << 20) ||
+      (!differences && (descriptors.size() != count * descriptor_bytes || descriptor_bytes % 8 != 0 ||
+                        descriptor_bytes > kMaxDescriptorBytes || (count > 0 && descriptor_bytes == 0)))) {
     return "has key-points and descriptors of mismatched sizes";
+  }
+  if (differences) {
+    if (auto fault = CheckDescriptorResidual(descriptors, count)) return fault;
   }
   if (width < 1 || height < 1 || width > 1024 || height > 1024 ||
       appearance.size() != static_cast<size_t>(width * height)) {
@@ -257,7 +256,7 @@ std::optional<std::string> DecodeSignature(const std::vector<uint8_t>& keypoints
         return fmt::format("has key-point {} outside the {}x{} key-image", i, image_width, image_height);
       }
     }
-    if (coding == kDescriptorDifferences) {
+    if (differences) {
       s->descriptor_residual = descriptors;
     } else {
       s->descriptors = cv::Mat(static_cast<int>(count), static_cast<int>(descriptor_bytes), CV_8UC1);

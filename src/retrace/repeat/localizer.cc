@@ -248,9 +248,7 @@ const WideBaselineFeatures& Localizer::NodeWideBaseline(node_t id) {
     node.wide_baseline = ExtractWideBaselineFeatures(NodeImage(id), options_.matching);
   } else if (!node.wide_baseline) {
     KeyImageSignature signature = map_.Signature(id);  // held by the map, or read from its file
-    if (!signature.descriptor_residual.empty()) {
-      signature.descriptors = SignatureDescriptors(signature, NodeImage(id), options_);
-    }
+    ResolveSignature(map_, id, options_, &signature);
     if (!signature.descriptors.empty() || (signature.keypoints.empty() && !signature.appearance.empty())) {
       // Stored by teach (the descriptors shared, not copied).
       node.wide_baseline = WideBaselineFeatures{std::move(signature.keypoints), signature.descriptors};
@@ -271,16 +269,18 @@ KeyImageSignature Localizer::ComputeSignature(const cv::Mat& image, const Locali
   return signature;
 }
 
-cv::Mat Localizer::SignatureDescriptors(const KeyImageSignature& signature, const cv::Mat& key_image,
-                                        const LocalizerOptions& options) {
-  if (signature.descriptor_residual.empty()) return signature.descriptors;
-  if (key_image.empty() || key_image.type() != CV_8UC1) return cv::Mat();
-  const cv::Mat predicted = DescribeBinaryKeyPoints(key_image, signature.keypoints, options.relocalization_features);
-  cv::Mat descriptors;
-  // A code that does not fit the prediction (other descriptor settings) gives none: the key-image is described
-  // afresh instead (NodeWideBaseline).
-  if (DecodeDescriptorResidual(signature.descriptor_residual, predicted, &descriptors)) return cv::Mat();
-  return descriptors;
+void Localizer::ResolveSignature(const Map& map, node_t id, const LocalizerOptions& options,
+                                 KeyImageSignature* signature) {
+  if (signature->descriptor_residual.empty()) return;
+  const cv::Mat key_image = map.KeyImage(id);
+  signature->descriptors = cv::Mat();
+  if (!key_image.empty() && key_image.type() == CV_8UC1 &&
+      DecodeDescriptorResidual(signature->descriptor_residual,
+                               DescribeBinaryKeyPoints(key_image, signature->keypoints, options.relocalization_features),
+                               &signature->descriptors)) {
+    signature->descriptors = cv::Mat();
+  }
+  signature->descriptor_residual.clear();
 }
 
 std::shared_ptr<const VisualWords> Localizer::BuildMapVisualWords(const Map& map, const LocalizerOptions& options) {
@@ -288,9 +288,9 @@ std::shared_ptr<const VisualWords> Localizer::BuildMapVisualWords(const Map& map
   // Signatures held by the map, or read from its file one at a time (40 MB of descriptors for 1264 key-images).
   const std::vector<MapNode>& nodes = map.nodes();
   const auto descriptors = [&](size_t i) {
-    const KeyImageSignature signature = map.Signature(nodes[i].id);
-    return signature.descriptor_residual.empty() ? signature.descriptors
-                                                 : SignatureDescriptors(signature, map.KeyImage(nodes[i].id), options);
+    KeyImageSignature signature = map.Signature(nodes[i].id);
+    ResolveSignature(map, nodes[i].id, options, &signature);
+    return signature.descriptors;
   };
   auto words = std::make_shared<const VisualWords>(BuildVisualWords(nodes.size(), descriptors, options.vocabulary));
   // One word: no stored descriptors (a map given without signatures), or too few to tell key-images apart.

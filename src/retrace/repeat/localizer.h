@@ -265,8 +265,9 @@ struct LocalizerOptions {
   bool binary_relocalization = true;
   // Maps that store the key-images' descriptors as their differences from the key-image's own (map schema 7,
   // map/descriptor_coding.h) need the key-image decoded and described to read them back: 1.8 ms per 320x240
-  // key-image (the 1264 of the big map), 6 ms at 1226x370 (kitti07's 16 in 0.10 s). Maps of up to this many
-  // key-images have them all reconstructed when loaded (LoadMapForLocalizer) and kept (60 kB each: 24 MB for 400), so
+  // key-image (the 1264 of the big map), 6 ms at 1226x370 (kitti07's 16 in 0.10 s; README, "Map size"). Maps of up to
+  // this many key-images have them all reconstructed when loaded (LoadMapForLocalizer) and kept (1000 key-points of
+  // 28 + 32 bytes, 60 kB each: 24 MB for 400), so
   // that relocalization pays nothing; larger maps reconstruct those a relocalization verifies (kept with the other
   // derived data, max_cached_key_images): on the big map the kidnapped starts' first frame took 27-31 ms CPU median
   // and 73-83 ms at the 95th percentile instead of 24-26 / 52-57 ms, a lost frame 16.7 ms instead of 13.4.
@@ -446,12 +447,13 @@ class Localizer {
   // A key-image's relocalization signature as this localizer uses it (binary key-points and quantised appearance
   // made with `options`): what teach stores, and what LoadMapForLocalizer computes for maps without one.
   static KeyImageSignature ComputeSignature(const cv::Mat& image, const LocalizerOptions& options);
-  // The descriptors of a stored signature: as stored, or, for a map that stores their differences from the key-image's
-  // own (KeyImageSignature::descriptor_residual, map/descriptor_coding.h), resolved against `key_image` (the decoded
-  // key-image of that node) described at the stored key-points (DescribeBinaryKeyPoints with
-  // options.relocalization_features, the settings teach stored them with). Empty when there are none.
-  static cv::Mat SignatureDescriptors(const KeyImageSignature& signature, const cv::Mat& key_image,
-                                      const LocalizerOptions& options);
+  // Node `id`'s stored `signature` with its descriptors: for a map that stores their differences from the key-image's
+  // own (KeyImageSignature::descriptor_residual, map/descriptor_coding.h), the key-image of `map` is decoded and
+  // described at the stored key-points (DescribeBinaryKeyPoints with options.relocalization_features, the settings
+  // teach stored them with) and the differences applied; descriptors stored as they are are left alone. A code that
+  // does not fit (other settings) leaves no descriptors: the key-image is described afresh when used.
+  static void ResolveSignature(const Map& map, node_t id, const LocalizerOptions& options,
+                               KeyImageSignature* signature);
   // The visual words of `map`'s stored signatures (entry i its i-th node) with options.vocabulary, or null when
   // retrieval by words is off or no key-image has stored descriptors. LoadMapForLocalizer sets them on the map it
   // opens (Map::SetVisualWords); a Localizer given a map without them builds them.
@@ -501,6 +503,8 @@ class Localizer {
                            std::unordered_set<feature_t>* seen);
   // The key-images of the arcs up to `arcs` arcs before and after `arc`, nearest first.
   std::vector<node_t> NodesNear(arc_t arc, int arcs) const;
+  // The arcs that start or end at key-image `node`, by id.
+  std::vector<const ArcData*> ArcsAt(node_t node) const;
   bool Bootstrap(const Frame& frame, FrameResult* result);
   void Localize(FrameResult* result);
   CurrentGeometry EstimateCurrentGeometry(node_t node);

@@ -85,9 +85,7 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
       for (const MapNode& node : loaded.map.nodes()) {
         KeyImageSignature signature = database->ReadSignature(node.id);
         if (signature.descriptor_residual.empty()) continue;
-        signature.descriptors =
-            Localizer::SignatureDescriptors(signature, loaded.map.KeyImage(node.id), loaded.options);
-        signature.descriptor_residual.clear();
+        Localizer::ResolveSignature(loaded.map, node.id, loaded.options, &signature);
         if (signature.descriptors.empty()) continue;  // described afresh when used (NodeWideBaseline)
         loaded.map.MutableNode(node.id)->signature = std::move(signature);
         ++resolved;

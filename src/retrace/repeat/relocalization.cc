@@ -133,6 +133,15 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
   return verified;
 }
 
+std::vector<const Localizer::ArcData*> Localizer::ArcsAt(node_t node) const {
+  std::vector<const ArcData*> at;
+  for (const auto& [id, data] : arcs_) {
+    if (HasEnd(*data->arc, node)) at.push_back(data.get());
+  }
+  std::sort(at.begin(), at.end(), [](const ArcData* a, const ArcData* b) { return a->arc->id < b->arc->id; });
+  return at;
+}
+
 std::vector<node_t> Localizer::NodesNear(arc_t arc_id, int arcs) const {
   std::vector<node_t> nodes;
   const auto add = [&nodes](node_t node) {
@@ -252,13 +261,8 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   int best_inliers = best->geometry.num_inliers;
   if (!use_start_arc && options_.retrieval_ambiguity_ratio > 0.0 && verified.size() > 1) {
     // A look-alike place elsewhere verified almost as well: which one is right is not decided by this frame.
-    arc_t near_arc = kInvalidArcId;
-    for (const auto& [id, data] : arcs_) {
-      if ((data->arc->from == best_node || data->arc->to == best_node) && (near_arc == kInvalidArcId || id < near_arc)) {
-        near_arc = id;
-      }
-    }
-    const std::vector<node_t> near = NodesNear(near_arc, 2);
+    const std::vector<const ArcData*> at_best = ArcsAt(best_node);
+    const std::vector<node_t> near = NodesNear(at_best.empty() ? kInvalidArcId : at_best.front()->arc->id, 2);
     const MatchedKeyImage* rival = nullptr;  // the place elsewhere that verified best
     for (const MatchedKeyImage& other : verified) {
       if (std::find(near.begin(), near.end(), other.node) != near.end()) continue;
@@ -276,11 +280,9 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
     // ratio as above).
     if (rival != nullptr && global) {
       const auto located_through = [&](const MatchedKeyImage& key_image) {
+        const std::vector<const ArcData*> at = ArcsAt(key_image.node);
         std::array<const ArcData*, 3> arcs{};
-        size_t k = 0;
-        for (const auto& [id, data] : arcs_) {
-          if (k < arcs.size() && HasEnd(*data->arc, key_image.node)) arcs[k++] = data.get();
-        }
+        std::copy_n(at.begin(), std::min(at.size(), arcs.size()), arcs.begin());
         std::unordered_set<feature_t> seen;
         const int located = LocateMappedFeatures(key_image, arcs, &seen);
         ClearTracks();
@@ -311,9 +313,9 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
     const node_t k = best->node;
     const MapArc* out = nullptr;
     const MapArc* in = nullptr;
-    for (const auto& [id, data] : arcs_) {
-      if (data->arc->from == k && (out == nullptr || data->arc->id < out->id)) out = data->arc;
-      if (data->arc->to == k && (in == nullptr || data->arc->id < in->id)) in = data->arc;
+    for (const ArcData* data : ArcsAt(k)) {
+      if (data->arc->from == k && out == nullptr) out = data->arc;
+      if (data->arc->to == k && in == nullptr) in = data->arc;
     }
     if (out != nullptr && in != nullptr) {
       // The camera is beyond k on the outgoing arc when it lies in front of the plane through k that starts that

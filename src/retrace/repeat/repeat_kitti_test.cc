@@ -283,9 +283,10 @@ TEST_F(RepeatKitti, DescriptorsStoredAsDifferencesReadBackAsTaught) {
     options.max_resident_signatures = resident;
     const MapForLocalizer loaded = LoadMapForLocalizer(dir / "differences.db", options);
     for (const MapNode& node : map_->nodes()) {
-      const KeyImageSignature read = loaded.map.Signature(node.id);
+      KeyImageSignature read = loaded.map.Signature(node.id);
       EXPECT_EQ(read.descriptor_residual.empty(), resident > 0) << "node " << node.id;
-      const cv::Mat descriptors = Localizer::SignatureDescriptors(read, loaded.map.KeyImage(node.id), loaded.options);
+      Localizer::ResolveSignature(loaded.map, node.id, loaded.options, &read);
+      const cv::Mat& descriptors = read.descriptors;
       ASSERT_EQ(descriptors.rows, node.signature.descriptors.rows) << "node " << node.id;
       EXPECT_EQ(cv::norm(descriptors, node.signature.descriptors, cv::NORM_HAMMING), 0.0) << "node " << node.id;
     }
