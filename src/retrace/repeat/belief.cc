@@ -78,8 +78,21 @@ PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : op
       node.predecessor_ids.push_back(previous->id);
     }
   }
+  // Gaps in a map teach left in pieces: the last arc of a piece that ends inside the drive continues, after the
+  // stretch the teach drive made no arc for, into the first arc of the piece it made next (Map::DrivenArcAcrossGap).
+  std::unordered_map<int, int> gap_next, gap_previous;  // indices: last arc of a piece <-> first arc of the next
+  for (size_t k = 0; k < arcs_.size(); ++k) {
+    if (!arcs_[k].successors.empty()) continue;
+    const arc_t next = map.DrivenArcAcrossGap(map.FindArc(arcs_[k].id)->to, +1);
+    const int n = Index(next);
+    if (n < 0 || n == static_cast<int>(k) || !arcs_[n].predecessors.empty() || gap_previous.count(n) != 0) continue;
+    gap_next[static_cast<int>(k)] = n;
+    gap_previous[n] = static_cast<int>(k);
+    arcs_[k].successor_ids.push_back(arcs_[n].id);
+    arcs_[n].predecessor_ids.push_back(arcs_[k].id);
+  }
   // Lengths in one common unit: breadth first from each component's first arc, through the scales stored at the
-  // nodes (ℓ_out = s ℓ_in, design §1), else through the teach frames spent on each arc.
+  // nodes (ℓ_out = s ℓ_in, design §1), else (and across a gap) through the teach frames spent on each arc.
   std::vector<bool> known(arcs_.size(), false);
   for (size_t seed = 0; seed < arcs_.size(); ++seed) {
     if (known[seed]) continue;
@@ -103,6 +116,8 @@ PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : op
       };
       for (const int s : arcs_[k].successors) visit(s, true);
       for (const int p : arcs_[k].predecessors) visit(p, false);
+      if (const auto next = gap_next.find(k); next != gap_next.end()) visit(next->second, true);
+      if (const auto previous = gap_previous.find(k); previous != gap_previous.end()) visit(previous->second, false);
     }
   }
   // A teach frame spans teach_frame_step frames of the sequence the key-images are numbered in.
@@ -112,8 +127,9 @@ PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : op
   }
   // Virtual arcs beyond the route's ends (ArcNode::virtual_of). Beyond the teach drive's first and last key-images
   // they are as long as the median arc (a route's last arc is often short: teach registers its last frame); where a
-  // piece of a disconnected map ends inside the drive, as long as the arc itself (the drive went on to another
-  // piece, and a camera much farther is there, not here).
+  // piece of a disconnected map ends inside the drive, the virtual arc is the gap: as long as the teach drive took
+  // to the next piece (its frames there at the last arc's length per frame), continued by the next piece's first
+  // arc (which has no virtual arc before it); without a next piece, as long as the arc itself.
   const size_t real_arcs = arcs_.size();
   std::vector<double> lengths;
   for (const ArcNode& arc : arcs_) lengths.push_back(arc.length);
@@ -126,6 +142,7 @@ PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : op
   for (size_t k = 0; k < real_arcs; ++k) {
     for (const bool beyond_end : {true, false}) {
       if (!(beyond_end ? arcs_[k].successors : arcs_[k].predecessors).empty()) continue;
+      if (!beyond_end && gap_previous.count(static_cast<int>(k)) != 0) continue;  // the gap before it is there
       ArcNode extension;
       extension.id = arcs_[k].id;
       extension.teach_frame_length = arcs_[k].teach_frame_length;
@@ -135,6 +152,15 @@ PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : op
       extension.length = drive_end ? std::max(arcs_[k].length, typical_length) : arcs_[k].length;
       extension.virtual_of = static_cast<int>(k);
       const int index = static_cast<int>(arcs_.size());
+      const auto next = gap_next.find(static_cast<int>(k));
+      if (beyond_end && next != gap_next.end() && end != nullptr) {
+        const MapNode* start = map.FindNode(map.FindArc(arcs_[next->second].id)->from);
+        const double gap_frames =
+            start == nullptr ? 1.0 : std::max(1.0, static_cast<double>(start->source_frame - end->source_frame));
+        extension.length = arcs_[k].length * gap_frames / TeachFrames(map, arc);
+        extension.successors.push_back(next->second);
+        arcs_[next->second].predecessors.push_back(index);
+      }
       (beyond_end ? extension.predecessors : extension.successors).push_back(static_cast<int>(k));
       (beyond_end ? arcs_[k].successors : arcs_[k].predecessors).push_back(index);
       arcs_[k].virtual_children.push_back(index);
@@ -230,7 +256,14 @@ double PlaceBelief::ConfidenceAt(int k) const {
     for (int i = 0; i < bins && (i + 0.5) / bins < options_.node_tolerance; ++i) confidence += mass_[s * bins + i];
   }
   for (const int p : arcs_[k].predecessors) {
-    if (arcs_[p].virtual_of >= 0) continue;
+    if (arcs_[p].virtual_of >= 0) {
+      // The gap before the first arc of a piece (the virtual arc past the previous piece's end, counted there too):
+      // the topological truth tolerates both arcs around a stretch the map has no arc for.
+      if (arcs_[p].virtual_of != k) {
+        for (int i = 0; i < bins; ++i) confidence += mass_[p * bins + i];
+      }
+      continue;
+    }
     for (int i = bins - 1; i >= 0 && (i + 0.5) / bins > 1.0 - options_.node_tolerance; --i) {
       confidence += mass_[p * bins + i];
     }

@@ -17,7 +17,9 @@
 //     `planned_branch_probability` of it into the planned branch, see SetPlannedArcs) and into the previous ones
 //     before its start. Past a route's last key-image the camera is on a virtual arc continuing the last arc (and
 //     before the first on one preceding it), which counts as the route's last (first) arc; past that virtual arc it is
-//     off the map (a mass of its own, which placements do not explain). With the speed v known (common units per frame,
+//     off the map (a mass of its own, which placements do not explain). Where a piece of a map teach left in pieces
+//     ends inside the drive, the virtual arc is the gap the teach drive crossed (as long as it took there) and leads
+//     on into the first arc of the piece the drive made next. With the speed v known (common units per frame,
 //     the median of the last steps of the estimated position), d ~ N(v Δ, Δ ((α v)² + (σ₀ ℓ)²)) for Δ frames: α =
 //     `relative_speed_noise` (the speed changes and is estimated from noisy positions), σ₀ = `position_noise` arc
 //     lengths. With the speed unknown (after a start, a loss, or a jump) d is uniform over [`unknown_speed_min`,
@@ -164,13 +166,15 @@ class PlaceBelief {
   // Probability mass on `arc` (all of its bins).
   double Mass(arc_t arc) const;
   // Probability that the camera is on `arc` or within node_tolerance of its ends on a neighbouring arc (what
-  // PlaceEstimate::confidence gives for the most likely arc).
+  // PlaceEstimate::confidence gives for the most likely arc); in a gap between two pieces of the map, next to it
+  // (the topological truth tolerates both arcs around the gap).
   double Confidence(arc_t arc) const;
   // Probability that the camera has left the map (more than an arc past a route's end or before its start).
   double OffMap() const { return off_map_; }
   // Length of `arc` in the belief's common unit.
   double ArcLength(arc_t arc) const;
-  // Arcs that continue `arc` past its end / before its start (several at a junction).
+  // Arcs that continue `arc` past its end / before its start (several at a junction; across the gap between two
+  // pieces of a map teach left in pieces, the next piece's first arc / the previous piece's last one).
   const std::vector<arc_t>& Successors(arc_t arc) const;
   const std::vector<arc_t>& Predecessors(arc_t arc) const;
   // Signed distance along the graph from `from` to `to` (common units; positive forward), when `to` lies within

@@ -277,24 +277,46 @@ TEST(PlaceBelief, PastTheRoutesEndTheCameraIsOnItsLastArc) {
   EXPECT_NEAR(reversing.estimate().along, -0.2, 0.05);
 }
 
-TEST(PlaceBelief, PastTheEndOfADisconnectedPieceTheCameraIsOffTheMap) {
-  // Two pieces: arcs 0-2 (nodes 0-3, teach frames 0-30) and arcs 3-4 (nodes 4-6, frames 40-60). The drive went on
-  // past node 3 into the second piece: a tenth of an arc past node 3 is still arc 2, 1.3 arcs past it is not.
+TEST(PlaceBelief, PastTheEndOfADisconnectedPieceTheCameraCrossesTheGapIntoTheNextPiece) {
+  // Two pieces: arcs 0-2 (nodes 0-3, teach frames 0-30) and arc 4 (nodes 4-5, frames 40-50); teach made no arc from
+  // node 3 to node 4. The drive went on past node 3 through the gap (10 teach frames: one arc of arc 2's length)
+  // into the second piece: a tenth of an arc past node 3 is still arc 2; 2.3 arcs past node 3's arc start, the
+  // camera is 0.3 along arc 4 — where kitti07 at 320 px on every 3rd frame crosses a gap in one frame, and the
+  // belief, which ended the piece in a virtual arc leading nowhere, reported the piece's last arc two arcs behind.
   Map map = LinearMap(5);
   Map pieces;
   for (const MapNode& node : map.nodes()) pieces.AddNode(node);
   for (const MapArc& arc : map.arcs()) {
     if (arc.id != 3) pieces.AddArc(arc);
   }
-  PlaceBelief belief(pieces);
-  for (int t = 0; t < 10; ++t) Frame(&belief, t + 1, {Pose(2, 0.5 + 0.2 * t)});  // 2.3 at t = 9
-  EXPECT_FALSE(belief.estimate().evidence);
-  EXPECT_FALSE(belief.estimate().tracking);
-  EXPECT_GT(belief.OffMap(), 0.5);
   PlaceBelief early(pieces);
   for (int t = 0; t < 4; ++t) Frame(&early, t + 1, {Pose(2, 0.5 + 0.2 * t)});  // 1.1 at t = 3
   EXPECT_TRUE(early.estimate().tracking);
   EXPECT_EQ(early.estimate().arc, 2);
+  PlaceBelief belief(pieces);
+  for (int t = 0; t < 10; ++t) Frame(&belief, t + 1, {Pose(2, 0.5 + 0.2 * t)});  // 2.3 at t = 9
+  EXPECT_TRUE(belief.estimate().evidence);
+  EXPECT_TRUE(belief.estimate().tracking);
+  EXPECT_EQ(belief.estimate().arc, 4);
+  EXPECT_NEAR(belief.estimate().along, 0.3, 0.05);
+  EXPECT_LT(belief.OffMap(), 0.01);
+  // Backwards from the second piece the camera goes back through the gap onto arc 2.
+  PlaceBelief back(pieces);
+  for (int t = 0; t < 8; ++t) Frame(&back, t + 1, {Pose(4, 0.5 - 0.2 * t)});  // -0.9 at t = 7: 0.1 past node 3
+  EXPECT_EQ(back.estimate().arc, 2);
+  EXPECT_TRUE(back.estimate().tracking);
+  // A camera standing in the gap (a car that stopped there) is on no arc of the map; the truth tolerates both arcs
+  // around the gap, and so does the confidence: the belief spreads over the gap and the next piece's start, and
+  // either arc stays reported (a robot that stops when lost would otherwise stay there).
+  PlaceBelief standing(pieces);
+  for (int t = 0; t < 5; ++t) Frame(&standing, t + 1, {Pose(2, 0.5 + 0.25 * t)});  // 1.5 at t = 4
+  for (int t = 5; t < 15; ++t) Frame(&standing, t + 1, {Pose(2, 1.5)});
+  EXPECT_TRUE(standing.estimate().tracking);
+  EXPECT_GT(standing.Confidence(2), 0.95);
+  EXPECT_GT(standing.Confidence(4), 0.95);
+  // Across the gap the next piece's first arc continues the last one (the localizer's transitions follow these).
+  EXPECT_EQ(belief.Successors(2), std::vector<arc_t>{4});
+  EXPECT_EQ(belief.Predecessors(4), std::vector<arc_t>{2});
 }
 
 TEST(PlaceBelief, OptionsAreChecked) {
