@@ -147,6 +147,8 @@ bool PlacementModel::Check(std::string* error) const {
   }
   if (!(geometry_extrapolation_length > 0)) return fail("geometry_extrapolation_length must be positive");
   if (!(pose_shared_error_px >= 0)) return fail("pose_shared_error_px must be >= 0");
+  if (!(pose_height_sigma >= 0)) return fail("pose_height_sigma must be >= 0");
+  if (!(pose_height_outlier_span > 0)) return fail("pose_height_outlier_span must be positive");
   for (const double p : {pose_outlier_probability, geometry_outlier_probability, key_image_outlier_probability}) {
     if (!(p > 0) || !(p < 1)) return fail("placement outlier probabilities must be in (0, 1)");
   }
@@ -172,9 +174,43 @@ PoseSpread SpreadOfInliers(const AbsolutePose& pose, const std::vector<Vector3d>
   return spread;
 }
 
+Vector3d GroundNormalOfArc(const Rigid3d& arc_b_from_a) {
+  // The ground plane holds the direction of travel and the camera's x axis (no roll): its normal is their cross
+  // product, turned to point down (+y). Travelling along x itself (a quarter turn within one arc), the down axis made
+  // perpendicular to the travel.
+  const Vector3d direction = ArcDirection(arc_b_from_a);
+  const Vector3d normal = Vector3d::UnitX().cross(direction);
+  if (normal.norm() < 0.1) {
+    return (Vector3d::UnitY() - direction.y() * direction).normalized();
+  }
+  return normal.y() >= 0.0 ? normal.normalized() : Vector3d(-normal.normalized());
+}
+
+PoseHeight HeightOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_a, const Vector3d& ground_normal) {
+  PoseHeight height;
+  const Vector3d c_b = CameraCentre(arc_b_from_a);
+  const double length_sq = c_b.squaredNorm();
+  if (!pose.covariance_valid || !(length_sq > 0) || !ground_normal.allFinite() || !(ground_normal.norm() > 0)) {
+    return height;
+  }
+  const double length = std::sqrt(length_sq);
+  const Vector3d n = ground_normal.normalized();
+  const Vector3d c_t = CameraCentre(pose.cam_from_world);
+  // δ = n · (C_t − t C_b) with t = C_t · C_b / |C_b|² the centre's projection on the chord; its gradient in C_t is
+  // n − (n · C_b) C_b / |C_b|².
+  const double t = c_t.dot(c_b) / length_sq;
+  const Vector3d gradient = n - n.dot(c_b) / length_sq * c_b;
+  const double variance = gradient.dot(pose.centre_covariance * gradient);
+  if (!std::isfinite(t) || !(variance >= 0)) return height;
+  height.valid = true;
+  height.deviation = n.dot(c_t - t * c_b) / length;
+  height.sigma = std::sqrt(variance) / length;
+  return height;
+}
+
 PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const AbsolutePose& pose,
                                  const Rigid3d& arc_b_from_a, const PlacementModel& model, const ArcBounds& bounds,
-                                 const PoseSpread& spread) {
+                                 const PoseSpread& spread, const PoseHeight& height) {
   double sigma = model.pose_sigma_floor;
   if (pose.covariance_valid) {
     const double fitted = AlongSigma(pose.centre_covariance, arc_b_from_a, CameraCentre(pose.cam_from_world), bounds);
@@ -183,7 +219,18 @@ PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const A
   if (spread.median_depth > 0 && spread.rms_radius_px > 0) {
     sigma = std::hypot(sigma, model.pose_shared_error_px / spread.rms_radius_px * spread.median_depth);
   }
-  return {arc, position.along, sigma, model.pose_outlier_probability};
+  double outlier_probability = model.pose_outlier_probability;
+  if (height.valid && model.pose_height_sigma > 0) {
+    // Bayes' rule on the height deviation (PlacementModel::pose_height_sigma); raised only.
+    const double variance = height.sigma * height.sigma + model.pose_height_sigma * model.pose_height_sigma;
+    const double inlier = std::exp(-0.5 * height.deviation * height.deviation / variance) /
+                          std::sqrt(2.0 * M_PI * variance);
+    const double outlier = 1.0 / model.pose_height_outlier_span;
+    outlier_probability = std::max(outlier_probability, outlier_probability * outlier / (outlier_probability * outlier +
+                                                                                         (1.0 - outlier_probability) * inlier));
+  }
+  // Kept below 1: a measurement that is certainly an outlier carries no information but must not zero the belief.
+  return {arc, position.along, sigma, std::min(outlier_probability, 0.999)};
 }
 
 PlaceMeasurement GeometryMeasurement(arc_t arc, const ArcPosition& position, ArcImage key,

@@ -382,5 +382,100 @@ TEST(PlacementModel, AnExtrapolatedGeometryDoesNotCarryTheBeliefTwoArcs) {
   EXPECT_FALSE(with_model.tracking && with_model.arc == 6);
 }
 
+// The camera rides at the key-images' height. A camera pitched 5 degrees down drives an arc that climbs: the ground's
+// normal and the arc are both tilted in the camera frame, and a centre anywhere on the line through the two
+// key-images (before, between, beyond them, or beside it on the ground) lies 0 off it; 0.3 arc lengths above it
+// lies -0.3 (the normal points down). Its σ is the covariance projected on the normal.
+TEST(HeightOffArc, MeasuresTheCentreAlongTheGroundNormalFromTheKeyImagesLine) {
+  const double pitch = 5.0 * M_PI / 180.0;
+  // y points down in the camera: a camera pitched down sees the ground's normal (down) tilted towards its axis.
+  const Vector3d down(0.0, std::cos(pitch), std::sin(pitch));
+  const Vector3d forward = Vector3d(0.0, -std::sin(pitch), std::cos(pitch));  // level ground, in the camera
+  const Vector3d right(1.0, 0.0, 0.0);
+  const Vector3d up_slope = (forward - 0.05 * down).normalized();  // the road climbs 5 %
+  const Rigid3d b_from_a = CamFromWorld(up_slope);
+  AbsolutePose pose;
+  pose.success = true;
+  pose.covariance_valid = true;
+  pose.centre_covariance = Vector3d(0.01, 0.04, 0.09).asDiagonal();
+  for (const double along : {-1.2, 0.0, 0.4, 1.0, 2.3}) {
+    for (const double aside : {0.0, 0.8}) {
+      pose.cam_from_world = CamFromWorld(along * up_slope + aside * right);
+      const PoseHeight height = HeightOffArc(pose, b_from_a, down);
+      ASSERT_TRUE(height.valid);
+      EXPECT_NEAR(height.deviation, 0.0, 1e-3) << along << " " << aside;
+    }
+    pose.cam_from_world = CamFromWorld(along * up_slope - 0.3 * down);
+    EXPECT_NEAR(HeightOffArc(pose, b_from_a, down).deviation, -0.3, 0.003) << along;
+  }
+  // σ: the covariance along the normal (to first order: the chord's own direction is almost perpendicular to it).
+  pose.cam_from_world = CamFromWorld(0.5 * up_slope);
+  const Vector3d n = down;
+  const Vector3d g = n - n.dot(up_slope) * up_slope;
+  EXPECT_NEAR(HeightOffArc(pose, b_from_a, down).sigma, std::sqrt(g.dot(pose.centre_covariance * g)), 1e-12);
+  // Without a covariance (or a normal) there is nothing to compare with.
+  pose.covariance_valid = false;
+  EXPECT_FALSE(HeightOffArc(pose, b_from_a, down).valid);
+  pose.covariance_valid = true;
+  EXPECT_FALSE(HeightOffArc(pose, b_from_a, Vector3d::Zero()).valid);
+}
+
+// The ground's normal from the arc alone: a camera pitched 5 degrees down (no roll) on level ground, driving straight
+// or 30 degrees to the side (a turn), sees the ground's normal where the world's down is; always perpendicular to
+// the direction of travel, and pointing down.
+TEST(GroundNormalOfArc, IsTheCamerasDownAxisPerpendicularToTheDirectionOfTravel) {
+  const double pitch = 5.0 * M_PI / 180.0;
+  const Vector3d down(0.0, std::cos(pitch), std::sin(pitch));  // the world's down in the pitched camera
+  const Vector3d forward(0.0, -std::sin(pitch), std::cos(pitch));
+  const Vector3d right(1.0, 0.0, 0.0);
+  for (const double yaw_deg : {0.0, 30.0, -30.0}) {
+    const double yaw = yaw_deg * M_PI / 180.0;
+    const Vector3d travel = std::cos(yaw) * forward + std::sin(yaw) * right;
+    const Vector3d normal = GroundNormalOfArc(CamFromWorld(2.0 * travel));
+    EXPECT_NEAR((normal - down).norm(), 0.0, 1e-12) << yaw_deg;
+  }
+  // Climbing: the car pitches with the road, the normal stays perpendicular to the travel.
+  const Vector3d climbing = (forward - 0.1 * down).normalized();
+  const Vector3d normal = GroundNormalOfArc(CamFromWorld(climbing));
+  EXPECT_NEAR(normal.dot(climbing), 0.0, 1e-12);
+  EXPECT_NEAR(normal.norm(), 1.0, 1e-12);
+  EXPECT_GT(normal.y(), 0.9);
+}
+
+// A pose whose centre hovers above the road (the one of repeat_sim_test's drive 2.5 m aside that rested on six
+// features found one texture period off: 0.65 arc lengths above the key-images' line with σ 0.15) is taken as an
+// outlier; a pose on the line keeps the model's outlier probability, and one a few σ off is doubted in between.
+TEST(PlacementModel, APoseOffTheRoadIsAnOutlier) {
+  const PlacementModel model;
+  const Rigid3d b_from_a = CamFromWorld(Vector3d(0.0, 0.0, 1.0));
+  AbsolutePose pose;
+  pose.success = true;
+  pose.covariance_valid = true;
+  pose.centre_covariance = Matrix3d::Identity() * 0.04 * 0.04;
+  const auto outlier = [&](double deviation, double sigma) {
+    return PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, model, ArcBounds(), PoseSpread(),
+                           PoseHeight{true, deviation, sigma})
+        .outlier_probability;
+  };
+  // On the line: the model's probability (a pose wrong along the road keeps its height, so no more trust).
+  EXPECT_DOUBLE_EQ(outlier(0.0, 0.05), model.pose_outlier_probability);
+  EXPECT_GT(outlier(-0.65, 0.15), 0.9);
+  const double doubted = outlier(0.3, 0.1);
+  EXPECT_GT(doubted, model.pose_outlier_probability);
+  EXPECT_LT(doubted, 0.5);
+  // The same deviation with a looser pose is less suspicious.
+  EXPECT_LT(outlier(-0.65, 0.5), outlier(-0.65, 0.15));
+  // Off: the model's probability whatever the height.
+  PlacementModel off = model;
+  off.pose_height_sigma = 0.0;
+  EXPECT_DOUBLE_EQ(PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, off, ArcBounds(), PoseSpread(),
+                                   PoseHeight{true, -0.65, 0.15})
+                       .outlier_probability,
+                   model.pose_outlier_probability);
+  PlacementModel bad = model;
+  bad.pose_height_outlier_span = 0.0;
+  EXPECT_FALSE(bad.Check());
+}
+
 }  // namespace
 }  // namespace retrace

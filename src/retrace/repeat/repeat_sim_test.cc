@@ -219,5 +219,36 @@ TEST(RepeatSim, KidnappedStartsRankedByAppearanceAndVisualWords) {
   EXPECT_EQ(map.visual_words(), nullptr);
 }
 
+// A lane's width beside the taught drive (issue 13: "zero frames on a wrong arc by >= 2 anywhere"; >= 95 % correct
+// at 2.5 m). The default drive repeated 2.5 m to the right under the other sun: most mapped features no longer align
+// with references cut 2.5 m away, so a fifth of the frames are honestly lost (the 95 % target is missed here, 81.5 %
+// when this test was written; printed, not checked). What is checked is that no frame is reported on a wrong arc:
+// right after the first bootstrap the absolute pose rested on six features found one texture period off (five of
+// them within 20 pixels) and placed the camera 2.3 arcs ahead, hovering 0.65 arc lengths above the road; the
+// belief took it for three frames, the third two arcs off. The height check of the pose
+// (PlacementModel::pose_height_sigma) takes such a pose for an outlier.
+TEST(RepeatSim, TwoAndAHalfMetresBesideNoFrameOnAWrongArc) {
+  Scenario scenario;
+  scenario.num_frames = 200;
+  scenario.repeat.lateral_offset = 2.5;
+  const RecordedDrive teach = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kTeach));
+  const RecordedDrive repeat = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kRepeat));
+  const Map map = Teach(teach);
+  // Without the camera's height (the ground's normal, which the check needs, comes from the map alone).
+  Localizer localizer(map, *repeat.camera, LocalizerOptions());
+  std::vector<RepeatRecord> records;
+  for (const Frame& frame : repeat.frames) {
+    const FrameResult result = localizer.ProcessFrame(frame);
+    records.push_back({frame.source_index, result.state == LocalizerState::kTracking, result.arc});
+  }
+  const TopologicalEvaluation evaluation = EvaluateTopological(map, teach.truth, repeat.truth, records);
+  std::cout << "default town and drive 2.5 m aside, " << map.nodes().size() << " key-images: " << evaluation.Summary()
+            << "\n";
+  EXPECT_EQ(evaluation.wrong_by_two, 0);
+  EXPECT_EQ(evaluation.wrong, 0);
+  // Not a town where nothing localizes: most frames are tracked.
+  EXPECT_GT(evaluation.FractionCorrect(), 0.5);
+}
+
 }  // namespace
 }  // namespace retrace
