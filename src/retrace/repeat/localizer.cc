@@ -691,9 +691,8 @@ void Localizer::Localize(FrameResult* result) {
       const ArcPosition position_pose = LocateOnArc(pose.cam_from_world, arc->arc->to_from_from, arc->bounds);
       if (position_pose.valid) result->position_via_pose = position_pose.along;
       if (position_pose.valid && pose.sigma_p < max_sigma_p_px_) {
-        placements.pose =
-            PoseMeasurement(arc_, position_pose, pose, arc->arc->to_from_from, options_.placement, arc->bounds, spread,
-                            HeightOffArc(pose, *arc));
+        placements.pose = PoseMeasurement(arc_, position_pose, pose, arc->arc->to_from_from, options_.placement,
+                                          arc->bounds, spread, HeightOffArc(pose, *arc));
       }
     }
   }
@@ -710,9 +709,9 @@ void Localizer::Localize(FrameResult* result) {
       const ArcPosition placed = LocateOnArc(pose.cam_from_world, neighbour->arc->to_from_from, neighbour->bounds);
       if (!placed.valid) continue;
       best_inliers = pose.num_inliers;
-      placements.neighbour = PoseMeasurement(neighbour->arc->id, placed, pose, neighbour->arc->to_from_from,
-                                             options_.placement, neighbour->bounds, spread,
-                                             HeightOffArc(pose, *neighbour));
+      placements.neighbour =
+          PoseMeasurement(neighbour->arc->id, placed, pose, neighbour->arc->to_from_from, options_.placement,
+                          neighbour->bounds, spread, HeightOffArc(pose, *neighbour));
     }
     if (!placements.neighbour) {
       // W_t:b relates the camera to the next arc's first key-image, W_t:a to the previous arc's second.

@@ -223,11 +223,12 @@ PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const A
   if (height.valid && model.pose_height_sigma > 0) {
     // Bayes' rule on the height deviation (PlacementModel::pose_height_sigma); raised only.
     const double variance = height.sigma * height.sigma + model.pose_height_sigma * model.pose_height_sigma;
-    const double inlier = std::exp(-0.5 * height.deviation * height.deviation / variance) /
-                          std::sqrt(2.0 * M_PI * variance);
+    const double inlier =
+        std::exp(-0.5 * height.deviation * height.deviation / variance) / std::sqrt(2.0 * M_PI * variance);
     const double outlier = 1.0 / model.pose_height_outlier_span;
-    outlier_probability = std::max(outlier_probability, outlier_probability * outlier / (outlier_probability * outlier +
-                                                                                         (1.0 - outlier_probability) * inlier));
+    const double posterior =
+        outlier_probability * outlier / (outlier_probability * outlier + (1.0 - outlier_probability) * inlier);
+    outlier_probability = std::max(outlier_probability, posterior);
   }
   // Kept below 1: a measurement that is certainly an outlier carries no information but must not zero the belief.
   return {arc, position.along, sigma, std::min(outlier_probability, 0.999)};

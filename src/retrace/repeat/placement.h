@@ -140,9 +140,10 @@ struct PlacementModel {
   //     ε' = max(ε, ε u / (ε u + (1 − ε) N(δ; 0, σ_δ² + σ_h²))),
   // σ_δ from the pose's covariance, σ_h this many arc lengths, u the density of δ for a wrong pose (uniform over
   // `pose_height_outlier_span` arc lengths). Raised only: a pose can also be wrong along the road at the right
-  // height (a pose lagging half an arc 2-3 m beside the path, README), which a height on the line does not refute. Measured on the default drive 2.5 m aside (repeat_sim_test): poses on the
-  // correct arc lay 0.00-0.34 arc lengths off the line (σ_δ 0.01-0.16), one of 6 inliers 2.3 arcs ahead of the
-  // truth 0.65-0.68 above it (σ_δ 0.15). 0 turns the check off (also when the ground normal is unknown).
+  // height (a pose lagging half an arc 2-3 m beside the path, README), which a height on the line does not refute.
+  // Measured on the default drive 2.5 m aside (repeat_sim_test, the normal fitted to the road): poses on the correct
+  // arc lay 0.00-0.34 arc lengths off the line (σ_δ 0.01-0.16), one of 6 inliers 2.3 arcs ahead of the truth
+  // 0.65-0.68 above it (σ_δ 0.15). The normal is the arc's (GroundNormalOfArc). 0 turns the check off.
   double pose_height_sigma = 0.05;
   double pose_height_outlier_span = 2.0;
 

@@ -468,10 +468,10 @@ TEST(PlacementModel, APoseOffTheRoadIsAnOutlier) {
   // Off: the model's probability whatever the height.
   PlacementModel off = model;
   off.pose_height_sigma = 0.0;
-  EXPECT_DOUBLE_EQ(PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, off, ArcBounds(), PoseSpread(),
-                                   PoseHeight{true, -0.65, 0.15})
-                       .outlier_probability,
-                   model.pose_outlier_probability);
+  EXPECT_DOUBLE_EQ(
+      PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, off, ArcBounds(), PoseSpread(), PoseHeight{true, -0.65, 0.15})
+          .outlier_probability,
+      model.pose_outlier_probability);
   PlacementModel bad = model;
   bad.pose_height_outlier_span = 0.0;
   EXPECT_FALSE(bad.Check());
