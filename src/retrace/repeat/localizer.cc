@@ -553,11 +553,6 @@ AbsolutePose Localizer::EstimatePoseInArc(const ArcData& arc, PoseSpread* spread
   return pose;
 }
 
-PoseHeight Localizer::HeightOffArc(const AbsolutePose& pose, const ArcData& arc) const {
-  if (!(options_.placement.pose_height_sigma > 0)) return PoseHeight();
-  return retrace::HeightOffArc(pose, arc.arc->to_from_from, GroundNormalOfArc(arc.arc->to_from_from));
-}
-
 namespace {
 
 // Steps 1-3 of the decomposed point transfer for `arc` with a current geometry W_t:key (key = one of the arc's
@@ -692,7 +687,7 @@ void Localizer::Localize(FrameResult* result) {
       if (position_pose.valid) result->position_via_pose = position_pose.along;
       if (position_pose.valid && pose.sigma_p < max_sigma_p_px_) {
         placements.pose = PoseMeasurement(arc_, position_pose, pose, arc->arc->to_from_from, options_.placement,
-                                          arc->bounds, spread, HeightOffArc(pose, *arc));
+                                          arc->bounds, spread, HeightOffArc(pose, arc->arc->to_from_from));
       }
     }
   }
@@ -711,7 +706,7 @@ void Localizer::Localize(FrameResult* result) {
       best_inliers = pose.num_inliers;
       placements.neighbour =
           PoseMeasurement(neighbour->arc->id, placed, pose, neighbour->arc->to_from_from, options_.placement,
-                          neighbour->bounds, spread, HeightOffArc(pose, *neighbour));
+                          neighbour->bounds, spread, HeightOffArc(pose, neighbour->arc->to_from_from));
     }
     if (!placements.neighbour) {
       // W_t:b relates the camera to the next arc's first key-image, W_t:a to the previous arc's second.

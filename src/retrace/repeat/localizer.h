@@ -513,9 +513,6 @@ class Localizer {
   std::optional<Rigid3d> GuessCurrentFrom(node_t node) const;
   // The absolute pose of the current camera in `arc`'s reconstruction, from the tracked features it reconstructs.
   AbsolutePose EstimatePoseInArc(const ArcData& arc, PoseSpread* spread = nullptr) const;
-  // How far `pose`'s centre lies off the line of `arc`'s key-images along the ground's normal (placement.h); invalid
-  // when the check is off.
-  PoseHeight HeightOffArc(const AbsolutePose& pose, const ArcData& arc) const;
   // Moves the tracked location to `target`, the arc after (direction +1) or before (-1) the current one: features
   // of no arc around the new location are dropped and references redefined (Segvic 2009 §5.2.2).
   void ApplyTransition(arc_t target, int direction, FrameResult* result);

@@ -208,6 +208,10 @@ PoseHeight HeightOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_a, c
   return height;
 }
 
+PoseHeight HeightOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_a) {
+  return HeightOffArc(pose, arc_b_from_a, GroundNormalOfArc(arc_b_from_a));
+}
+
 PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const AbsolutePose& pose,
                                  const Rigid3d& arc_b_from_a, const PlacementModel& model, const ArcBounds& bounds,
                                  const PoseSpread& spread, const PoseHeight& height) {

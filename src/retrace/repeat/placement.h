@@ -169,8 +169,9 @@ struct PoseHeight {
   double deviation = 0.0;
   double sigma = 0.0;
 };
-// `ground_normal`: the ground's unit normal in key-image a's frame (GroundNormalOfArc).
+// `ground_normal`: the ground's unit normal in key-image a's frame; without it, the arc's own (GroundNormalOfArc).
 PoseHeight HeightOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_a, const Vector3d& ground_normal);
+PoseHeight HeightOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_a);
 // The ground's normal (pointing down) in key-image a's frame, from the arc alone: perpendicular to the arc's
 // direction of travel and to the camera's x axis. A camera fixed on a vehicle travels along the road, so the
 // direction of travel lies in the ground plane whatever the camera's pitch, the road's slope or a turn; its x axis

@@ -413,6 +413,9 @@ TEST(HeightOffArc, MeasuresTheCentreAlongTheGroundNormalFromTheKeyImagesLine) {
   const Vector3d n = down;
   const Vector3d g = n - n.dot(up_slope) * up_slope;
   EXPECT_NEAR(HeightOffArc(pose, b_from_a, down).sigma, std::sqrt(g.dot(pose.centre_covariance * g)), 1e-12);
+  // Without a normal given, the arc's own (the localizer's call): the same as passing GroundNormalOfArc.
+  EXPECT_DOUBLE_EQ(HeightOffArc(pose, b_from_a).deviation,
+                   HeightOffArc(pose, b_from_a, GroundNormalOfArc(b_from_a)).deviation);
   // Without a covariance (or a normal) there is nothing to compare with.
   pose.covariance_valid = false;
   EXPECT_FALSE(HeightOffArc(pose, b_from_a, down).valid);

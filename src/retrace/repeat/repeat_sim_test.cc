@@ -30,30 +30,46 @@ Map Teach(const RecordedDrive& drive) {
   return teacher.map();
 }
 
+// The scenario's teach drive taught into a map, its repeat variant localized in it frame by frame, and the
+// topological evaluation against ground truth.
+struct RepeatRun {
+  RecordedDrive teach, repeat;
+  Map map;
+  std::vector<FrameResult> results;
+  TopologicalEvaluation evaluation;
+};
+RepeatRun TeachAndRepeat(const Scenario& scenario, const LocalizerOptions& options) {
+  RepeatRun run;
+  run.teach = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kTeach));
+  run.repeat = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kRepeat));
+  run.map = Teach(run.teach);
+  Localizer localizer(run.map, *run.repeat.camera, options);
+  std::vector<RepeatRecord> records;
+  for (const Frame& frame : run.repeat.frames) {
+    FrameResult result = localizer.ProcessFrame(frame);
+    records.push_back({frame.source_index, result.state == LocalizerState::kTracking, result.arc});
+    run.results.push_back(std::move(result));
+  }
+  run.evaluation = EvaluateTopological(run.map, run.teach.truth, run.repeat.truth, records);
+  return run;
+}
+
 // Teaches the scenario's drive (200 frames), repeats its repeat variant and checks the issue's acceptance: at least
 // 99 % of the frames on the correct arc (±1 near a node), none two or more arcs off, at most 1 % lost; and the
 // steering command against ground truth (when the drive turns).
 void RepeatAndCheck(const Scenario& base, const std::string& label, bool check_steering) {
   Scenario scenario = base;
   scenario.num_frames = 200;
-  const RecordedDrive teach = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kTeach));
-  const RecordedDrive repeat = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kRepeat));
-  ASSERT_EQ(repeat.frames.size(), 200u);
-
-  const Map map = Teach(teach);
-  ASSERT_GE(map.arcs().size(), 10u);
-
   LocalizerOptions options;
   options.path.camera_height = scenario.vehicle.camera_height;  // what the robot's owner measures
-  Localizer localizer(map, *repeat.camera, options);
-  std::vector<RepeatRecord> records;
-  std::vector<FrameResult> results;
-  for (const Frame& frame : repeat.frames) {
-    FrameResult result = localizer.ProcessFrame(frame);
-    records.push_back({frame.source_index, result.state == LocalizerState::kTracking, result.arc});
-    results.push_back(std::move(result));
-  }
-  const TopologicalEvaluation evaluation = EvaluateTopological(map, teach.truth, repeat.truth, records);
+  const RepeatRun run = TeachAndRepeat(scenario, options);
+  const RecordedDrive& teach = run.teach;
+  const RecordedDrive& repeat = run.repeat;
+  const Map& map = run.map;
+  const std::vector<FrameResult>& results = run.results;
+  const TopologicalEvaluation& evaluation = run.evaluation;
+  ASSERT_EQ(repeat.frames.size(), 200u);
+  ASSERT_GE(map.arcs().size(), 10u);
   std::cout << label << " (other sun, 1 m offset, pedestrians), " << map.nodes().size()
             << " key-images: " << evaluation.Summary() << "\n";
 
@@ -221,7 +237,7 @@ TEST(RepeatSim, KidnappedStartsRankedByAppearanceAndVisualWords) {
 
 // A lane's width beside the taught drive (issue 13: "zero frames on a wrong arc by >= 2 anywhere"; >= 95 % correct
 // at 2.5 m). The default drive repeated 2.5 m to the right under the other sun: most mapped features no longer align
-// with references cut 2.5 m away, so a fifth of the frames are honestly lost (the 95 % target is missed here, 81.5 %
+// with references cut 2.5 m away, so a fifth of the frames are honestly lost (the 95 % target is missed here, 81.0 %
 // when this test was written; printed, not checked). What is checked is that no frame is reported on a wrong arc:
 // right after the first bootstrap the absolute pose rested on six features found one texture period off (five of
 // them within 20 pixels) and placed the camera 2.3 arcs ahead, hovering 0.65 arc lengths above the road; the
@@ -231,19 +247,11 @@ TEST(RepeatSim, TwoAndAHalfMetresBesideNoFrameOnAWrongArc) {
   Scenario scenario;
   scenario.num_frames = 200;
   scenario.repeat.lateral_offset = 2.5;
-  const RecordedDrive teach = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kTeach));
-  const RecordedDrive repeat = RecordDrive(ApplyVariant(scenario, ScenarioVariant::kRepeat));
-  const Map map = Teach(teach);
   // Without the camera's height (the ground's normal, which the check needs, comes from the map alone).
-  Localizer localizer(map, *repeat.camera, LocalizerOptions());
-  std::vector<RepeatRecord> records;
-  for (const Frame& frame : repeat.frames) {
-    const FrameResult result = localizer.ProcessFrame(frame);
-    records.push_back({frame.source_index, result.state == LocalizerState::kTracking, result.arc});
-  }
-  const TopologicalEvaluation evaluation = EvaluateTopological(map, teach.truth, repeat.truth, records);
-  std::cout << "default town and drive 2.5 m aside, " << map.nodes().size() << " key-images: " << evaluation.Summary()
-            << "\n";
+  const RepeatRun run = TeachAndRepeat(scenario, LocalizerOptions());
+  const TopologicalEvaluation& evaluation = run.evaluation;
+  std::cout << "default town and drive 2.5 m aside, " << run.map.nodes().size()
+            << " key-images: " << evaluation.Summary() << "\n";
   EXPECT_EQ(evaluation.wrong_by_two, 0);
   EXPECT_EQ(evaluation.wrong, 0);
   // Not a town where nothing localizes: most frames are tracked.
