@@ -599,27 +599,59 @@ std::optional<ArcPredictor> FromTransfer(const std::optional<PointTransfer>& tra
 
 }  // namespace
 
+Localizer::LaneEntry Localizer::LaneEntryOf(arc_t arc, double along, const PoseDeviation& lateral) const {
+  const double length = belief_.ArcLength(arc);
+  return {GraphPlace{arc, along}, lateral.deviation * length, lateral.sigma * length};
+}
+
+LaneCheck Localizer::CheckLane(arc_t arc, double along, const PoseDeviation& lateral) const {
+  const PlacementModel& model = options_.placement;
+  if (!lateral.valid || !(model.pose_lateral_sigma > 0)) return {};
+  const double length = belief_.ArcLength(arc);
+  std::vector<LaneObservation> observations;
+  for (const LaneEntry& entry : lane_) {
+    // The poses within `lane_window` arc lengths of travel (none across a jump out of the belief's reach).
+    constexpr int kMaxArcs = 8;
+    const std::optional<double> travelled = belief_.Distance(entry.place, GraphPlace{arc, along}, kMaxArcs);
+    if (!travelled || *travelled < -model.lane_window * length || *travelled > model.lane_window * length) continue;
+    observations.push_back({entry.lateral, entry.sigma, *travelled});
+  }
+  const PoseDeviation prediction = LanePrediction(observations, length, model);
+  if (!prediction.valid || !(length > 0)) return {};
+  return {true, lateral.deviation, prediction.deviation / length, std::hypot(lateral.sigma, prediction.sigma / length)};
+}
+
 ArcPosition Localizer::UpdateBelief(const Placements& placements) {
   // One placement from the tracked features per frame (they are not independent evidence, belief.h): the absolute
   // pose, else the current geometry with the lower σ_p, else the placement in a neighbouring arc; plus the key-image
-  // a bootstrap verified in this frame.
+  // a bootstrap verified in this frame. (A pose its height or lane refutes giving way to the current geometries was
+  // measured and not kept: README, "The camera keeps to its lane".)
   std::vector<PlaceMeasurement> measurements;
+  bool pose_first = false;  // measurements[0] is an absolute pose (the current arc's or a neighbour's)
   if (placements.pose) {
     measurements.push_back(*placements.pose);
+    pose_first = true;
   } else if (placements.from && (!placements.to || placements.sigma_p_from <= placements.sigma_p_to)) {
     measurements.push_back(*placements.from);
   } else if (placements.to) {
     measurements.push_back(*placements.to);
   } else if (placements.neighbour) {
     measurements.push_back(*placements.neighbour);
+    pose_first = placements.lane.has_value();
   }
   if (bootstrap_key_image_) {
     measurements.push_back(KeyImageMeasurement(*Arc(bootstrap_key_image_->arc)->arc, bootstrap_key_image_->node,
                                                bootstrap_key_image_->candidates, options_.placement));
     bootstrap_key_image_.reset();
   }
-  belief_.Update(measurements, frame_counter_);
+  const std::vector<double> inlier = belief_.Update(measurements, frame_counter_);
   belief_updated_ = true;
+  // The lane keeps the poses the belief took as right (PlacementModel::pose_lateral_sigma).
+  if (pose_first && placements.lane && !inlier.empty() && inlier[0] >= 0.5) {
+    lane_.push_back(*placements.lane);
+    constexpr size_t kMaxLaneEntries = 16;
+    if (lane_.size() > kMaxLaneEntries) lane_.erase(lane_.begin());
+  }
   const std::optional<double> along = AlongCurrentArc();
   return along ? AlongArc(*along) : ArcPosition();
 }
@@ -686,8 +718,11 @@ void Localizer::Localize(FrameResult* result) {
       const ArcPosition position_pose = LocateOnArc(pose.cam_from_world, arc->arc->to_from_from, arc->bounds);
       if (position_pose.valid) result->position_via_pose = position_pose.along;
       if (position_pose.valid && pose.sigma_p < max_sigma_p_px_) {
-        placements.pose = PoseMeasurement(arc_, position_pose, pose, arc->arc->to_from_from, options_.placement,
-                                          arc->bounds, spread, HeightOffArc(pose, arc->arc->to_from_from));
+        const PoseDeviation lateral = LateralOffArc(pose, arc->arc->to_from_from);
+        placements.pose =
+            PoseMeasurement(arc_, position_pose, pose, arc->arc->to_from_from, options_.placement, arc->bounds, spread,
+                            HeightOffArc(pose, arc->arc->to_from_from), CheckLane(arc_, position_pose.along, lateral));
+        if (lateral.valid) placements.lane = LaneEntryOf(arc_, position_pose.along, lateral);
       }
     }
   }
@@ -704,9 +739,12 @@ void Localizer::Localize(FrameResult* result) {
       const ArcPosition placed = LocateOnArc(pose.cam_from_world, neighbour->arc->to_from_from, neighbour->bounds);
       if (!placed.valid) continue;
       best_inliers = pose.num_inliers;
-      placements.neighbour =
-          PoseMeasurement(neighbour->arc->id, placed, pose, neighbour->arc->to_from_from, options_.placement,
-                          neighbour->bounds, spread, HeightOffArc(pose, neighbour->arc->to_from_from));
+      const PoseDeviation lateral = LateralOffArc(pose, neighbour->arc->to_from_from);
+      placements.neighbour = PoseMeasurement(
+          neighbour->arc->id, placed, pose, neighbour->arc->to_from_from, options_.placement, neighbour->bounds, spread,
+          HeightOffArc(pose, neighbour->arc->to_from_from), CheckLane(neighbour->arc->id, placed.along, lateral));
+      placements.lane.reset();
+      if (lateral.valid) placements.lane = LaneEntryOf(neighbour->arc->id, placed.along, lateral);
     }
     if (!placements.neighbour) {
       // W_t:b relates the camera to the next arc's first key-image, W_t:a to the previous arc's second.

@@ -607,6 +607,19 @@ class Localizer {
     std::optional<Matrix3d> centre_covariance;
   };
   std::optional<LastPose> last_pose_;
+  // The lane: the lateral offsets of the recent poses the belief took as right (common units, newest last; the
+  // lane check of PlacementModel::pose_lateral_sigma).
+  struct LaneEntry {
+    GraphPlace place;
+    double lateral = 0.0;
+    double sigma = 0.0;
+  };
+  std::vector<LaneEntry> lane_;
+  // A pose's lateral offset `lateral` (LateralOffArc on `arc`, arc lengths) against the lane's prediction at
+  // `along` on `arc`; invalid without a prediction.
+  LaneCheck CheckLane(arc_t arc, double along, const PoseDeviation& lateral) const;
+  // A pose's lateral offset on `arc` at `along` as an entry of the lane.
+  LaneEntry LaneEntryOf(arc_t arc, double along, const PoseDeviation& lateral) const;
   // The taught path in metres (after map_: it refers to it).
   std::unique_ptr<TaughtPath> path_;
   // Current bearings of the tracked features (this frame).

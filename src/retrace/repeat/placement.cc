@@ -5,7 +5,10 @@
 #include <limits>
 #include <string>
 
+#include "retrace/util/robust_random_walk.h"
+
 namespace retrace {
+
 Vector3d CameraCentre(const Rigid3d& cam_from_world) {
   return -cam_from_world.rotation.transpose() * cam_from_world.translation;
 }
@@ -149,6 +152,9 @@ bool PlacementModel::Check(std::string* error) const {
   if (!(pose_shared_error_px >= 0)) return fail("pose_shared_error_px must be >= 0");
   if (!(pose_height_sigma >= 0)) return fail("pose_height_sigma must be >= 0");
   if (!(pose_height_outlier_span > 0)) return fail("pose_height_outlier_span must be positive");
+  if (!(pose_lateral_sigma >= 0)) return fail("pose_lateral_sigma must be >= 0");
+  if (!(lane_heading_sigma > 0) || !(lane_window > 0))
+    return fail("lane_heading_sigma and lane_window must be positive");
   for (const double p : {pose_outlier_probability, geometry_outlier_probability, key_image_outlier_probability}) {
     if (!(p > 0) || !(p < 1)) return fail("placement outlier probabilities must be in (0, 1)");
   }
@@ -186,8 +192,8 @@ Vector3d GroundNormalOfArc(const Rigid3d& arc_b_from_a) {
   return normal.y() >= 0.0 ? normal.normalized() : Vector3d(-normal.normalized());
 }
 
-PoseHeight HeightOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_a, const Vector3d& ground_normal) {
-  PoseHeight height;
+PoseDeviation HeightOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_a, const Vector3d& ground_normal) {
+  PoseDeviation height;
   const Vector3d c_b = CameraCentre(arc_b_from_a);
   const double length_sq = c_b.squaredNorm();
   if (!pose.covariance_valid || !(length_sq > 0) || !ground_normal.allFinite() || !(ground_normal.norm() > 0)) {
@@ -208,13 +214,50 @@ PoseHeight HeightOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_a, c
   return height;
 }
 
-PoseHeight HeightOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_a) {
+PoseDeviation HeightOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_a) {
   return HeightOffArc(pose, arc_b_from_a, GroundNormalOfArc(arc_b_from_a));
+}
+
+PoseDeviation LateralOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_a) {
+  PoseDeviation lateral;
+  const Vector3d c_b = CameraCentre(arc_b_from_a);
+  const double length = c_b.norm();
+  if (!pose.covariance_valid || !(length > 0)) return lateral;
+  // The side axis: perpendicular to the ground's normal (down) and to the chord, pointing right (down x forward).
+  // It is perpendicular to the chord, so the offset is its dot product with the centre and its gradient the axis.
+  const Vector3d side = GroundNormalOfArc(arc_b_from_a).cross(c_b / length);
+  if (!(side.norm() > 0.5)) return lateral;
+  const Vector3d axis = side.normalized();
+  const double variance = axis.dot(pose.centre_covariance * axis);
+  if (!(variance >= 0)) return lateral;
+  lateral.valid = true;
+  lateral.deviation = axis.dot(CameraCentre(pose.cam_from_world)) / length;
+  lateral.sigma = std::sqrt(variance) / length;
+  return lateral;
+}
+
+PoseDeviation LanePrediction(const std::vector<LaneObservation>& observations, double arc_length,
+                             const PlacementModel& model) {
+  PoseDeviation prediction;
+  if (observations.size() < 2 || !(arc_length > 0)) return prediction;
+  std::vector<CarriedObservation> carried;
+  carried.reserve(observations.size());
+  for (const LaneObservation& o : observations) {
+    const double drift = model.lane_heading_sigma * std::abs(o.travelled);
+    carried.push_back({o.lateral, std::max(o.sigma, 1e-6), drift * drift, -1});
+  }
+  const CombinedObservation combined =
+      CombineCarriedObservations(carried, model.pose_outlier_probability, model.pose_height_outlier_span * arc_length);
+  if (!combined.valid || combined.inliers < 2) return prediction;
+  prediction.valid = true;
+  prediction.deviation = combined.value;
+  prediction.sigma = combined.sigma;
+  return prediction;
 }
 
 PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const AbsolutePose& pose,
                                  const Rigid3d& arc_b_from_a, const PlacementModel& model, const ArcBounds& bounds,
-                                 const PoseSpread& spread, const PoseHeight& height) {
+                                 const PoseSpread& spread, const PoseDeviation& height, const LaneCheck& lane) {
   double sigma = model.pose_sigma_floor;
   if (pose.covariance_valid) {
     const double fitted = AlongSigma(pose.centre_covariance, arc_b_from_a, CameraCentre(pose.cam_from_world), bounds);
@@ -223,16 +266,26 @@ PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const A
   if (spread.median_depth > 0 && spread.rms_radius_px > 0) {
     sigma = std::hypot(sigma, model.pose_shared_error_px / spread.rms_radius_px * spread.median_depth);
   }
+  // Bayes' rule on a deviation of the centre from where the vehicle's camera rides (PlacementModel::pose_height_sigma,
+  // pose_lateral_sigma): the pose a wrong one with the prior probability, its deviation uniform over the span then;
+  // raised only (each deviation refutes a wrong pose, none confirms a right one).
   double outlier_probability = model.pose_outlier_probability;
+  const auto raise = [&](double deviation, double variance, double outlier_density) {
+    const double inlier = std::exp(-0.5 * deviation * deviation / variance) / std::sqrt(2.0 * M_PI * variance);
+    const double prior = model.pose_outlier_probability;
+    const double posterior = prior * outlier_density / (prior * outlier_density + (1.0 - prior) * inlier);
+    if (std::isfinite(posterior)) outlier_probability = std::max(outlier_probability, posterior);
+  };
   if (height.valid && model.pose_height_sigma > 0) {
-    // Bayes' rule on the height deviation (PlacementModel::pose_height_sigma); raised only.
-    const double variance = height.sigma * height.sigma + model.pose_height_sigma * model.pose_height_sigma;
-    const double inlier =
-        std::exp(-0.5 * height.deviation * height.deviation / variance) / std::sqrt(2.0 * M_PI * variance);
-    const double outlier = 1.0 / model.pose_height_outlier_span;
-    const double posterior =
-        outlier_probability * outlier / (outlier_probability * outlier + (1.0 - outlier_probability) * inlier);
-    outlier_probability = std::max(outlier_probability, posterior);
+    raise(height.deviation, height.sigma * height.sigma + model.pose_height_sigma * model.pose_height_sigma,
+          1.0 / model.pose_height_outlier_span);
+  }
+  if (lane.valid && model.pose_lateral_sigma > 0) {
+    // A wrong pose: uniform over the offsets no farther from the path than the lane, on either side of it, widened
+    // by two σ.
+    const double variance = lane.sigma * lane.sigma + model.pose_lateral_sigma * model.pose_lateral_sigma;
+    const double half_width = std::abs(lane.predicted) + 2.0 * std::sqrt(variance);
+    if (std::abs(lane.lateral) <= half_width) raise(lane.lateral - lane.predicted, variance, 0.5 / half_width);
   }
   // Kept below 1: a measurement that is certainly an outlier carries no information but must not zero the belief.
   return {arc, position.along, sigma, std::min(outlier_probability, 0.999)};

@@ -401,7 +401,7 @@ TEST(HeightOffArc, MeasuresTheCentreAlongTheGroundNormalFromTheKeyImagesLine) {
   for (const double along : {-1.2, 0.0, 0.4, 1.0, 2.3}) {
     for (const double aside : {0.0, 0.8}) {
       pose.cam_from_world = CamFromWorld(along * up_slope + aside * right);
-      const PoseHeight height = HeightOffArc(pose, b_from_a, down);
+      const PoseDeviation height = HeightOffArc(pose, b_from_a, down);
       ASSERT_TRUE(height.valid);
       EXPECT_NEAR(height.deviation, 0.0, 1e-3) << along << " " << aside;
     }
@@ -457,7 +457,7 @@ TEST(PlacementModel, APoseOffTheRoadIsAnOutlier) {
   pose.centre_covariance = Matrix3d::Identity() * 0.04 * 0.04;
   const auto outlier = [&](double deviation, double sigma) {
     return PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, model, ArcBounds(), PoseSpread(),
-                           PoseHeight{true, deviation, sigma})
+                           PoseDeviation{true, deviation, sigma})
         .outlier_probability;
   };
   // On the line: the model's probability (a pose wrong along the road keeps its height, so no more trust).
@@ -471,12 +471,82 @@ TEST(PlacementModel, APoseOffTheRoadIsAnOutlier) {
   // Off: the model's probability whatever the height.
   PlacementModel off = model;
   off.pose_height_sigma = 0.0;
-  EXPECT_DOUBLE_EQ(
-      PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, off, ArcBounds(), PoseSpread(), PoseHeight{true, -0.65, 0.15})
-          .outlier_probability,
-      model.pose_outlier_probability);
+  EXPECT_DOUBLE_EQ(PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, off, ArcBounds(), PoseSpread(),
+                                   PoseDeviation{true, -0.65, 0.15})
+                       .outlier_probability,
+                   model.pose_outlier_probability);
   PlacementModel bad = model;
   bad.pose_height_outlier_span = 0.0;
+  EXPECT_FALSE(bad.Check());
+}
+
+// The lateral offset: a camera 0.4 arc lengths to the right of a straight arc (camera x), anywhere along it, and its
+// σ from the covariance along the side axis only.
+TEST(LateralOffArc, MeasuresTheCentreToTheRightOfTheKeyImagesLine) {
+  const Rigid3d b_from_a = CamFromWorld(Vector3d(0.0, 0.0, 2.0));
+  AbsolutePose pose;
+  pose.success = true;
+  pose.covariance_valid = true;
+  pose.centre_covariance = Vector3d(0.03 * 0.03, 0.5, 0.5).asDiagonal();
+  for (const double along : {-0.5, 0.2, 1.3}) {
+    pose.cam_from_world = CamFromWorld(Vector3d(0.8, 0.1, 2.0 * along));
+    const PoseDeviation lateral = LateralOffArc(pose, b_from_a);
+    ASSERT_TRUE(lateral.valid);
+    EXPECT_NEAR(lateral.deviation, 0.4, 1e-12) << along;
+    EXPECT_NEAR(lateral.sigma, 0.03 / 2.0, 1e-12);
+  }
+  pose.cam_from_world = CamFromWorld(Vector3d(-0.8, 0.0, 1.0));
+  EXPECT_NEAR(LateralOffArc(pose, b_from_a).deviation, -0.4, 1e-12);  // left
+  pose.covariance_valid = false;
+  EXPECT_FALSE(LateralOffArc(pose, b_from_a).valid);
+}
+
+// The lane's prediction: recent poses 0.8 to the right, one collapsed onto the path among them, predict 0.8; the
+// older ones count less (they are carried further); fewer than two poses judged right predict nothing.
+TEST(LanePrediction, CombinesTheRecentPosesAndOutvotesACollapsedOne) {
+  const PlacementModel model;
+  std::vector<LaneObservation> lane = {
+      {0.80, 0.02, 2.0}, {0.82, 0.02, 1.5}, {0.78, 0.02, 1.0}, {0.0, 0.02, 0.3}, {0.81, 0.02, 0.6}};
+  const PoseDeviation predicted = LanePrediction(lane, 1.0, model);
+  ASSERT_TRUE(predicted.valid);
+  EXPECT_NEAR(predicted.deviation, 0.80, 0.03);
+  EXPECT_GT(predicted.sigma, 0.0);
+  EXPECT_LT(predicted.sigma, 0.1);
+  EXPECT_FALSE(LanePrediction({{0.8, 0.02, 1.0}}, 1.0, model).valid);
+  EXPECT_FALSE(LanePrediction({}, 1.0, model).valid);
+}
+
+// The lane check (hard126 frames 79-90 of the validation matrix: 2.5 m beside the path, the lane 0.8 arc lengths to
+// the right, then poses at 0.14 ... -0.23 lagging half an arc): a pose collapsed onto the path is an outlier; one on
+// the lane keeps the model's probability; one farther out than the lane is not refuted (a wrong pose collapses
+// towards the path), nor is any pose when the lane is on the path.
+TEST(PlacementModel, APoseCollapsedOntoThePathBesideTheLaneIsAnOutlier) {
+  const PlacementModel model;
+  const Rigid3d b_from_a = CamFromWorld(Vector3d(0.0, 0.0, 1.0));
+  AbsolutePose pose;
+  pose.success = true;
+  pose.covariance_valid = true;
+  pose.centre_covariance = Matrix3d::Identity() * 0.04 * 0.04;
+  const auto outlier = [&](double lateral, double predicted) {
+    return PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, model, ArcBounds(), PoseSpread(), PoseDeviation(),
+                           LaneCheck{true, lateral, predicted, 0.05})
+        .outlier_probability;
+  };
+  EXPECT_GT(outlier(0.05, 0.8), 0.99);
+  EXPECT_GT(outlier(-0.15, 0.8), 0.99);   // a little past the path
+  EXPECT_GT(outlier(-0.05, -0.8), 0.99);  // beside the lane on the left
+  EXPECT_NEAR(outlier(0.8, 0.8), model.pose_outlier_probability, 0.01);
+  EXPECT_DOUBLE_EQ(outlier(1.6, 0.8), model.pose_outlier_probability);     // farther out
+  EXPECT_DOUBLE_EQ(outlier(0.35, -0.06), model.pose_outlier_probability);  // the lane itself collapsed (seed3)
+  EXPECT_LT(outlier(0.1, 0.0), 0.1);                                       // on the path nothing collapses
+  PlacementModel off = model;
+  off.pose_lateral_sigma = 0.0;
+  EXPECT_DOUBLE_EQ(PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, off, ArcBounds(), PoseSpread(), PoseDeviation(),
+                                   LaneCheck{true, 0.05, 0.8, 0.05})
+                       .outlier_probability,
+                   model.pose_outlier_probability);
+  PlacementModel bad = model;
+  bad.lane_window = 0.0;
   EXPECT_FALSE(bad.Check());
 }
 
