@@ -624,8 +624,8 @@ LaneCheck Localizer::CheckLane(arc_t arc, double along, const PoseDeviation& lat
 ArcPosition Localizer::UpdateBelief(const Placements& placements) {
   // One placement from the tracked features per frame (they are not independent evidence, belief.h): the absolute
   // pose, else the current geometry with the lower σ_p, else the placement in a neighbouring arc; plus the key-image
-  // a bootstrap verified in this frame. (A pose its height or lane refutes giving way to the current geometries was
-  // measured and not kept: README, "The camera keeps to its lane".)
+  // a bootstrap verified in this frame. (A pose whose lateral offset refuted it giving way to the current geometries
+  // was measured and not kept: README, "The camera keeps to its lane".)
   std::vector<PlaceMeasurement> measurements;
   bool pose_first = false;  // measurements[0] is an absolute pose (the current arc's or a neighbour's)
   if (placements.pose) {

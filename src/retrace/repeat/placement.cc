@@ -153,8 +153,13 @@ bool PlacementModel::Check(std::string* error) const {
   if (!(pose_height_sigma >= 0)) return fail("pose_height_sigma must be >= 0");
   if (!(pose_height_outlier_span > 0)) return fail("pose_height_outlier_span must be positive");
   if (!(pose_lateral_sigma >= 0)) return fail("pose_lateral_sigma must be >= 0");
-  if (!(lane_heading_sigma > 0) || !(lane_window > 0))
+  if (!(lane_heading_sigma > 0) || !(lane_window > 0)) {
     return fail("lane_heading_sigma and lane_window must be positive");
+  }
+  if (!(pose_collapse_probability > 0) || !(pose_collapse_probability < 1)) {
+    return fail("pose_collapse_probability must be in (0, 1)");
+  }
+  if (!(collapsed_pose_sigma >= 0)) return fail("collapsed_pose_sigma must be >= 0");
   for (const double p : {pose_outlier_probability, geometry_outlier_probability, key_image_outlier_probability}) {
     if (!(p > 0) || !(p < 1)) return fail("placement outlier probabilities must be in (0, 1)");
   }
@@ -255,6 +260,28 @@ PoseDeviation LanePrediction(const std::vector<LaneObservation>& observations, d
   return prediction;
 }
 
+namespace {
+
+double GaussianDensity(double deviation, double variance) {
+  return std::exp(-0.5 * deviation * deviation / variance) / std::sqrt(2.0 * M_PI * variance);
+}
+
+}  // namespace
+
+double CollapseProbability(const LaneCheck& lane, const PlacementModel& model) {
+  if (!lane.valid || !(model.pose_lateral_sigma > 0)) return 0.0;
+  // On the lane: Gaussian around the prediction. Collapsed: uniform over the offsets no farther from the path than
+  // the lane, on either side of it, widened by two σ.
+  const double variance = lane.sigma * lane.sigma + model.pose_lateral_sigma * model.pose_lateral_sigma;
+  const double half_width = std::abs(lane.predicted) + 2.0 * std::sqrt(variance);
+  if (!(std::abs(lane.lateral) <= half_width)) return 0.0;
+  const double on_lane =
+      (1.0 - model.pose_collapse_probability) * GaussianDensity(lane.lateral - lane.predicted, variance);
+  const double collapsed = model.pose_collapse_probability * 0.5 / half_width;
+  const double posterior = collapsed / (collapsed + on_lane);
+  return std::isfinite(posterior) ? posterior : 0.0;
+}
+
 PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const AbsolutePose& pose,
                                  const Rigid3d& arc_b_from_a, const PlacementModel& model, const ArcBounds& bounds,
                                  const PoseSpread& spread, const PoseDeviation& height, const LaneCheck& lane) {
@@ -266,26 +293,22 @@ PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const A
   if (spread.median_depth > 0 && spread.rms_radius_px > 0) {
     sigma = std::hypot(sigma, model.pose_shared_error_px / spread.rms_radius_px * spread.median_depth);
   }
-  // Bayes' rule on a deviation of the centre from where the vehicle's camera rides (PlacementModel::pose_height_sigma,
-  // pose_lateral_sigma): the pose a wrong one with the prior probability, its deviation uniform over the span then;
-  // raised only (each deviation refutes a wrong pose, none confirms a right one).
+  // Bayes' rule on the centre's height off the arc (PlacementModel::pose_height_sigma): the pose a wrong one with the
+  // prior probability, its height uniform over the span then; raised only (a height on the line does not confirm a
+  // pose, which can be wrong along the road).
   double outlier_probability = model.pose_outlier_probability;
-  const auto raise = [&](double deviation, double variance, double outlier_density) {
-    const double inlier = std::exp(-0.5 * deviation * deviation / variance) / std::sqrt(2.0 * M_PI * variance);
-    const double prior = model.pose_outlier_probability;
-    const double posterior = prior * outlier_density / (prior * outlier_density + (1.0 - prior) * inlier);
-    if (std::isfinite(posterior)) outlier_probability = std::max(outlier_probability, posterior);
-  };
   if (height.valid && model.pose_height_sigma > 0) {
-    raise(height.deviation, height.sigma * height.sigma + model.pose_height_sigma * model.pose_height_sigma,
-          1.0 / model.pose_height_outlier_span);
+    const double variance = height.sigma * height.sigma + model.pose_height_sigma * model.pose_height_sigma;
+    const double right = GaussianDensity(height.deviation, variance);
+    const double wrong = 1.0 / model.pose_height_outlier_span;
+    const double posterior =
+        outlier_probability * wrong / (outlier_probability * wrong + (1.0 - outlier_probability) * right);
+    if (std::isfinite(posterior)) outlier_probability = std::max(outlier_probability, posterior);
   }
-  if (lane.valid && model.pose_lateral_sigma > 0) {
-    // A wrong pose: uniform over the offsets no farther from the path than the lane, on either side of it, widened
-    // by two σ.
-    const double variance = lane.sigma * lane.sigma + model.pose_lateral_sigma * model.pose_lateral_sigma;
-    const double half_width = std::abs(lane.predicted) + 2.0 * std::sqrt(variance);
-    if (std::abs(lane.lateral) <= half_width) raise(lane.lateral - lane.predicted, variance, 0.5 / half_width);
+  // The probability that the pose collapsed towards the path (PlacementModel::pose_lateral_sigma) widens its σ.
+  const double collapsed = CollapseProbability(lane, model);
+  if (collapsed > 0) {
+    sigma = std::sqrt(sigma * sigma + collapsed * model.collapsed_pose_sigma * model.collapsed_pose_sigma);
   }
   // Kept below 1: a measurement that is certainly an outlier carries no information but must not zero the belief.
   return {arc, position.along, sigma, std::min(outlier_probability, 0.999)};

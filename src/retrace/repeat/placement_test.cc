@@ -517,36 +517,48 @@ TEST(LanePrediction, CombinesTheRecentPosesAndOutvotesACollapsedOne) {
 }
 
 // The lane check (hard126 frames 79-90 of the validation matrix: 2.5 m beside the path, the lane 0.8 arc lengths to
-// the right, then poses at 0.14 ... -0.23 lagging half an arc): a pose collapsed onto the path is an outlier; one on
-// the lane keeps the model's probability; one farther out than the lane is not refuted (a wrong pose collapses
-// towards the path), nor is any pose when the lane is on the path.
-TEST(PlacementModel, APoseCollapsedOntoThePathBesideTheLaneIsAnOutlier) {
+// the right, then poses at 0.14 ... -0.23 lagging half an arc): a pose collapsed onto the path has most likely
+// collapsed, and its σ along the arc grows to about collapsed_pose_sigma; a pose on the lane keeps its σ; one
+// farther out than the lane is not doubted (a pose collapses towards the path), nor is any pose when the lane is on
+// the path. Its outlier probability stays the model's either way (a collapsed pose is mostly near the truth).
+TEST(PlacementModel, APoseCollapsedOntoThePathBesideTheLaneIsLessCertain) {
   const PlacementModel model;
   const Rigid3d b_from_a = CamFromWorld(Vector3d(0.0, 0.0, 1.0));
   AbsolutePose pose;
   pose.success = true;
   pose.covariance_valid = true;
   pose.centre_covariance = Matrix3d::Identity() * 0.04 * 0.04;
-  const auto outlier = [&](double lateral, double predicted) {
-    return PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, model, ArcBounds(), PoseSpread(), PoseDeviation(),
-                           LaneCheck{true, lateral, predicted, 0.05})
-        .outlier_probability;
+  const auto collapsed = [&](double lateral, double predicted) {
+    return CollapseProbability(LaneCheck{true, lateral, predicted, 0.05}, model);
   };
-  EXPECT_GT(outlier(0.05, 0.8), 0.99);
-  EXPECT_GT(outlier(-0.15, 0.8), 0.99);   // a little past the path
-  EXPECT_GT(outlier(-0.05, -0.8), 0.99);  // beside the lane on the left
-  EXPECT_NEAR(outlier(0.8, 0.8), model.pose_outlier_probability, 0.01);
-  EXPECT_DOUBLE_EQ(outlier(1.6, 0.8), model.pose_outlier_probability);     // farther out
-  EXPECT_DOUBLE_EQ(outlier(0.35, -0.06), model.pose_outlier_probability);  // the lane itself collapsed (seed3)
-  EXPECT_LT(outlier(0.1, 0.0), 0.1);                                       // on the path nothing collapses
+  EXPECT_GT(collapsed(0.05, 0.8), 0.99);
+  EXPECT_GT(collapsed(-0.15, 0.8), 0.99);   // a little past the path
+  EXPECT_GT(collapsed(-0.05, -0.8), 0.99);  // beside the lane on the left
+  EXPECT_LT(collapsed(0.8, 0.8), 0.01);
+  EXPECT_DOUBLE_EQ(collapsed(1.6, 0.8), 0.0);     // farther out
+  EXPECT_DOUBLE_EQ(collapsed(0.35, -0.06), 0.0);  // the lane itself collapsed (seed3)
+  EXPECT_LT(collapsed(0.1, 0.0), 0.1);            // on the path nothing collapses
+  EXPECT_DOUBLE_EQ(CollapseProbability(LaneCheck(), model), 0.0);
+
+  const PlaceMeasurement on_lane = PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, model, ArcBounds(), PoseSpread(),
+                                                   PoseDeviation(), LaneCheck{true, 0.8, 0.8, 0.05});
+  const PlaceMeasurement plain = PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, model);
+  EXPECT_NEAR(on_lane.sigma, plain.sigma, 0.01);
+  const PlaceMeasurement on_path = PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, model, ArcBounds(), PoseSpread(),
+                                                   PoseDeviation(), LaneCheck{true, 0.05, 0.8, 0.05});
+  EXPECT_NEAR(on_path.sigma, std::hypot(plain.sigma, model.collapsed_pose_sigma), 0.005);
+  EXPECT_DOUBLE_EQ(on_path.outlier_probability, model.pose_outlier_probability);
   PlacementModel off = model;
   off.pose_lateral_sigma = 0.0;
   EXPECT_DOUBLE_EQ(PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, off, ArcBounds(), PoseSpread(), PoseDeviation(),
                                    LaneCheck{true, 0.05, 0.8, 0.05})
-                       .outlier_probability,
-                   model.pose_outlier_probability);
+                       .sigma,
+                   plain.sigma);
   PlacementModel bad = model;
   bad.lane_window = 0.0;
+  EXPECT_FALSE(bad.Check());
+  bad = model;
+  bad.pose_collapse_probability = 1.0;
   EXPECT_FALSE(bad.Check());
 }
 
