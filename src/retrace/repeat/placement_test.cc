@@ -317,14 +317,20 @@ TEST(PlacementModel, ASharedScaleErrorMovesAPoseOnDistantPointsAlongTheArc) {
   EXPECT_GT(std::abs(along_biased - along_exact), 6.0 * fitted_only.sigma);
 }
 
+// A successful pose whose centre has standard deviation `sigma` (arc lengths) along every axis.
+AbsolutePose PoseWithIsotropicCovariance(double sigma) {
+  AbsolutePose pose;
+  pose.success = true;
+  pose.covariance_valid = true;
+  pose.centre_covariance = Matrix3d::Identity() * sigma * sigma;
+  return pose;
+}
+
 TEST(PlacementModel, MeasurementsCarryTheirUncertainty) {
   const PlacementModel model;
   EXPECT_TRUE(model.Check());
   const Rigid3d b_from_a = CamFromWorld(Vector3d(0.0, 0.0, 1.0));
-  AbsolutePose pose;
-  pose.success = true;
-  pose.covariance_valid = true;
-  pose.centre_covariance = Matrix3d::Identity() * 0.04 * 0.04;
+  const AbsolutePose pose = PoseWithIsotropicCovariance(0.04);
   const PlaceMeasurement m = PoseMeasurement(7, AlongArc(0.4), pose, b_from_a, model);
   EXPECT_EQ(m.arc, 7);
   EXPECT_DOUBLE_EQ(m.along, 0.4);
@@ -451,10 +457,7 @@ TEST(GroundNormalOfArc, IsTheCamerasDownAxisPerpendicularToTheDirectionOfTravel)
 TEST(PlacementModel, APoseOffTheRoadIsAnOutlier) {
   const PlacementModel model;
   const Rigid3d b_from_a = CamFromWorld(Vector3d(0.0, 0.0, 1.0));
-  AbsolutePose pose;
-  pose.success = true;
-  pose.covariance_valid = true;
-  pose.centre_covariance = Matrix3d::Identity() * 0.04 * 0.04;
+  const AbsolutePose pose = PoseWithIsotropicCovariance(0.04);
   const auto outlier = [&](double deviation, double sigma) {
     return PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, model, ArcBounds(), PoseSpread(),
                            PoseDeviation{true, deviation, sigma})
@@ -524,10 +527,7 @@ TEST(LanePrediction, CombinesTheRecentPosesAndOutvotesACollapsedOne) {
 TEST(PlacementModel, APoseCollapsedOntoThePathBesideTheLaneIsLessCertain) {
   const PlacementModel model;
   const Rigid3d b_from_a = CamFromWorld(Vector3d(0.0, 0.0, 1.0));
-  AbsolutePose pose;
-  pose.success = true;
-  pose.covariance_valid = true;
-  pose.centre_covariance = Matrix3d::Identity() * 0.04 * 0.04;
+  const AbsolutePose pose = PoseWithIsotropicCovariance(0.04);
   const auto collapsed = [&](double lateral, double predicted) {
     return CollapseProbability(LaneCheck{true, lateral, predicted, 0.05}, model);
   };
