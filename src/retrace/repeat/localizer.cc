@@ -599,9 +599,10 @@ std::optional<ArcPredictor> FromTransfer(const std::optional<PointTransfer>& tra
 
 }  // namespace
 
-Localizer::LaneEntry Localizer::LaneEntryOf(arc_t arc, double along, const PoseDeviation& lateral) const {
+Localizer::LaneEntry Localizer::LaneEntryOf(arc_t arc, double along, const PoseDeviation& lateral,
+                                            double heading) const {
   const double length = belief_.ArcLength(arc);
-  return {GraphPlace{arc, along}, lateral.deviation * length, lateral.sigma * length};
+  return {GraphPlace{arc, along}, lateral.deviation * length, lateral.sigma * length, heading};
 }
 
 LaneCheck Localizer::CheckLane(arc_t arc, double along, const PoseDeviation& lateral) const {
@@ -614,7 +615,7 @@ LaneCheck Localizer::CheckLane(arc_t arc, double along, const PoseDeviation& lat
     constexpr int kMaxArcs = 8;
     const std::optional<double> travelled = belief_.Distance(entry.place, GraphPlace{arc, along}, kMaxArcs);
     if (!travelled || *travelled < -model.lane_window * length || *travelled > model.lane_window * length) continue;
-    observations.push_back({entry.lateral, entry.sigma, *travelled});
+    observations.push_back({entry.lateral, entry.sigma, *travelled, entry.heading});
   }
   const PoseDeviation prediction = LanePrediction(observations, length, model);
   if (!prediction.valid || !(length > 0)) return {};
@@ -722,7 +723,11 @@ void Localizer::Localize(FrameResult* result) {
         placements.pose =
             PoseMeasurement(arc_, position_pose, pose, arc->arc->to_from_from, options_.placement, arc->bounds, spread,
                             HeightOffArc(pose, arc->arc->to_from_from), CheckLane(arc_, position_pose.along, lateral));
-        if (lateral.valid) placements.lane = LaneEntryOf(arc_, position_pose.along, lateral);
+        if (lateral.valid) {
+          placements.lane =
+              LaneEntryOf(arc_, position_pose.along, lateral,
+                          HeadingOffArc(pose.cam_from_world, arc->arc->to_from_from, position_pose.along));
+        }
       }
     }
   }
@@ -744,7 +749,10 @@ void Localizer::Localize(FrameResult* result) {
           neighbour->arc->id, placed, pose, neighbour->arc->to_from_from, options_.placement, neighbour->bounds, spread,
           HeightOffArc(pose, neighbour->arc->to_from_from), CheckLane(neighbour->arc->id, placed.along, lateral));
       placements.lane.reset();
-      if (lateral.valid) placements.lane = LaneEntryOf(neighbour->arc->id, placed.along, lateral);
+      if (lateral.valid) {
+        placements.lane = LaneEntryOf(neighbour->arc->id, placed.along, lateral,
+                                      HeadingOffArc(pose.cam_from_world, neighbour->arc->to_from_from, placed.along));
+      }
     }
     if (!placements.neighbour) {
       // W_t:b relates the camera to the next arc's first key-image, W_t:a to the previous arc's second.

@@ -613,13 +613,14 @@ class Localizer {
     GraphPlace place;
     double lateral = 0.0;
     double sigma = 0.0;
+    double heading = 0.0;  // against the path (HeadingOffArc)
   };
   std::vector<LaneEntry> lane_;
   // A pose's lateral offset `lateral` (LateralOffArc on `arc`, arc lengths) against the lane's prediction at
   // `along` on `arc`; invalid without a prediction.
   LaneCheck CheckLane(arc_t arc, double along, const PoseDeviation& lateral) const;
   // A pose's lateral offset on `arc` at `along` as an entry of the lane.
-  LaneEntry LaneEntryOf(arc_t arc, double along, const PoseDeviation& lateral) const;
+  LaneEntry LaneEntryOf(arc_t arc, double along, const PoseDeviation& lateral, double heading) const;
   // The taught path in metres (after map_: it refers to it).
   std::unique_ptr<TaughtPath> path_;
   // Current bearings of the tracked features (this frame).

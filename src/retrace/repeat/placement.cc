@@ -241,6 +241,21 @@ PoseDeviation LateralOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_
   return lateral;
 }
 
+double HeadingOffArc(const Rigid3d& current_from_a, const Rigid3d& arc_b_from_a, double along) {
+  const Vector3d n = GroundNormalOfArc(arc_b_from_a);
+  // The signed angle from key-image a's optical axis to `forward` about the normal (down: positive to the right),
+  // both on the ground plane.
+  const auto yaw = [&n](const Vector3d& forward) {
+    const Vector3d on_ground = forward - forward.dot(n) * n;
+    const Vector3d axis = Vector3d::UnitZ() - n.z() * n;
+    return std::atan2(n.dot(axis.cross(on_ground)), axis.dot(on_ground));
+  };
+  const Vector3d current = current_from_a.rotation.transpose() * Vector3d::UnitZ();
+  const Vector3d at_b = arc_b_from_a.rotation.transpose() * Vector3d::UnitZ();
+  const double heading = yaw(current) - along * yaw(at_b);
+  return std::isfinite(heading) ? std::remainder(heading, 2.0 * M_PI) : 0.0;
+}
+
 PoseDeviation LanePrediction(const std::vector<LaneObservation>& observations, double arc_length,
                              const PlacementModel& model) {
   PoseDeviation prediction;
@@ -249,7 +264,7 @@ PoseDeviation LanePrediction(const std::vector<LaneObservation>& observations, d
   carried.reserve(observations.size());
   for (const LaneObservation& o : observations) {
     const double drift = model.lane_heading_sigma * std::abs(o.travelled);
-    carried.push_back({o.lateral, std::max(o.sigma, 1e-6), drift * drift, -1});
+    carried.push_back({o.lateral + std::sin(o.heading) * o.travelled, std::max(o.sigma, 1e-6), drift * drift, -1});
   }
   const CombinedObservation combined =
       CombineCarriedObservations(carried, model.pose_outlier_probability, model.pose_height_outlier_span * arc_length);

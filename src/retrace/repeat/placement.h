@@ -163,8 +163,10 @@ struct PlacementModel {
   // standard deviations), a pose on the lane is Gaussian around the prediction. A pose farther out than the lane is
   // not doubted (the lane itself may rest on collapsed poses: seed3's first two), nor is any on the path, where
   // nothing collapses. The prediction combines the poses of the last `lane_window` arc lengths of travel
-  // (LanePrediction), each carried with a standard deviation of `lane_heading_sigma` times the length travelled
-  // (radians: 0.1 is a heading 6° off the path's); a pose's own lateral error beyond its covariance has σ =
+  // (LanePrediction), each carried along its own heading against the path (a car steering back onto it from 1.5 m
+  // beside turns by 8°: the offsets of a lane carried straight lagged it, and the poses that followed it looked
+  // collapsed) with a standard deviation of `lane_heading_sigma` times the length travelled for the heading's change
+  // (radians: 0.1 is 6°); a pose's own lateral error beyond its covariance has σ =
   // `pose_lateral_sigma` arc lengths (0.29 m on arcs of about 2.4 m is 2 σ). 0 turns the check off.
   double pose_lateral_sigma = 0.06;
   double lane_heading_sigma = 0.1;
@@ -216,15 +218,24 @@ struct LaneCheck {
 // lane's prediction (PlacementModel::pose_lateral_sigma); 0 when `lane` is invalid or the check off.
 double CollapseProbability(const LaneCheck& lane, const PlacementModel& model);
 
+// The camera's heading against the taught path at `along` on the arc (radians, positive turned to the right about
+// the ground's normal, GroundNormalOfArc): its yaw relative to key-image a less the path's, which turns from a's
+// heading to b's along the arc. A camera fixed on a vehicle turns with it, so this is the vehicle's heading against
+// the taught vehicle's whatever the mount's yaw; the lateral offset then changes by sin(heading) per length
+// travelled. 0 when the camera looks along the ground's normal.
+double HeadingOffArc(const Rigid3d& current_from_a, const Rigid3d& arc_b_from_a, double along);
+
 // One recent pose's lateral offset (LateralOffArc times the arc's length: the belief's common unit) and the length
 // travelled since (common units).
 struct LaneObservation {
   double lateral = 0.0;
   double sigma = 0.0;
   double travelled = 0.0;
+  double heading = 0.0;  // HeadingOffArc of the pose: the offset moves by sin(heading) per length travelled
 };
-// The lateral offset the recent poses predict here (common units), with its standard deviation: the observations
-// carried by a drift of `lane_heading_sigma` per length travelled, combined robustly (wrong poses come in runs:
+// The lateral offset the recent poses predict here (common units), with its standard deviation: each observation
+// carried along its own heading (lateral + sin(heading) · travelled), with a drift of `lane_heading_sigma` per
+// length travelled for the heading's change, combined robustly (wrong poses come in runs:
 // util/robust_random_walk.h, outliers with the pose's outlier probability, uniform over the height check's span
 // times `arc_length`). Invalid with fewer than two observations judged right (one recent pose may be the wrong one).
 PoseDeviation LanePrediction(const std::vector<LaneObservation>& observations, double arc_length,

@@ -562,5 +562,36 @@ TEST(PlacementModel, APoseCollapsedOntoThePathBesideTheLaneIsLessCertain) {
   EXPECT_FALSE(bad.Check());
 }
 
+// The heading against the path: on a straight arc, a camera yawed 10° to the right (Yaw(10) turns the optical axis
+// towards x) heads 10° off the path; on an arc whose key-image b turned 20° the same camera halfway along follows
+// the path, and so does one at b turned as b; one yawed 10° to the left there heads 20° to the left of it.
+TEST(HeadingOffArc, IsTheYawAgainstThePathTurningAlongTheArc) {
+  const double degree = M_PI / 180.0;
+  const Rigid3d straight = CamFromWorld(Vector3d(0.0, 0.0, 1.0));
+  EXPECT_NEAR(HeadingOffArc(CamFromWorld(Vector3d(0.3, 0.0, 0.5), Yaw(10)), straight, 0.5), 10.0 * degree, 1e-9);
+  EXPECT_NEAR(HeadingOffArc(CamFromWorld(Vector3d(0.3, 0.0, 0.5)), straight, 0.5), 0.0, 1e-12);
+  const Rigid3d turning = CamFromWorld(Vector3d(0.2, 0.0, 1.0), Yaw(20));
+  EXPECT_NEAR(HeadingOffArc(CamFromWorld(Vector3d(0.1, 0.0, 0.5), Yaw(10)), turning, 0.5), 0.0, 1e-9);
+  EXPECT_NEAR(HeadingOffArc(CamFromWorld(Vector3d(0.2, 0.0, 1.0), Yaw(20)), turning, 1.0), 0.0, 1e-9);
+  EXPECT_NEAR(HeadingOffArc(CamFromWorld(Vector3d(0.1, 0.0, 0.5), Yaw(-10)), turning, 0.5), -20.0 * degree, 1e-9);
+}
+
+// The lane carries each pose along its heading: a car steering back onto the path at 0.15 rad, its poses every
+// 0.25 arc lengths behind it at 1 + sin(0.15) times their distance, predicts the offset where it is now (1.0), not
+// where it was.
+TEST(LanePrediction, CarriesEachPoseAlongItsHeading) {
+  const PlacementModel model;
+  std::vector<LaneObservation> lane;
+  for (int k = 1; k <= 6; ++k) {
+    const double travelled = 0.25 * k;
+    lane.push_back({1.0 + std::sin(0.15) * travelled, 0.01, travelled, -0.15});
+  }
+  const PoseDeviation predicted = LanePrediction(lane, 1.0, model);
+  ASSERT_TRUE(predicted.valid);
+  EXPECT_NEAR(predicted.deviation, 1.0, 0.01);
+  for (LaneObservation& o : lane) o.heading = 0.0;              // carried straight: the lane lags the car
+  EXPECT_GT(LanePrediction(lane, 1.0, model).deviation, 1.03);  // about the nearest pose's own 1.037
+}
+
 }  // namespace
 }  // namespace retrace
