@@ -720,10 +720,10 @@ void Localizer::Localize(FrameResult* result) {
       if (position_pose.valid) result->position_via_pose = position_pose.along;
       if (position_pose.valid && pose.sigma_p < max_sigma_p_px_) {
         const PoseDeviation lateral = LateralOffArc(pose, arc->arc->to_from_from);
-        placements.pose =
-            PoseMeasurement(arc_, position_pose, pose, arc->arc->to_from_from, options_.placement, arc->bounds, spread,
-                            HeightOffArc(pose, arc->arc->to_from_from), CheckLane(arc_, position_pose.along, lateral));
-        if (lateral.valid) {
+        const LaneCheck lane = CheckLane(arc_, position_pose.along, lateral);
+        placements.pose = PoseMeasurement(arc_, position_pose, pose, arc->arc->to_from_from, options_.placement,
+                                          arc->bounds, spread, HeightOffArc(pose, arc->arc->to_from_from), lane);
+        if (lateral.valid && CollapseProbability(lane, options_.placement) < 0.5) {
           placements.lane =
               LaneEntryOf(arc_, position_pose.along, lateral,
                           HeadingOffArc(pose.cam_from_world, arc->arc->to_from_from, position_pose.along));
@@ -745,11 +745,12 @@ void Localizer::Localize(FrameResult* result) {
       if (!placed.valid) continue;
       best_inliers = pose.num_inliers;
       const PoseDeviation lateral = LateralOffArc(pose, neighbour->arc->to_from_from);
-      placements.neighbour = PoseMeasurement(
-          neighbour->arc->id, placed, pose, neighbour->arc->to_from_from, options_.placement, neighbour->bounds, spread,
-          HeightOffArc(pose, neighbour->arc->to_from_from), CheckLane(neighbour->arc->id, placed.along, lateral));
+      const LaneCheck lane = CheckLane(neighbour->arc->id, placed.along, lateral);
+      placements.neighbour =
+          PoseMeasurement(neighbour->arc->id, placed, pose, neighbour->arc->to_from_from, options_.placement,
+                          neighbour->bounds, spread, HeightOffArc(pose, neighbour->arc->to_from_from), lane);
       placements.lane.reset();
-      if (lateral.valid) {
+      if (lateral.valid && CollapseProbability(lane, options_.placement) < 0.5) {
         placements.lane = LaneEntryOf(neighbour->arc->id, placed.along, lateral,
                                       HeadingOffArc(pose.cam_from_world, neighbour->arc->to_from_from, placed.along));
       }

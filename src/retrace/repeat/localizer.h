@@ -607,8 +607,9 @@ class Localizer {
     std::optional<Matrix3d> centre_covariance;
   };
   std::optional<LastPose> last_pose_;
-  // The lane: the lateral offsets of the recent poses the belief took as right (common units, newest last; the
-  // lane check of PlacementModel::pose_lateral_sigma).
+  // The lane: the lateral offsets of the recent poses the belief took as right and that had not collapsed towards
+  // the path (common units, newest last; the lane check of PlacementModel::pose_lateral_sigma). A run of collapsed
+  // poses longer than half the window would otherwise become the lane (validation hard126 frames 79-90).
   struct LaneEntry {
     GraphPlace place;
     double lateral = 0.0;

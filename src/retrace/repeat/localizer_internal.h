@@ -80,8 +80,8 @@ struct Localizer::Placements {
   // When the current arc gives none: the camera placed in a neighbouring arc's frame (absolute pose in its
   // reconstruction, else W_t:a / W_t:b through its decomposed transfer).
   std::optional<PlaceMeasurement> neighbour;
-  // The lateral offset of the pose among these placements (pose or neighbour), entered in the lane when the belief
-  // takes the pose as right.
+  // The lateral offset of the pose among these placements (pose or neighbour) unless it more likely collapsed than
+  // not (CollapseProbability): entered in the lane when the belief takes the pose as right.
   std::optional<LaneEntry> lane;
 };
 
