@@ -628,17 +628,14 @@ ArcPosition Localizer::UpdateBelief(const Placements& placements) {
   // a bootstrap verified in this frame. (A pose whose lateral offset refuted it giving way to the current geometries
   // was measured and not kept: README, "The camera keeps to its lane".)
   std::vector<PlaceMeasurement> measurements;
-  bool pose_first = false;  // measurements[0] is an absolute pose (the current arc's or a neighbour's)
   if (placements.pose) {
     measurements.push_back(*placements.pose);
-    pose_first = true;
   } else if (placements.from && (!placements.to || placements.sigma_p_from <= placements.sigma_p_to)) {
     measurements.push_back(*placements.from);
   } else if (placements.to) {
     measurements.push_back(*placements.to);
   } else if (placements.neighbour) {
     measurements.push_back(*placements.neighbour);
-    pose_first = placements.lane.has_value();
   }
   if (bootstrap_key_image_) {
     measurements.push_back(KeyImageMeasurement(*Arc(bootstrap_key_image_->arc)->arc, bootstrap_key_image_->node,
@@ -647,8 +644,9 @@ ArcPosition Localizer::UpdateBelief(const Placements& placements) {
   }
   const std::vector<double> inlier = belief_.Update(measurements, frame_counter_);
   belief_updated_ = true;
-  // The lane keeps the poses the belief took as right (PlacementModel::pose_lateral_sigma).
-  if (pose_first && placements.lane && !inlier.empty() && inlier[0] >= 0.5) {
+  // The lane keeps the poses the belief took as right (PlacementModel::pose_lateral_sigma). A lane entry comes with
+  // the pose that is this frame's first measurement (the current arc's, else the neighbour's: Placements::lane).
+  if (placements.lane && !inlier.empty() && inlier[0] >= 0.5) {
     lane_.push_back(*placements.lane);
     constexpr size_t kMaxLaneEntries = 16;
     if (lane_.size() > kMaxLaneEntries) lane_.erase(lane_.begin());
@@ -720,10 +718,10 @@ void Localizer::Localize(FrameResult* result) {
       if (position_pose.valid) result->position_via_pose = position_pose.along;
       if (position_pose.valid && pose.sigma_p < max_sigma_p_px_) {
         const PoseDeviation lateral = LateralOffArc(pose, arc->arc->to_from_from);
-        const LaneCheck lane = CheckLane(arc_, position_pose.along, lateral);
+        const double collapsed = CollapseProbability(CheckLane(arc_, position_pose.along, lateral), options_.placement);
         placements.pose = PoseMeasurement(arc_, position_pose, pose, arc->arc->to_from_from, options_.placement,
-                                          arc->bounds, spread, HeightOffArc(pose, arc->arc->to_from_from), lane);
-        if (lateral.valid && CollapseProbability(lane, options_.placement) < 0.5) {
+                                          arc->bounds, spread, HeightOffArc(pose, arc->arc->to_from_from), collapsed);
+        if (lateral.valid && collapsed < 0.5) {
           placements.lane =
               LaneEntryOf(arc_, position_pose.along, lateral,
                           HeadingOffArc(pose.cam_from_world, arc->arc->to_from_from, position_pose.along));
@@ -745,12 +743,13 @@ void Localizer::Localize(FrameResult* result) {
       if (!placed.valid) continue;
       best_inliers = pose.num_inliers;
       const PoseDeviation lateral = LateralOffArc(pose, neighbour->arc->to_from_from);
-      const LaneCheck lane = CheckLane(neighbour->arc->id, placed.along, lateral);
+      const double collapsed =
+          CollapseProbability(CheckLane(neighbour->arc->id, placed.along, lateral), options_.placement);
       placements.neighbour =
           PoseMeasurement(neighbour->arc->id, placed, pose, neighbour->arc->to_from_from, options_.placement,
-                          neighbour->bounds, spread, HeightOffArc(pose, neighbour->arc->to_from_from), lane);
+                          neighbour->bounds, spread, HeightOffArc(pose, neighbour->arc->to_from_from), collapsed);
       placements.lane.reset();
-      if (lateral.valid && CollapseProbability(lane, options_.placement) < 0.5) {
+      if (lateral.valid && collapsed < 0.5) {
         placements.lane = LaneEntryOf(neighbour->arc->id, placed.along, lateral,
                                       HeadingOffArc(pose.cam_from_world, neighbour->arc->to_from_from, placed.along));
       }

@@ -81,7 +81,8 @@ struct Localizer::Placements {
   // reconstruction, else W_t:a / W_t:b through its decomposed transfer).
   std::optional<PlaceMeasurement> neighbour;
   // The lateral offset of the pose among these placements (pose or neighbour) unless it more likely collapsed than
-  // not (CollapseProbability): entered in the lane when the belief takes the pose as right.
+  // not (CollapseProbability): entered in the lane when the belief takes the pose as right. Set only with `pose`, or
+  // with `neighbour` when that is a pose, so the pose it belongs to is the frame's first measurement.
   std::optional<LaneEntry> lane;
 };
 

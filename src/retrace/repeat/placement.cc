@@ -197,26 +197,33 @@ Vector3d GroundNormalOfArc(const Rigid3d& arc_b_from_a) {
   return normal.y() >= 0.0 ? normal.normalized() : Vector3d(-normal.normalized());
 }
 
-PoseDeviation HeightOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_a, const Vector3d& ground_normal) {
-  PoseDeviation height;
+namespace {
+
+// How far the camera centre lies from the chord C_a C_b along the unit `direction` (arc lengths), with its σ from the
+// pose's covariance: δ = u · (C_t − t C_b) with t = C_t · C_b / |C_b|² the centre's projection on the chord; its
+// gradient in C_t is u − (u · C_b) C_b / |C_b|².
+PoseDeviation OffChord(const AbsolutePose& pose, const Rigid3d& arc_b_from_a, const Vector3d& direction) {
+  PoseDeviation off;
   const Vector3d c_b = CameraCentre(arc_b_from_a);
   const double length_sq = c_b.squaredNorm();
-  if (!pose.covariance_valid || !(length_sq > 0) || !ground_normal.allFinite() || !(ground_normal.norm() > 0)) {
-    return height;
-  }
+  if (!pose.covariance_valid || !(length_sq > 0) || !direction.allFinite() || !(direction.norm() > 0)) return off;
   const double length = std::sqrt(length_sq);
-  const Vector3d n = ground_normal.normalized();
+  const Vector3d u = direction.normalized();
   const Vector3d c_t = CameraCentre(pose.cam_from_world);
-  // δ = n · (C_t − t C_b) with t = C_t · C_b / |C_b|² the centre's projection on the chord; its gradient in C_t is
-  // n − (n · C_b) C_b / |C_b|².
   const double t = c_t.dot(c_b) / length_sq;
-  const Vector3d gradient = n - n.dot(c_b) / length_sq * c_b;
+  const Vector3d gradient = u - u.dot(c_b) / length_sq * c_b;
   const double variance = gradient.dot(pose.centre_covariance * gradient);
-  if (!std::isfinite(t) || !(variance >= 0)) return height;
-  height.valid = true;
-  height.deviation = n.dot(c_t - t * c_b) / length;
-  height.sigma = std::sqrt(variance) / length;
-  return height;
+  if (!std::isfinite(t) || !(variance >= 0)) return off;
+  off.valid = true;
+  off.deviation = u.dot(c_t - t * c_b) / length;
+  off.sigma = std::sqrt(variance) / length;
+  return off;
+}
+
+}  // namespace
+
+PoseDeviation HeightOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_a, const Vector3d& ground_normal) {
+  return OffChord(pose, arc_b_from_a, ground_normal);
 }
 
 PoseDeviation HeightOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_a) {
@@ -224,21 +231,8 @@ PoseDeviation HeightOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_a
 }
 
 PoseDeviation LateralOffArc(const AbsolutePose& pose, const Rigid3d& arc_b_from_a) {
-  PoseDeviation lateral;
-  const Vector3d c_b = CameraCentre(arc_b_from_a);
-  const double length = c_b.norm();
-  if (!pose.covariance_valid || !(length > 0)) return lateral;
-  // The side axis: perpendicular to the ground's normal (down) and to the chord, pointing right (down x forward).
-  // It is perpendicular to the chord, so the offset is its dot product with the centre and its gradient the axis.
-  const Vector3d side = GroundNormalOfArc(arc_b_from_a).cross(c_b / length);
-  if (!(side.norm() > 0.5)) return lateral;
-  const Vector3d axis = side.normalized();
-  const double variance = axis.dot(pose.centre_covariance * axis);
-  if (!(variance >= 0)) return lateral;
-  lateral.valid = true;
-  lateral.deviation = axis.dot(CameraCentre(pose.cam_from_world)) / length;
-  lateral.sigma = std::sqrt(variance) / length;
-  return lateral;
+  // The side axis: perpendicular to the ground's normal (down) and to the chord, pointing right (down × forward).
+  return OffChord(pose, arc_b_from_a, GroundNormalOfArc(arc_b_from_a).cross(ArcDirection(arc_b_from_a)));
 }
 
 double HeadingOffArc(const Rigid3d& current_from_a, const Rigid3d& arc_b_from_a, double along) {
@@ -299,7 +293,7 @@ double CollapseProbability(const LaneCheck& lane, const PlacementModel& model) {
 
 PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const AbsolutePose& pose,
                                  const Rigid3d& arc_b_from_a, const PlacementModel& model, const ArcBounds& bounds,
-                                 const PoseSpread& spread, const PoseDeviation& height, const LaneCheck& lane) {
+                                 const PoseSpread& spread, const PoseDeviation& height, double collapse_probability) {
   double sigma = model.pose_sigma_floor;
   if (pose.covariance_valid) {
     const double fitted = AlongSigma(pose.centre_covariance, arc_b_from_a, CameraCentre(pose.cam_from_world), bounds);
@@ -320,10 +314,9 @@ PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const A
         outlier_probability * wrong / (outlier_probability * wrong + (1.0 - outlier_probability) * right);
     if (std::isfinite(posterior)) outlier_probability = std::max(outlier_probability, posterior);
   }
-  // The probability that the pose collapsed towards the path (PlacementModel::pose_lateral_sigma) widens its σ.
-  const double collapsed = CollapseProbability(lane, model);
-  if (collapsed > 0) {
-    sigma = std::sqrt(sigma * sigma + collapsed * model.collapsed_pose_sigma * model.collapsed_pose_sigma);
+  // The probability that the pose collapsed towards the path (CollapseProbability) widens its σ.
+  if (collapse_probability > 0) {
+    sigma = std::sqrt(sigma * sigma + collapse_probability * model.collapsed_pose_sigma * model.collapsed_pose_sigma);
   }
   // Kept below 1: a measurement that is certainly an outlier carries no information but must not zero the belief.
   return {arc, position.along, sigma, std::min(outlier_probability, 0.999)};

@@ -252,12 +252,12 @@ Vector3d GroundNormalOfArc(const Rigid3d& arc_b_from_a);
 // The measurements of the belief from one placement on `arc`. A pose's σ: its covariance (AlongSigma), the floor,
 // and the shared scale error of its points' `spread` (PlacementModel::pose_shared_error_px) when known.
 // Its outlier probability: PlacementModel::pose_outlier_probability, raised by the centre's `height` off the arc
-// when valid (PlacementModel::pose_height_sigma). Its σ grows with the probability that it collapsed towards the
-// path (CollapseProbability).
+// when valid (PlacementModel::pose_height_sigma). Its σ grows with `collapse_probability`, the probability that it
+// collapsed towards the path (CollapseProbability; PlacementModel::collapsed_pose_sigma).
 PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const AbsolutePose& pose,
                                  const Rigid3d& arc_b_from_a, const PlacementModel& model,
                                  const ArcBounds& bounds = ArcBounds(), const PoseSpread& spread = PoseSpread(),
-                                 const PoseDeviation& height = PoseDeviation(), const LaneCheck& lane = LaneCheck());
+                                 const PoseDeviation& height = PoseDeviation(), double collapse_probability = 0.0);
 // `key`: the key-image of `arc` the current geometry relates the camera to (W_t:a: kA, W_t:b: kB).
 PlaceMeasurement GeometryMeasurement(arc_t arc, const ArcPosition& position, ArcImage key, const PlacementModel& model);
 // The camera is at key-image `node` of `arc` (its start or its end), picked among `candidates` key-images.

@@ -540,18 +540,20 @@ TEST(PlacementModel, APoseCollapsedOntoThePathBesideTheLaneIsLessCertain) {
   EXPECT_LT(collapsed(0.1, 0.0), 0.1);            // on the path nothing collapses
   EXPECT_DOUBLE_EQ(CollapseProbability(LaneCheck(), model), 0.0);
 
-  const PlaceMeasurement on_lane = PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, model, ArcBounds(), PoseSpread(),
-                                                   PoseDeviation(), LaneCheck{true, 0.8, 0.8, 0.05});
+  const PlaceMeasurement on_lane =
+      PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, model, ArcBounds(), PoseSpread(), PoseDeviation(),
+                      CollapseProbability(LaneCheck{true, 0.8, 0.8, 0.05}, model));
   const PlaceMeasurement plain = PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, model);
   EXPECT_NEAR(on_lane.sigma, plain.sigma, 0.01);
-  const PlaceMeasurement on_path = PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, model, ArcBounds(), PoseSpread(),
-                                                   PoseDeviation(), LaneCheck{true, 0.05, 0.8, 0.05});
+  const PlaceMeasurement on_path =
+      PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, model, ArcBounds(), PoseSpread(), PoseDeviation(),
+                      CollapseProbability(LaneCheck{true, 0.05, 0.8, 0.05}, model));
   EXPECT_NEAR(on_path.sigma, std::hypot(plain.sigma, model.collapsed_pose_sigma), 0.005);
   EXPECT_DOUBLE_EQ(on_path.outlier_probability, model.pose_outlier_probability);
   PlacementModel off = model;
   off.pose_lateral_sigma = 0.0;
   EXPECT_DOUBLE_EQ(PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, off, ArcBounds(), PoseSpread(), PoseDeviation(),
-                                   LaneCheck{true, 0.05, 0.8, 0.05})
+                                   CollapseProbability(LaneCheck{true, 0.05, 0.8, 0.05}, off))
                        .sigma,
                    plain.sigma);
   PlacementModel bad = model;
