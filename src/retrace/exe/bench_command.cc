@@ -358,6 +358,11 @@ void RegisterBenchCommand(CLI::App& app) {
                   "Up to this many key-images, a relocalization over the whole map needs no more located features "
                   "than a local one; beyond, --global-features-per-log more per factor e")
       ->capture_default_str();
+  cmd->add_option("--single-key-image-gate-candidates", args->options.single_key_image_gate_candidates,
+                  "A place verified by one key-image only is accepted over the whole map with no more located "
+                  "features than a local relocalization up to this many key-images, --global-features-per-log more "
+                  "per factor e beyond (0: never)")
+      ->capture_default_str();
   cmd->add_option("--global-features-per-log", args->options.global_features_per_log_candidates,
                   "Located features a relocalization over the whole map needs in addition per factor e of "
                   "key-images beyond --global-gate-candidates")

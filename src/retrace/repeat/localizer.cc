@@ -73,6 +73,7 @@ bool LocalizerOptions::Check(std::string* error) const {
   if (!(global_features_per_log_candidates >= 0.0) || global_gate_candidates < 1) {
     return fail("global_features_per_log_candidates must be >= 0 and global_gate_candidates >= 1");
   }
+  if (single_key_image_gate_candidates < 0) return fail("single_key_image_gate_candidates must be >= 0");
   if (max_cached_key_images < 1) return fail("max_cached_key_images must be >= 1");
   if (max_resident_signatures < 0) return fail("max_resident_signatures must be >= 0");
   if (retrieval_shortlist < 0 || start_retrieval_shortlist < 0 || retrieval_confident_inliers < 0) {

@@ -91,8 +91,9 @@
 // the arc's own first, the neighbours' outer ones only when too few features were located through those.
 // A bootstrap over the whole map is a multiple test against look-alike places: it also needs a second key-image of
 // those arcs verified and more located features the more key-images it searched (min_global_agreeing_key_images,
-// GlobalBootstrapFeatures), and, when a place elsewhere verified too, the place whose key-image locates clearly more
-// mapped features (retrieval_ambiguity_ratio).
+// GlobalBootstrapFeatures) — or, with one key-image verified, more still (SingleKeyImageBootstrapFeatures) — and,
+// when a place elsewhere verified too, the place whose key-image locates clearly more mapped features
+// (retrieval_ambiguity_ratio).
 
 #include <array>
 #include <limits>
@@ -235,6 +236,14 @@ struct LocalizerOptions {
   // map of up to this many key-images needs no more features than a local relocalization (every map of the
   // validation matrix, 16-172 key-images), 1264 key-images need 31.
   int global_gate_candidates = 200;
+  // (3) A place that only one key-image verifies passes (1) anyway when it locates more features than look-alikes
+  //     reach by chance without (1): at the start of a route the next key-image may be too far to verify
+  //     (validation mixed138, taught at dusk and repeated at noon: its first key-image verified with 74-127 inliers
+  //     for six frames, the second 17 m ahead with 18-41 matches). Of the same 541 frames of 1264 candidates, 24
+  //     look-alikes verified one key-image (3.5e-5 per candidate and frame, eight times (1)'s rate), so the budget
+  //     of (2) needs m ≥ min_bootstrap_features + λ ln(N / N1), N1 = 1e-3 / 3.5e-5 ≈ 28 (this option): 8 features
+  //     on maps of up to 28 key-images, 23 on 100, 54 on 1264. 0 disables (3).
+  int single_key_image_gate_candidates = 28;
   // Relocalization after a loss matches the key-images of the arcs up to this many arcs around the arc where it
   // was lost, ...
   int relocalization_neighbourhood = 3;
@@ -349,6 +358,9 @@ struct LocalizerOptions {
 // min_bootstrap_features + global_features_per_log_candidates · ln(candidates / global_gate_candidates), rounded
 // up, and min_bootstrap_features up to global_gate_candidates (LocalizerOptions, test (2)).
 int GlobalBootstrapFeatures(const LocalizerOptions& options, size_t candidates);
+// The same for a place only one key-image verified (LocalizerOptions, test (3)), with single_key_image_gate_candidates
+// in place of global_gate_candidates; -1 when (3) is disabled.
+int SingleKeyImageBootstrapFeatures(const LocalizerOptions& options, size_t candidates);
 
 // The role of an arc relative to the current topological location.
 enum class ArcRole : int { kPrevious = 0, kCurrent = 1, kNext = 2 };

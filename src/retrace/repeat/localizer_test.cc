@@ -86,6 +86,26 @@ TEST(LocalizerOptions, GlobalBootstrapFeaturesGrowWithTheLogarithmOfTheCandidate
   EXPECT_EQ(GlobalBootstrapFeatures(options, 100000), 8);
 }
 
+// Test (3): a place verified by one key-image only needs the features of a local relocalization up to
+// single_key_image_gate_candidates key-images, λ more per factor e beyond; disabled at 0.
+TEST(LocalizerOptions, SingleKeyImageBootstrapFeaturesGrowFromASmallerMap) {
+  LocalizerOptions options;
+  options.min_bootstrap_features = 8;
+  options.global_features_per_log_candidates = 12.0;
+  options.single_key_image_gate_candidates = 28;
+  EXPECT_EQ(SingleKeyImageBootstrapFeatures(options, 21), 8);
+  EXPECT_EQ(SingleKeyImageBootstrapFeatures(options, 28), 8);
+  // 8 + 12 ln(100 / 28) = 23.3; 8 + 12 ln(1264 / 28) = 53.7.
+  EXPECT_EQ(SingleKeyImageBootstrapFeatures(options, 100), 24);
+  EXPECT_EQ(SingleKeyImageBootstrapFeatures(options, 1264), 54);
+  EXPECT_GT(SingleKeyImageBootstrapFeatures(options, 1264), GlobalBootstrapFeatures(options, 1264));
+  options.single_key_image_gate_candidates = 0;
+  EXPECT_EQ(SingleKeyImageBootstrapFeatures(options, 21), -1);
+  EXPECT_TRUE(options.Check());
+  options.single_key_image_gate_candidates = -1;
+  EXPECT_FALSE(options.Check());
+}
+
 TEST(Localizer, MapWithoutImagesIsBadInput) {
   Map map;
   MapNode node;

@@ -26,11 +26,25 @@ bool HasEnd(const MapArc& arc, node_t node) { return node == arc.from || node ==
 
 }  // namespace
 
-int GlobalBootstrapFeatures(const LocalizerOptions& options, size_t candidates) {
-  const double excess = static_cast<double>(candidates) / options.global_gate_candidates;
+namespace {
+
+// min_bootstrap_features + λ ln(candidates / gate_candidates), rounded up, and no less than min_bootstrap_features.
+int AContrarioFeatures(const LocalizerOptions& options, size_t candidates, int gate_candidates) {
+  const double excess = static_cast<double>(candidates) / gate_candidates;
   if (excess <= 1.0) return options.min_bootstrap_features;
   return options.min_bootstrap_features +
          static_cast<int>(std::ceil(options.global_features_per_log_candidates * std::log(excess)));
+}
+
+}  // namespace
+
+int GlobalBootstrapFeatures(const LocalizerOptions& options, size_t candidates) {
+  return AContrarioFeatures(options, candidates, options.global_gate_candidates);
+}
+
+int SingleKeyImageBootstrapFeatures(const LocalizerOptions& options, size_t candidates) {
+  if (options.single_key_image_gate_candidates <= 0) return -1;
+  return AContrarioFeatures(options, candidates, options.single_key_image_gate_candidates);
 }
 
 std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBaselineFeatures& current,
@@ -384,21 +398,29 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   const int min_agreeing = global ? options_.min_global_agreeing_key_images : 1;
   verify(untried_arc);
   if (agreeing() >= min_agreeing) locate();
+  int needed_features = min_features;
   if (agreeing() < min_agreeing || tracker_.NumFeatures() < min_features) {
     verify(untried_neighbours);
     if (agreeing() < min_agreeing) {
-      spdlog::debug("repeat: bootstrap at frame {} failed: {} of the key-images around arc {} verified (key-image {}, "
-                    "{} inliers)",
-                    frame.index, agreeing(), chosen, best_node, best_inliers);
-      ClearTracks();
-      return false;
+      // Verified by one key-image only: test (3) of LocalizerOptions, more located features instead.
+      const int single_features = SingleKeyImageBootstrapFeatures(options_, candidate_count);
+      if (single_features < 0) {
+        spdlog::debug(
+            "repeat: bootstrap at frame {} failed: {} of the key-images around arc {} verified (key-image "
+            "{}, {} inliers)",
+            frame.index, agreeing(), chosen, best_node, best_inliers);
+        ClearTracks();
+        return false;
+      }
+      needed_features = std::max(min_features, single_features);
     }
     locate();
   }
-  if (tracker_.NumFeatures() < min_features) {
-    spdlog::debug("repeat: bootstrap at frame {} failed: {} of {} features located around arc {} (key-image {}, {} "
-                  "inliers)",
-                  frame.index, tracker_.NumFeatures(), seen.size(), chosen, best_node, best_inliers);
+  if (tracker_.NumFeatures() < needed_features) {
+    spdlog::debug(
+        "repeat: bootstrap at frame {} failed: {} of {} features located around arc {} ({} needed; "
+        "key-image {}, {} inliers, {} key-images of the place verified)",
+        frame.index, tracker_.NumFeatures(), seen.size(), chosen, needed_features, best_node, best_inliers, agreeing());
     ClearTracks();
     return false;
   }
