@@ -613,8 +613,7 @@ LaneCheck Localizer::CheckLane(arc_t arc, double along, const PoseDeviation& lat
   std::vector<LaneObservation> observations;
   for (const LaneEntry& entry : lane_) {
     // The poses within `lane_window` arc lengths of travel (none across a jump out of the belief's reach).
-    constexpr int kMaxArcs = 8;
-    const std::optional<double> travelled = belief_.Distance(entry.place, GraphPlace{arc, along}, kMaxArcs);
+    const std::optional<double> travelled = belief_.Distance(entry.place, GraphPlace{arc, along}, model.lane_max_arcs);
     if (!travelled || *travelled < -model.lane_window * length || *travelled > model.lane_window * length) continue;
     observations.push_back({entry.lateral, entry.sigma, *travelled, entry.heading});
   }
@@ -649,8 +648,7 @@ ArcPosition Localizer::UpdateBelief(const Placements& placements) {
   // the pose that is this frame's first measurement (the current arc's, else the neighbour's: Placements::lane).
   if (placements.lane && !inlier.empty() && inlier[0] >= 0.5) {
     lane_.push_back(*placements.lane);
-    constexpr size_t kMaxLaneEntries = 16;
-    if (lane_.size() > kMaxLaneEntries) lane_.erase(lane_.begin());
+    if (lane_.size() > static_cast<size_t>(options_.placement.lane_max_poses)) lane_.erase(lane_.begin());
   }
   const std::optional<double> along = AlongCurrentArc();
   return along ? AlongArc(*along) : ArcPosition();

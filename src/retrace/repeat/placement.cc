@@ -160,6 +160,10 @@ bool PlacementModel::Check(std::string* error) const {
     return fail("pose_collapse_probability must be in (0, 1)");
   }
   if (!(collapsed_pose_sigma >= 0)) return fail("collapsed_pose_sigma must be >= 0");
+  if (!(lane_outlier_probability > 0) || !(lane_outlier_probability < 1) || !(lane_outlier_span > 0)) {
+    return fail("lane_outlier_probability must be in (0, 1) and lane_outlier_span positive");
+  }
+  if (lane_max_poses < 2 || lane_max_arcs < 1) return fail("lane_max_poses must be >= 2 and lane_max_arcs >= 1");
   for (const double p : {pose_outlier_probability, geometry_outlier_probability, key_image_outlier_probability}) {
     if (!(p > 0) || !(p < 1)) return fail("placement outlier probabilities must be in (0, 1)");
   }
@@ -261,7 +265,7 @@ PoseDeviation LanePrediction(const std::vector<LaneObservation>& observations, d
     carried.push_back({o.lateral + std::sin(o.heading) * o.travelled, std::max(o.sigma, 1e-6), drift * drift, -1});
   }
   const CombinedObservation combined =
-      CombineCarriedObservations(carried, model.pose_outlier_probability, model.pose_height_outlier_span * arc_length);
+      CombineCarriedObservations(carried, model.lane_outlier_probability, model.lane_outlier_span * arc_length);
   if (!combined.valid || combined.inliers < 2) return prediction;
   prediction.valid = true;
   prediction.deviation = combined.value;

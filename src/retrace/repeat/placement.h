@@ -173,6 +173,15 @@ struct PlacementModel {
   double lane_window = 3.0;
   double pose_collapse_probability = 0.015;
   double collapsed_pose_sigma = 0.2;  // σ_c, arc lengths
+  // The lane's robust combination (LanePrediction): a recent pose's offset is wrong with this probability (a pose's
+  // placement error, `pose_outlier_probability`'s measurement) and then uniform over this many arc lengths (the
+  // span of the height check, `pose_height_outlier_span`: a wrong pose lies anywhere within about an arc of the path).
+  double lane_outlier_probability = 0.02;
+  double lane_outlier_span = 2.0;
+  // The lane keeps at most this many recent poses, and one more than this many arcs of travel away no longer counts
+  // (both bound its cost; `lane_window` arc lengths of travel are what it combines).
+  int lane_max_poses = 16;
+  int lane_max_arcs = 8;
 
   bool Check(std::string* error = nullptr) const;
 };
@@ -236,8 +245,8 @@ struct LaneObservation {
 // The lateral offset the recent poses predict here (common units), with its standard deviation: each observation
 // carried along its own heading (lateral + sin(heading) · travelled), with a drift of `lane_heading_sigma` per
 // length travelled for the heading's change, combined robustly (wrong poses come in runs:
-// util/robust_random_walk.h, outliers with the pose's outlier probability, uniform over the height check's span
-// times `arc_length`). Invalid with fewer than two observations judged right (one recent pose may be the wrong one).
+// util/robust_random_walk.h, outliers with `lane_outlier_probability`, uniform over `lane_outlier_span` times
+// `arc_length`). Invalid with fewer than two observations judged right (one recent pose may be the wrong one).
 PoseDeviation LanePrediction(const std::vector<LaneObservation>& observations, double arc_length,
                              const PlacementModel& model);
 

@@ -562,6 +562,15 @@ TEST(PlacementModel, APoseCollapsedOntoThePathBesideTheLaneIsLessCertain) {
   bad = model;
   bad.pose_collapse_probability = 1.0;
   EXPECT_FALSE(bad.Check());
+  bad = model;
+  bad.lane_outlier_probability = 0.0;
+  EXPECT_FALSE(bad.Check());
+  bad = model;
+  bad.lane_outlier_span = 0.0;
+  EXPECT_FALSE(bad.Check());
+  bad = model;
+  bad.lane_max_poses = 1;  // the lane needs two poses judged right
+  EXPECT_FALSE(bad.Check());
 }
 
 // The heading against the path: on a straight arc, a camera yawed 10° to the right (Yaw(10) turns the optical axis
