@@ -372,6 +372,14 @@ TopologicalEvaluation EvaluateTopological(const Map& map, const std::vector<Time
   return evaluation;
 }
 
+bool IsCorrectEstimate(const FrameTruth& truth, const std::vector<arc_t>& route, arc_t arc) {
+  const auto it = std::find(route.begin(), route.end(), arc);
+  if (it == route.end()) return false;
+  const int estimated = static_cast<int>(it - route.begin());
+  return estimated == truth.true_arc_index || estimated == truth.tolerated_arc_index ||
+         estimated == truth.tolerated_after_arc_index;
+}
+
 PathTruth TruthAgainstTaughtPath(const Rigid3d& world_from_cam, const std::vector<TimedPose>& taught, size_t first,
                                  size_t last) {
   PathTruth truth;

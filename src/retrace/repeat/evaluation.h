@@ -157,6 +157,13 @@ TopologicalEvaluation EvaluateTopological(const Map& map, const std::vector<Time
                                           const std::vector<RepeatRecord>& records,
                                           const TopologicalTruthOptions& options = {});
 
+// Whether a frame localized on `arc` is right by its truth `truth` (correct as EvaluateTopological counts it: the
+// true arc or one tolerated near a node or a stretch; an arc off the route is wrong). For frames evaluated one by one
+// or a few at a time (kidnapped starts), take `truth` from an evaluation of the whole drive: a few frames evaluated
+// alone have no order along the drive, and on a route that crosses or retraces itself they may be judged against
+// the other pass.
+bool IsCorrectEstimate(const FrameTruth& truth, const std::vector<arc_t>& route, arc_t arc);
+
 // The true pose of a camera relative to the taught camera path (path tracking, taught_path.h): the taught camera
 // centres `taught[first..last]` as a polyline on the ground plane of the world frame — x-z, y pointing down, as the
 // simulator's world and (nearly) KITTI's first camera — and the camera at `world_from_cam`. Restricting the polyline

@@ -331,6 +331,32 @@ TEST(EvaluateTopological, DroppedFramesAndStartInTheMiddle) {
   ExpectAllCorrect(e, drive, ArcAt);
 }
 
+// A kidnapped start's frames: three frames over the second crossing, evaluated alone, lose the order along the drive
+// and may be judged against the first pass, 11 arcs away; judged by the truth of the whole drive (IsCorrectEstimate)
+// their true arc is right and an arc of the first pass wrong.
+TEST(IsCorrectEstimate, TakesTheTruthOfTheWholeDrive) {
+  const TaughtRoute taught(kFigureEight, kFigureEightLength);
+  const RepeatDrive whole(kFigureEight, Every(1.0, 0.5, 159.5), OneMetreRight, ArcAt);
+  std::vector<RepeatRecord> unlocalized = whole.records;
+  for (RepeatRecord& r : unlocalized) r.localized = false;
+  const TopologicalEvaluation truth = EvaluateTopological(taught.map, taught.truth, whole.truth, unlocalized);
+  const std::vector<arc_t> route = RouteArcs(taught.map);
+  ASSERT_EQ(truth.per_frame.size(), whole.s.size());
+  for (const double s : {134.5, 135.5, 136.5}) {
+    const size_t i = static_cast<size_t>(s);  // frame i is at s = i + 0.5
+    EXPECT_TRUE(IsCorrectEstimate(truth.per_frame[i], route, kFirstArcId + ArcAt(s))) << "s = " << s;
+    EXPECT_FALSE(IsCorrectEstimate(truth.per_frame[i], route, kFirstArcId + ArcAt(s - 110.0))) << "s = " << s;
+    EXPECT_FALSE(IsCorrectEstimate(truth.per_frame[i], route, kInvalidArcId));
+  }
+  // The same three frames evaluated alone: the first pass is nearer (1 m to the right of the taught path near the
+  // crossing), and nothing says which pass they belong to.
+  const RepeatDrive alone(kFigureEight, {134.5, 135.5, 136.5}, OneMetreRight, ArcAt);
+  const TopologicalEvaluation e = EvaluateTopological(taught.map, taught.truth, alone.truth, alone.records);
+  int judged_right = 0;
+  for (const FrameTruth& f : e.per_frame) judged_right += f.correct;
+  EXPECT_LT(judged_right, 3) << "evaluated alone the crossing was judged right: the test no longer shows the need";
+}
+
 // A street driven east and back west in the other lane, 3 m to the north (a U-turn at x = 60). The repeat drives 2 m
 // to the left of the taught path on both ways, nearer to the other lane than to its own, back on the taught path
 // around the U-turn (a car cannot turn in 3 m with an offset of 2 m inside the turn).
