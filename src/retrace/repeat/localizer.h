@@ -236,13 +236,13 @@ struct LocalizerOptions {
   // map of up to this many key-images needs no more features than a local relocalization (every map of the
   // validation matrix, 16-172 key-images), 1264 key-images need 31.
   int global_gate_candidates = 200;
-  // (3) A place that only one key-image verifies passes (1) anyway when it locates more features than look-alikes
-  //     reach by chance without (1): at the start of a route the next key-image may be too far to verify
+  // (3) A place that fewer key-images verify than (1) asks for (one, by default) is taken when it locates more
+  //     features than look-alikes reach by chance without (1): at the start of a route the next key-image may be too far to verify
   //     (validation mixed138, taught at dusk and repeated at noon: its first key-image verified with 74-127 inliers
   //     for six frames, the second 17 m ahead with 18-41 matches). Of the same 541 frames of 1264 candidates, 24
   //     look-alikes verified one key-image (3.5e-5 per candidate and frame, eight times (1)'s rate), so the budget
   //     of (2) needs m ≥ min_bootstrap_features + λ ln(N / N1), N1 = 1e-3 / 3.5e-5 ≈ 28 (this option): 8 features
-  //     on maps of up to 28 key-images, 23 on 100, 54 on 1264. 0 disables (3).
+  //     on maps of up to 28 key-images, 24 on 100, 54 on 1264. 0 disables (3).
   int single_key_image_gate_candidates = 28;
   // Relocalization after a loss matches the key-images of the arcs up to this many arcs around the arc where it
   // was lost, ...
