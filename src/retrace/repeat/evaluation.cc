@@ -71,6 +71,12 @@ std::string TopologicalEvaluation::Summary() const {
 
 namespace {
 
+// Whether the route arc at index `estimated` is the frame's true arc or one tolerated near a node or a stretch.
+bool IsTrueOrTolerated(const FrameTruth& truth, int estimated) {
+  return estimated >= 0 && (estimated == truth.true_arc_index || estimated == truth.tolerated_arc_index ||
+                            estimated == truth.tolerated_after_arc_index);
+}
+
 // Projection parameter of p on the segment from `a` to `b` (0 at a, 1 at b), not clamped; 0 for a point segment.
 double RawProjection(const Vector3d& a, const Vector3d& b, const Vector3d& p) {
   const Vector3d d = b - a;
@@ -357,8 +363,7 @@ TopologicalEvaluation EvaluateTopological(const Map& map, const std::vector<Time
       ++evaluation.lost;
     } else {
       const int estimated = frame.estimated_arc_index;
-      frame.correct = estimated >= 0 && (estimated == frame.true_arc_index || estimated == frame.tolerated_arc_index ||
-                                         estimated == frame.tolerated_after_arc_index);
+      frame.correct = IsTrueOrTolerated(frame, estimated);
       frame.error = estimated < 0 ? steps : steps_apart(elements[element_of_arc[estimated]].step, el.step);
       if (frame.correct) {
         ++evaluation.correct;
@@ -374,10 +379,7 @@ TopologicalEvaluation EvaluateTopological(const Map& map, const std::vector<Time
 
 bool IsCorrectEstimate(const FrameTruth& truth, const std::vector<arc_t>& route, arc_t arc) {
   const auto it = std::find(route.begin(), route.end(), arc);
-  if (it == route.end()) return false;
-  const int estimated = static_cast<int>(it - route.begin());
-  return estimated == truth.true_arc_index || estimated == truth.tolerated_arc_index ||
-         estimated == truth.tolerated_after_arc_index;
+  return it != route.end() && IsTrueOrTolerated(truth, static_cast<int>(it - route.begin()));
 }
 
 PathTruth TruthAgainstTaughtPath(const Rigid3d& world_from_cam, const std::vector<TimedPose>& taught, size_t first,

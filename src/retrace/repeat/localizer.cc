@@ -606,6 +606,19 @@ Localizer::LaneEntry Localizer::LaneEntryOf(arc_t arc, double along, const PoseD
   return {GraphPlace{arc, along}, lateral.deviation * length, lateral.sigma * length, heading};
 }
 
+PlaceMeasurement Localizer::PlacePose(const ArcData& arc, const ArcPosition& placed, const AbsolutePose& pose,
+                                      const PoseSpread& spread, std::optional<LaneEntry>* lane) const {
+  const Rigid3d& b_from_a = arc.arc->to_from_from;
+  const PoseDeviation lateral = LateralOffArc(pose, b_from_a);
+  const double collapsed = CollapseProbability(CheckLane(arc.arc->id, placed.along, lateral), options_.placement);
+  lane->reset();
+  if (lateral.valid && collapsed < 0.5) {
+    *lane = LaneEntryOf(arc.arc->id, placed.along, lateral, HeadingOffArc(pose.cam_from_world, b_from_a, placed.along));
+  }
+  return PoseMeasurement(arc.arc->id, placed, pose, b_from_a, options_.placement, arc.bounds, spread,
+                         HeightOffArc(pose, b_from_a), collapsed);
+}
+
 LaneCheck Localizer::CheckLane(arc_t arc, double along, const PoseDeviation& lateral) const {
   const PlacementModel& model = options_.placement;
   if (!lateral.valid || !(model.pose_lateral_sigma > 0)) return {};
@@ -716,15 +729,7 @@ void Localizer::Localize(FrameResult* result) {
       const ArcPosition position_pose = LocateOnArc(pose.cam_from_world, arc->arc->to_from_from, arc->bounds);
       if (position_pose.valid) result->position_via_pose = position_pose.along;
       if (position_pose.valid && pose.sigma_p < max_sigma_p_px_) {
-        const PoseDeviation lateral = LateralOffArc(pose, arc->arc->to_from_from);
-        const double collapsed = CollapseProbability(CheckLane(arc_, position_pose.along, lateral), options_.placement);
-        placements.pose = PoseMeasurement(arc_, position_pose, pose, arc->arc->to_from_from, options_.placement,
-                                          arc->bounds, spread, HeightOffArc(pose, arc->arc->to_from_from), collapsed);
-        if (lateral.valid && collapsed < 0.5) {
-          placements.lane =
-              LaneEntryOf(arc_, position_pose.along, lateral,
-                          HeadingOffArc(pose.cam_from_world, arc->arc->to_from_from, position_pose.along));
-        }
+        placements.pose = PlacePose(*arc, position_pose, pose, spread, &placements.lane);
       }
     }
   }
@@ -741,17 +746,7 @@ void Localizer::Localize(FrameResult* result) {
       const ArcPosition placed = LocateOnArc(pose.cam_from_world, neighbour->arc->to_from_from, neighbour->bounds);
       if (!placed.valid) continue;
       best_inliers = pose.num_inliers;
-      const PoseDeviation lateral = LateralOffArc(pose, neighbour->arc->to_from_from);
-      const double collapsed =
-          CollapseProbability(CheckLane(neighbour->arc->id, placed.along, lateral), options_.placement);
-      placements.neighbour =
-          PoseMeasurement(neighbour->arc->id, placed, pose, neighbour->arc->to_from_from, options_.placement,
-                          neighbour->bounds, spread, HeightOffArc(pose, neighbour->arc->to_from_from), collapsed);
-      placements.lane.reset();
-      if (lateral.valid && collapsed < 0.5) {
-        placements.lane = LaneEntryOf(neighbour->arc->id, placed.along, lateral,
-                                      HeadingOffArc(pose.cam_from_world, neighbour->arc->to_from_from, placed.along));
-      }
+      placements.neighbour = PlacePose(*neighbour, placed, pose, spread, &placements.lane);
     }
     if (!placements.neighbour) {
       // W_t:b relates the camera to the next arc's first key-image, W_t:a to the previous arc's second.

@@ -634,6 +634,11 @@ class Localizer {
   LaneCheck CheckLane(arc_t arc, double along, const PoseDeviation& lateral) const;
   // A pose's lateral offset on `arc` at `along` as an entry of the lane.
   LaneEntry LaneEntryOf(arc_t arc, double along, const PoseDeviation& lateral, double heading) const;
+  // The belief's measurement from an absolute pose in `arc`'s reconstruction placed at `placed` (PoseMeasurement,
+  // with its height off the arc and its probability of having collapsed towards the path), and in `lane` the pose's
+  // lane entry, or none when it more likely collapsed than not.
+  PlaceMeasurement PlacePose(const ArcData& arc, const ArcPosition& placed, const AbsolutePose& pose,
+                             const PoseSpread& spread, std::optional<LaneEntry>* lane) const;
   // The taught path in metres (after map_: it refers to it).
   std::unique_ptr<TaughtPath> path_;
   // Current bearings of the tracked features (this frame).
