@@ -5,6 +5,7 @@
 #include <numeric>
 #include <random>
 
+#include <Eigen/Cholesky>
 #include <Eigen/LU>
 
 #include "retrace/geometry/essential.h"
@@ -26,20 +27,63 @@ double SquaredResidual(const Rigid3d& cam_from_world, const Vector3d& point, con
   return std::max(0.0, 1.0 - along * along / norm2);
 }
 
+// One correspondence under `pose`: the point in the camera `p`, the tangent-plane residual `r` (radians) of the
+// direction to it against the bearing, its Jacobian in p, and the whitening W of r (WᵀW = C⁻¹ for the residual's
+// covariance C = I + J_X Σ_X J_Xᵀ per unit measurement variance, J_X = ∂r/∂p R; the identity without Σ_X).
+// False for a point at the camera's centre.
+struct Correspondence {
+  Vector3d p;
+  Eigen::Vector2d r;
+  Eigen::Matrix<double, 2, 3> d_r_d_p;
+  Eigen::Matrix2d whitening = Eigen::Matrix2d::Identity();
+};
+bool Linearise(const Rigid3d& pose, const Vector3d& point, const Vector3d& bearing, const Matrix3d* point_covariance,
+               Correspondence* c) {
+  c->p = pose * point;
+  const double norm = c->p.norm();
+  if (!(norm > 0.0)) return false;
+  const Vector3d direction = c->p / norm;
+  Vector3d u, v;
+  TangentBasis(bearing, &u, &v);
+  c->r = Eigen::Vector2d(u.dot(direction), v.dot(direction));
+  // d direction / d p = (I - d dᵀ) / |p|.
+  c->d_r_d_p.row(0) = (u - u.dot(direction) * direction).transpose() / norm;
+  c->d_r_d_p.row(1) = (v - v.dot(direction) * direction).transpose() / norm;
+  c->whitening.setIdentity();
+  if (point_covariance != nullptr) {
+    const Eigen::Matrix<double, 2, 3> d_r_d_x = c->d_r_d_p * pose.rotation;
+    const Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity() + d_r_d_x * *point_covariance * d_r_d_x.transpose();
+    // C⁻¹ = L Lᵀ: W = Lᵀ.
+    const Eigen::LLT<Eigen::Matrix2d> llt(covariance.inverse());
+    if (llt.info() == Eigen::Success) c->whitening = llt.matrixU();
+  }
+  return true;
+}
+
+// The correspondences within τ of `pose`: the residual's angle, or with `point_covariances` its whitened norm (the
+// Mahalanobis distance in units of the measurement's σ: a point that two views placed badly may lie farther off).
 std::vector<int> InlierIndices(const Rigid3d& pose, const std::vector<Vector3d>& points,
-                               const std::vector<Vector3d>& bearings, double tau2) {
+                               const std::vector<Vector3d>& bearings, const std::vector<Matrix3d>* point_covariances,
+                               double tau2) {
   std::vector<int> inliers;
   for (size_t i = 0; i < points.size(); ++i) {
-    if (SquaredResidual(pose, points[i], bearings[i]) <= tau2) inliers.push_back(static_cast<int>(i));
+    const double e2 = SquaredResidual(pose, points[i], bearings[i]);
+    bool inlier = e2 <= tau2;
+    if (point_covariances != nullptr && e2 < 4.0) {
+      Correspondence c;
+      inlier = Linearise(pose, points[i], bearings[i], &(*point_covariances)[i], &c) &&
+               (c.whitening * c.r).squaredNorm() <= tau2;
+    }
+    if (inlier) inliers.push_back(static_cast<int>(i));
   }
   return inliers;
 }
 
-// Squared sum of the residuals (tangent-plane components, radians) of the correspondences `indices` under
-// `pose`, and (when `jtj` is given) the normal equations of the 6 parameters (δω, δt) of the update
-// x_cam <- exp(δω) x_cam + δt, i.e. R <- exp(δω) R, t <- exp(δω) t + δt.
-double NormalEquations(const Rigid3d& pose, const std::vector<Vector3d>& points,
-                       const std::vector<Vector3d>& bearings, const std::vector<int>& indices,
+// Squared sum of the (whitened) residuals of the correspondences `indices` under `pose`, and (when `jtj` is given)
+// the normal equations of the 6 parameters (δω, δt) of the update x_cam <- exp(δω) x_cam + δt, i.e.
+// R <- exp(δω) R, t <- exp(δω) t + δt.
+double NormalEquations(const Rigid3d& pose, const std::vector<Vector3d>& points, const std::vector<Vector3d>& bearings,
+                       const std::vector<int>& indices, const std::vector<Matrix3d>* point_covariances,
                        Eigen::Matrix<double, 6, 6>* jtj, Eigen::Matrix<double, 6, 1>* jtr) {
   double cost = 0.0;
   if (jtj != nullptr) {
@@ -47,22 +91,16 @@ double NormalEquations(const Rigid3d& pose, const std::vector<Vector3d>& points,
     jtr->setZero();
   }
   for (const int i : indices) {
-    const Vector3d p = pose * points[i];
-    const double norm = p.norm();
-    if (!(norm > 0.0)) continue;
-    const Vector3d direction = p / norm;
-    Vector3d u, v;
-    TangentBasis(bearings[i], &u, &v);
-    const Eigen::Vector2d r(u.dot(direction), v.dot(direction));
+    Correspondence c;
+    if (!Linearise(pose, points[i], bearings[i], point_covariances ? &(*point_covariances)[i] : nullptr, &c)) continue;
+    const Eigen::Vector2d r = c.whitening * c.r;
     cost += r.squaredNorm();
     if (jtj == nullptr) continue;
-    // d direction / d p = (I - d dᵀ) / |p|; d p / d δω = -[p]ₓ, d p / d δt = I.
-    Eigen::Matrix<double, 2, 3> d_r_d_p;
-    d_r_d_p.row(0) = (u - u.dot(direction) * direction).transpose() / norm;
-    d_r_d_p.row(1) = (v - v.dot(direction) * direction).transpose() / norm;
+    // d p / d δω = -[p]ₓ, d p / d δt = I.
     Eigen::Matrix<double, 2, 6> j;
-    j.leftCols<3>() = -d_r_d_p * CrossProductMatrix(p);
-    j.rightCols<3>() = d_r_d_p;
+    j.leftCols<3>() = -c.d_r_d_p * CrossProductMatrix(c.p);
+    j.rightCols<3>() = c.d_r_d_p;
+    j = c.whitening * j;
     *jtj += j.transpose() * j;
     *jtr += j.transpose() * r;
   }
@@ -72,11 +110,12 @@ double NormalEquations(const Rigid3d& pose, const std::vector<Vector3d>& points,
 // Levenberg-Marquardt on the tangent-plane residuals of `indices` with the analytic Jacobian (plain least
 // squares, as the two-view refinement: on a clean inlier set it is the maximum-likelihood estimate).
 Rigid3d Refine(const std::vector<Vector3d>& points, const std::vector<Vector3d>& bearings,
-               const std::vector<int>& indices, const Rigid3d& initial, int max_iterations) {
+               const std::vector<int>& indices, const std::vector<Matrix3d>* point_covariances, const Rigid3d& initial,
+               int max_iterations) {
   Rigid3d pose = initial;
   Eigen::Matrix<double, 6, 6> jtj;
   Eigen::Matrix<double, 6, 1> jtr;
-  double cost = NormalEquations(pose, points, bearings, indices, &jtj, &jtr);
+  double cost = NormalEquations(pose, points, bearings, indices, point_covariances, &jtj, &jtr);
   double lambda = 1e-4;
   for (int iteration = 0; iteration < max_iterations; ++iteration) {
     bool improved = false;
@@ -87,13 +126,14 @@ Rigid3d Refine(const std::vector<Vector3d>& points, const std::vector<Vector3d>&
       if (!step.allFinite()) return pose;
       const Matrix3d rotation = ExpSO3(step.head<3>());
       const Rigid3d candidate(rotation * pose.rotation, rotation * pose.translation + step.tail<3>());
-      const double candidate_cost = NormalEquations(candidate, points, bearings, indices, nullptr, nullptr);
+      const double candidate_cost =
+          NormalEquations(candidate, points, bearings, indices, point_covariances, nullptr, nullptr);
       if (candidate_cost < cost) {
         const bool converged = cost - candidate_cost <= 1e-10 * cost;
         pose = candidate;
         lambda = std::max(lambda / 10.0, 1e-12);
         improved = true;
-        cost = NormalEquations(pose, points, bearings, indices, &jtj, &jtr);
+        cost = NormalEquations(pose, points, bearings, indices, point_covariances, &jtj, &jtr);
         if (converged) return pose;
       } else {
         lambda *= 10.0;
@@ -127,9 +167,9 @@ bool AbsolutePoseOptions::Check(std::string* error) const {
   return true;
 }
 
-AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world,
-                                  const std::vector<Vector3d>& bearings, double focal_length_px,
-                                  const AbsolutePoseOptions& options) {
+AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world, const std::vector<Vector3d>& bearings,
+                                  double focal_length_px, const AbsolutePoseOptions& options,
+                                  const std::vector<Matrix3d>* point_covariances) {
   const size_t n = points_in_world.size();
   constexpr int kSampleSize = 3;
   std::string error;
@@ -141,6 +181,12 @@ AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world,
   if (!internal::ValidBearings(bearings)) return Failure("bearings must be finite unit vectors", n);
   for (const Vector3d& p : points_in_world) {
     if (!p.allFinite()) return Failure("points must be finite", n);
+  }
+  if (point_covariances != nullptr) {
+    if (point_covariances->size() != n) return Failure("points and point covariances differ in number", n);
+    for (const Matrix3d& c : *point_covariances) {
+      if (!c.allFinite()) return Failure("point covariances must be finite", n);
+    }
   }
   const int min_needed = std::max(kSampleSize + 1, options.min_inliers);
   if (static_cast<int>(n) < min_needed) {
@@ -198,11 +244,12 @@ AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world,
 
   // Local optimisation: refine on the inliers, re-select, refine again while the inlier set grows.
   Rigid3d pose = best_pose;
-  std::vector<int> inliers = InlierIndices(pose, points_in_world, bearings, tau2);
+  std::vector<int> inliers = InlierIndices(pose, points_in_world, bearings, point_covariances, tau2);
   for (int round = 0; round < options.refinement_rounds && static_cast<int>(inliers.size()) >= min_needed;
        ++round) {
-    const Rigid3d refined = Refine(points_in_world, bearings, inliers, pose, options.refinement_iterations);
-    std::vector<int> refined_inliers = InlierIndices(refined, points_in_world, bearings, tau2);
+    const Rigid3d refined =
+        Refine(points_in_world, bearings, inliers, point_covariances, pose, options.refinement_iterations);
+    std::vector<int> refined_inliers = InlierIndices(refined, points_in_world, bearings, point_covariances, tau2);
     if (refined_inliers.size() < inliers.size()) break;
     pose = refined;
     const bool same = refined_inliers == inliers;
@@ -214,10 +261,17 @@ AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world,
   result.cam_from_world = pose;
   result.num_iterations = iteration;
   result.inlier_mask.assign(n, false);
-  double sum_squares = 0.0;
+  double sum_squares = 0.0;  // pixels²; whitened by the points' covariances when given
   for (const int i : inliers) {
     result.inlier_mask[i] = true;
-    sum_squares += TangentResidualPx(bearings[i], pose * points_in_world[i], focal_length_px).squaredNorm();
+    if (point_covariances == nullptr) {
+      sum_squares += TangentResidualPx(bearings[i], pose * points_in_world[i], focal_length_px).squaredNorm();
+    } else {
+      Correspondence c;
+      if (Linearise(pose, points_in_world[i], bearings[i], &(*point_covariances)[i], &c)) {
+        sum_squares += (focal_length_px * (c.whitening * c.r)).squaredNorm();
+      }
+    }
   }
   result.num_inliers = static_cast<int>(inliers.size());
   if (result.num_inliers < options.min_inliers) {
@@ -232,7 +286,7 @@ AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world,
   if (result.num_inliers > 3) {
     Eigen::Matrix<double, 6, 6> jtj;
     Eigen::Matrix<double, 6, 1> jtr;
-    const double cost = NormalEquations(pose, points_in_world, bearings, inliers, &jtj, &jtr);
+    const double cost = NormalEquations(pose, points_in_world, bearings, inliers, point_covariances, &jtj, &jtr);
     const double variance = cost / (2.0 * result.num_inliers - 6.0);
     const Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(jtj);
     if (lu.isInvertible()) {

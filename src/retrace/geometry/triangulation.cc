@@ -30,6 +30,39 @@ bool InFrontOfBothCameras(const Rigid3d& b_from_a, const Vector3d& bearing_a, co
   return TriangulateMidpoint(b_from_a, bearing_a, bearing_b, &point) && point.depth_a > 0.0 && point.depth_b > 0.0;
 }
 
+Matrix3d TwoViewPointCovariance(const Vector3d& point_in_a, const Vector3d& centre_b_in_a, double min_sin_parallax) {
+  const Vector3d d_a = point_in_a.normalized();
+  Vector3d d_b = (point_in_a - centre_b_in_a).normalized();
+  // Keep the rays at least min_sin_parallax apart: turn B's ray away from A's about their common normal.
+  const double sin_parallax = d_a.cross(d_b).norm();
+  if (sin_parallax < min_sin_parallax) {
+    Vector3d normal = d_a.cross(centre_b_in_a);
+    if (normal.squaredNorm() < 1e-24) normal = d_a.cross(Vector3d::UnitX());
+    if (normal.squaredNorm() < 1e-24) normal = d_a.cross(Vector3d::UnitY());
+    d_b = Eigen::AngleAxisd(std::asin(min_sin_parallax), normal.normalized()) * d_a;
+  }
+  // B with A's orientation: x_b = x_a - c_b.
+  const Rigid3d b_from_a(Matrix3d::Identity(), -centre_b_in_a);
+  const double step = 1e-6;
+  Matrix3d covariance = Matrix3d::Zero();
+  for (const bool ray_a : {true, false}) {
+    const Vector3d& ray = ray_a ? d_a : d_b;
+    Vector3d u, v;
+    TangentBasis(ray, &u, &v);
+    for (const Vector3d& tangent : {u, v}) {
+      TriangulatedPoint plus, minus;
+      const Vector3d ray_plus = (ray + step * tangent).normalized(), ray_minus = (ray - step * tangent).normalized();
+      if (!TriangulateMidpoint(b_from_a, ray_a ? ray_plus : d_a, ray_a ? d_b : ray_plus, &plus) ||
+          !TriangulateMidpoint(b_from_a, ray_a ? ray_minus : d_a, ray_a ? d_b : ray_minus, &minus)) {
+        continue;
+      }
+      const Vector3d jacobian = (plus.point_in_a - minus.point_in_a) / (2.0 * step);
+      covariance += jacobian * jacobian.transpose();
+    }
+  }
+  return covariance;
+}
+
 void TangentBasis(const Vector3d& bearing, Vector3d* u, Vector3d* v) {
   const Vector3d f = bearing.normalized();
   // u = normalize(e_y × f) is +x for f = +z; near the poles (f ∥ y) fall back to e_z × f... any orthogonal vector.

@@ -30,6 +30,15 @@ bool TriangulateMidpoint(const Rigid3d& b_from_a, const Vector3d& bearing_a, con
 // depths are positive.
 bool InFrontOfBothCameras(const Rigid3d& b_from_a, const Vector3d& bearing_a, const Vector3d& bearing_b);
 
+// First-order covariance of a point triangulated from two rays (TriangulateMidpoint) when each ray's direction has
+// an isotropic angular error of one radian (scale it by σ² in rad²): Σ = Σ_k J_k J_kᵀ over the two tangent directions
+// of each ray (J_k by central differences). `point_in_a` is the point in camera A's frame and `centre_b_in_a` camera
+// B's centre there; the rays are those from each centre through the point. Its largest axis lies along A's ray and
+// grows as (distance from B / sin of the parallax angle): depth is what two views close to each other measure worst.
+// Rays closer than `min_sin_parallax` to parallel are taken at that parallax.
+Matrix3d TwoViewPointCovariance(const Vector3d& point_in_a, const Vector3d& centre_b_in_a,
+                                double min_sin_parallax = 1e-3);
+
 // An orthonormal basis (u, v) of the plane tangent to the unit sphere at `bearing`. For a bearing near the optical
 // axis (0, 0, 1), u is close to +x (right) and v close to +y (down), so tangent coordinates times the focal length
 // are close to pixel offsets of a perspective image.

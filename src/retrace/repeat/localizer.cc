@@ -11,6 +11,7 @@
 #include "retrace/control/steering.h"
 #include "retrace/geometry/absolute_pose.h"
 #include "retrace/geometry/relative_pose.h"
+#include "retrace/geometry/triangulation.h"
 #include "retrace/map/descriptor_coding.h"
 #include "retrace/repeat/localizer_internal.h"
 #include "retrace/util/error.h"
@@ -539,14 +540,19 @@ Localizer::CurrentGeometry Localizer::EstimateCurrentGeometry(node_t node_id) {
 
 AbsolutePose Localizer::EstimatePoseInArc(const ArcData& arc, PoseSpread* spread) const {
   std::vector<Vector3d> points, bearings;
+  std::vector<Matrix3d> covariances;
+  const Vector3d centre_b = CameraCentre(arc.arc->to_from_from);
   for (const TrackedFeature& f : tracker_.Features()) {
     const auto point = arc.points.find(f.id);
     const auto bearing = bearings_.find(f.id);
     if (point == arc.points.end() || bearing == bearings_.end()) continue;
     points.push_back(point->second);
     bearings.push_back(bearing->second);
+    // The arc's points were triangulated from its two key-images (teach), by the tracker that measures the bearings.
+    if (options_.pose_point_uncertainty) covariances.push_back(TwoViewPointCovariance(point->second, centre_b));
   }
-  AbsolutePose pose = EstimateAbsolutePose(points, bearings, camera_->FocalLength(), pose_options_);
+  AbsolutePose pose = EstimateAbsolutePose(points, bearings, camera_->FocalLength(), pose_options_,
+                                           options_.pose_point_uncertainty ? &covariances : nullptr);
   if (spread != nullptr && pose.success) {
     *spread =
         SpreadOfInliers(pose, points, bearings, CameraCentre(arc.arc->to_from_from).norm(), camera_->FocalLength());
