@@ -17,6 +17,8 @@
 #include "retrace/feature/binary_features.h"
 #include "retrace/image/image_utils.h"
 #include "retrace/map/map_database.h"
+#include "retrace/repeat/map_loading.h"
+#include "retrace/repeat/taught_path.h"
 #include "retrace/teach/map_report.h"
 #include "retrace/teach/teach_settings.h"
 #include "retrace/teach/teacher.h"
@@ -184,6 +186,15 @@ void RunTeach(const TeachArguments& args) {
     database->SetMetadata(prefix + "route_length_m", fmt::format("{:.2f}", route_metres));
   }
   database->Checkpoint();
+  // The ground's normal for repeat's metric path, estimated once here (the camera height is the map's first teach's).
+  if (!existing && args.camera_height > 0) {
+    TaughtPathOptions path_options;
+    path_options.camera_height = args.camera_height;
+    if (!StoreGroundNormal(database, *camera, path_options)) {
+      spdlog::warn("teach: no ground plane found between the key-images: repeat will have no metric path");
+    }
+    database->Checkpoint();
+  }
   // The whole map's statistics (after --append: the map appended to with the new drive).
   const MapStatistics map_stats = ComputeMapStatistics(existing ? database->ReadMap(/*load_images=*/false) : map);
   staged->Commit();  // folds the write-ahead log into the map file and moves it into place

@@ -3,12 +3,14 @@
 #include <chrono>
 #include <cmath>
 #include <exception>
+#include <sstream>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include "retrace/camera/camera_io.h"
 #include "retrace/map/map_database.h"
+#include "retrace/repeat/taught_path.h"
 #include "retrace/util/error.h"
 
 namespace retrace {
@@ -62,9 +64,23 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
     if (!(every >= 1 && every <= 1e6)) throw InputError(path.string(), "metadata frames_every out of range: " + *value);
     loaded.options.belief.teach_frame_step = static_cast<int>(every);
   }
-  // The camera's height above the ground given to teach (unless repeat is given one): the metric path.
+  // The camera's height above the ground given to teach (unless repeat is given one): the metric path. And the
+  // ground's normal teach estimated with it (StoreGroundNormal), unless repeat is given one.
   if (const auto value = database->Metadata("camera_height"); value && !(base.path.camera_height > 0)) {
     loaded.options.path.camera_height = ParseMetadataNumber(*value, "camera_height", path);
+  }
+  if (const auto value = database->Metadata("ground_normal"); value && !base.path.ground.normal_in_camera) {
+    std::istringstream words(*value);
+    std::string x, y, z, extra;
+    if (!(words >> x >> y >> z) || (words >> extra)) {
+      throw InputError(path.string(), "metadata ground_normal is not three numbers: '" + *value + "'");
+    }
+    const Vector3d normal(ParseMetadataNumber(x, "ground_normal", path), ParseMetadataNumber(y, "ground_normal", path),
+                          ParseMetadataNumber(z, "ground_normal", path));
+    if (std::abs(normal.norm() - 1.0) > 1e-3) {
+      throw InputError(path.string(), "metadata ground_normal is not a unit vector: '" + *value + "'");
+    }
+    loaded.options.path.ground.normal_in_camera = normal.normalized();
   }
   std::string error;
   if (!loaded.options.Check(&error)) throw InputError(path.string(), "tracking settings stored in the map: " + error);
@@ -119,6 +135,17 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
     }
   }
   return loaded;
+}
+
+std::optional<Vector3d> StoreGroundNormal(MapDatabase* database, const CameraModel& camera,
+                                          const TaughtPathOptions& options) {
+  Map map = database->ReadMap(/*load_images=*/false, /*load_signature_features=*/false);
+  map.SetKeyImageLoader([database](node_t id) { return database->ReadKeyImage(id); });
+  TaughtPath path(map, camera, options);
+  const std::optional<Vector3d> normal = path.GroundNormal();
+  if (normal)
+    database->SetMetadata("ground_normal", fmt::format("{:.9f} {:.9f} {:.9f}", normal->x(), normal->y(), normal->z()));
+  return normal;
 }
 
 }  // namespace retrace

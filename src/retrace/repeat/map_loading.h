@@ -32,4 +32,14 @@ struct MapForLocalizer {
 // tracking settings that fail LocalizerOptions::Check.
 MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const LocalizerOptions& base);
 
+class MapDatabase;
+
+// The ground's normal in the camera's frame for the metric path (TaughtPath::GroundNormal: ground planes fitted
+// between the key-images of arcs spread over the map, about 0.15 s at 320x240), estimated from the map stored in
+// `database` — as repeat reads its key-images — and written to its metadata ("ground_normal"), which
+// LoadMapForLocalizer then takes (unless `base` has a normal), so that repeat's first metric frame does not fit it
+// (`retrace teach --camera-height`). Returns the normal; none, and nothing stored, when too few arcs show a ground.
+std::optional<Vector3d> StoreGroundNormal(MapDatabase* database, const CameraModel& camera,
+                                          const TaughtPathOptions& options);
+
 }  // namespace retrace
