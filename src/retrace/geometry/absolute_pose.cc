@@ -107,8 +107,9 @@ double NormalEquations(const Rigid3d& pose, const std::vector<Vector3d>& points,
   return cost;
 }
 
-// Levenberg-Marquardt on the tangent-plane residuals of `indices` with the analytic Jacobian (plain least
-// squares, as the two-view refinement: on a clean inlier set it is the maximum-likelihood estimate).
+// Levenberg-Marquardt on the tangent-plane residuals of `indices` (whitened by the points' covariances when given)
+// with the analytic Jacobian (least squares, as the two-view refinement: on a clean inlier set it is the
+// maximum-likelihood estimate).
 Rigid3d Refine(const std::vector<Vector3d>& points, const std::vector<Vector3d>& bearings,
                const std::vector<int>& indices, const std::vector<Matrix3d>* point_covariances, const Rigid3d& initial,
                int max_iterations) {
