@@ -186,11 +186,16 @@ void RunTeach(const TeachArguments& args) {
     database->SetMetadata(prefix + "route_length_m", fmt::format("{:.2f}", route_metres));
   }
   database->Checkpoint();
-  // The ground's normal for repeat's metric path, estimated once here (the camera height is the map's first teach's).
+  // The ground's normal and the arcs' ground planes for repeat's metric path, fitted once here (the camera height is
+  // the map's first teach's; arcs appended later are fitted by repeat).
   if (!existing && args.camera_height > 0) {
     TaughtPathOptions path_options;
     path_options.camera_height = args.camera_height;
-    if (!StoreGroundNormal(database, *camera, path_options)) {
+    const auto fit_start = std::chrono::steady_clock::now();
+    if (StoreGroundFits(database, *camera, path_options)) {
+      std::cout << fmt::format("metric path: the ground's normal and every arc's ground plane stored ({:.1f} s)\n",
+                               std::chrono::duration<double>(std::chrono::steady_clock::now() - fit_start).count());
+    } else {
       spdlog::warn("teach: no ground plane found between the key-images: repeat will have no metric path");
     }
     database->Checkpoint();

@@ -87,6 +87,14 @@ struct MapArc {
   // wide-baseline matching (gap, loop, matching, join), the geometry's inlier matches and the wide-baseline
   // key-points of each image. Unknown (empty) for arcs of maps written before schema 3.
   std::optional<double> similarity;
+  // The road plane between its key-images as repeat's metric path fits it (repeat/taught_path.h), when teach was
+  // given the camera's height and stored it (LoadMapForLocalizer): camera b's height above the plane and its
+  // standard deviation, in arc units; distance_b 0 when no plane was found. For the ground normal the map stores.
+  struct GroundFit {
+    double distance_b = 0.0;
+    double distance_sigma = 0.0;
+  };
+  std::optional<GroundFit> ground_fit;
 
   size_t num_features() const { return points.size(); }
 };

@@ -26,6 +26,33 @@ double ParseMetadataNumber(const std::string& text, const std::string& key, cons
   throw InputError(map.string(), "metadata " + key + " is not a number: '" + text + "'");
 }
 
+// The "ground_fits" metadata (StoreGroundFits) onto the map's arcs.
+void ReadGroundFits(const std::string& text, const std::filesystem::path& map_path, Map* map) {
+  std::istringstream lines(text);
+  std::string line;
+  for (int number = 1; std::getline(lines, line); ++number) {
+    std::istringstream words(line);
+    std::string id, distance, sigma, extra;
+    if (!(words >> id >> distance >> sigma) || (words >> extra)) {
+      throw InputError(map_path.string(),
+                       fmt::format("metadata ground_fits line {} is not three numbers: '{}'", number, line));
+    }
+    const double arc_id = ParseMetadataNumber(id, "ground_fits", map_path);
+    MapArc* arc = arc_id >= 0 && arc_id == std::floor(arc_id) && arc_id <= 2e9
+                      ? map->MutableArc(static_cast<arc_t>(arc_id))
+                      : nullptr;
+    if (arc == nullptr) {
+      throw InputError(map_path.string(), fmt::format("metadata ground_fits line {}: no arc {}", number, id));
+    }
+    MapArc::GroundFit fit{ParseMetadataNumber(distance, "ground_fits", map_path),
+                          ParseMetadataNumber(sigma, "ground_fits", map_path)};
+    if (fit.distance_b < 0 || fit.distance_sigma < 0) {
+      throw InputError(map_path.string(), fmt::format("metadata ground_fits line {}: negative: '{}'", number, line));
+    }
+    arc->ground_fit = fit;
+  }
+}
+
 }  // namespace
 
 MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const LocalizerOptions& base) {
@@ -65,7 +92,8 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
     loaded.options.belief.teach_frame_step = static_cast<int>(every);
   }
   // The camera's height above the ground given to teach (unless repeat is given one): the metric path. And the
-  // ground's normal teach estimated with it (StoreGroundNormal), unless repeat is given one.
+  // ground's normal and the arcs' ground planes teach fitted with it (StoreGroundFits), unless repeat is given a
+  // normal.
   if (const auto value = database->Metadata("camera_height"); value && !(base.path.camera_height > 0)) {
     loaded.options.path.camera_height = ParseMetadataNumber(*value, "camera_height", path);
   }
@@ -81,6 +109,8 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
       throw InputError(path.string(), "metadata ground_normal is not a unit vector: '" + *value + "'");
     }
     loaded.options.path.ground.normal_in_camera = normal.normalized();
+    // The arcs' ground planes fitted for that normal.
+    if (const auto fits = database->Metadata("ground_fits")) ReadGroundFits(*fits, path, &loaded.map);
   }
   std::string error;
   if (!loaded.options.Check(&error)) throw InputError(path.string(), "tracking settings stored in the map: " + error);
@@ -137,14 +167,20 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
   return loaded;
 }
 
-std::optional<Vector3d> StoreGroundNormal(MapDatabase* database, const CameraModel& camera,
-                                          const TaughtPathOptions& options) {
+std::optional<Vector3d> StoreGroundFits(MapDatabase* database, const CameraModel& camera,
+                                        const TaughtPathOptions& options) {
   Map map = database->ReadMap(/*load_images=*/false, /*load_signature_features=*/false);
   map.SetKeyImageLoader([database](node_t id) { return database->ReadKeyImage(id); });
   TaughtPath path(map, camera, options);
   const std::optional<Vector3d> normal = path.GroundNormal();
-  if (normal)
-    database->SetMetadata("ground_normal", fmt::format("{:.9f} {:.9f} {:.9f}", normal->x(), normal->y(), normal->z()));
+  if (!normal) return normal;
+  std::string fits;
+  for (const MapArc& arc : map.arcs()) {
+    const MapArc::GroundFit fit = path.GroundFit(arc.id);
+    fits += fmt::format("{} {:.17g} {:.17g}\n", arc.id, fit.distance_b, fit.distance_sigma);
+  }
+  database->SetMetadata("ground_normal", fmt::format("{:.17g} {:.17g} {:.17g}", normal->x(), normal->y(), normal->z()));
+  database->SetMetadata("ground_fits", fits);
   return normal;
 }
 

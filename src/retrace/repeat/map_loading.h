@@ -34,12 +34,14 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
 
 class MapDatabase;
 
-// The ground's normal in the camera's frame for the metric path (TaughtPath::GroundNormal: ground planes fitted
-// between the key-images of arcs spread over the map, about 0.15 s at 320x240), estimated from the map stored in
-// `database` — as repeat reads its key-images — and written to its metadata ("ground_normal"), which
-// LoadMapForLocalizer then takes (unless `base` has a normal), so that repeat's first metric frame does not fit it
-// (`retrace teach --camera-height`). Returns the normal; none, and nothing stored, when too few arcs show a ground.
-std::optional<Vector3d> StoreGroundNormal(MapDatabase* database, const CameraModel& camera,
-                                          const TaughtPathOptions& options);
+// What the metric path fits from the key-images (repeat/taught_path.h), fitted once from the map stored in `database`
+// — as repeat reads its key-images — and written to its metadata: the ground's normal in the camera's frame
+// ("ground_normal": ground planes between the key-images of 15 arcs spread over the map) and every arc's ground plane
+// for that normal ("ground_fits": one line "arc distance_b distance_sigma" per arc, 0 0 where none was found; ≈ 5-8
+// ms per arc at 320x240). LoadMapForLocalizer takes them (unless `base` has a normal of its own), so that repeat
+// fits nothing: `retrace teach --camera-height`. Returns the normal; none, and nothing stored, when too few arcs
+// show a ground.
+std::optional<Vector3d> StoreGroundFits(MapDatabase* database, const CameraModel& camera,
+                                        const TaughtPathOptions& options);
 
 }  // namespace retrace

@@ -172,7 +172,13 @@ const TaughtPath::ArcGround& TaughtPath::Ground(arc_t arc_id) {
   if (it != grounds_.end()) return *it->second;
   auto ground = std::make_unique<ArcGround>();
   const MapArc* arc = map_.FindArc(arc_id);
-  if (arc != nullptr && GroundNormal()) {
+  if (arc != nullptr && arc->ground_fit && GroundNormal()) {
+    // Fitted at teach for this normal (LoadMapForLocalizer attaches the fits only with the normal they were made for).
+    ground->plane.valid = arc->ground_fit->distance_b > 0;
+    ground->plane.distance_b = arc->ground_fit->distance_b;
+    ground->plane.distance_sigma = arc->ground_fit->distance_sigma;
+    if (ground->plane.valid) ground->metres_per_unit = options_.camera_height / ground->plane.distance_b;
+  } else if (arc != nullptr && GroundNormal()) {
     GroundPlaneOptions options = options_.ground;
     options.normal_in_camera = *normal_;
     const MapNode* a = map_.FindNode(arc->from);
@@ -189,6 +195,14 @@ const TaughtPath::ArcGround& TaughtPath::Ground(arc_t arc_id) {
     }
   }
   return *grounds_.emplace(arc_id, std::move(ground)).first->second;
+}
+
+MapArc::GroundFit TaughtPath::GroundFit(arc_t arc_id) {
+  MapArc::GroundFit fit;
+  if (!enabled()) return fit;
+  const GroundPlane& plane = Ground(arc_id).plane;
+  if (plane.valid) fit = {plane.distance_b, plane.distance_sigma};
+  return fit;
 }
 
 std::optional<double> TaughtPath::MetresPerUnit(arc_t arc_id) {
