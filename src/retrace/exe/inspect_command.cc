@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <iostream>
 #include <optional>
+#include <sstream>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -129,7 +130,21 @@ void RunInspect(const InspectArguments& args) {
       }
     }
     for (const auto& [key, value] : metadata) {
-      if (key != "route_length_m") std::cout << fmt::format("  {:<15} {}\n", key, value);
+      if (key == "route_length_m") continue;
+      if (key == "ground_fits") {
+        // One line per arc (repeat/map_loading.h, StoreGroundFits): how many, and how many found a ground plane.
+        int arcs = 0, planes = 0;
+        std::istringstream lines(value);
+        for (std::string line; std::getline(lines, line); ++arcs) {
+          std::istringstream words(line);
+          std::string id;
+          double distance = 0.0;
+          planes += (words >> id >> distance) && distance > 0.0;
+        }
+        std::cout << fmt::format("  {:<15} {} arcs, {} with a ground plane (the metric path's)\n", key, arcs, planes);
+        continue;
+      }
+      std::cout << fmt::format("  {:<15} {}\n", key, value);
     }
   }
   if (!args.report_dir.empty()) {

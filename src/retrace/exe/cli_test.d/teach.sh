@@ -15,6 +15,11 @@ for a in m[\"arcs\"]:
 print(\"ok\")'"
   expect inspect-report 0 'key_image_poses.png' -- "$bin" inspect --map "$tmp/k07.db" --report "$tmp/report" \
     --ground-truth "$data/kitti07/poses.txt"
+  # Given the camera's height, teach fits the metric path's ground once and stores it; inspect summarises the fits.
+  expect teach-camera-height 0 "metric path: the ground's normal and every arc's ground plane stored" -- \
+    "$bin" teach --sequence "$data/kitti07" --map "$tmp/k07h.db" --every 2 --no-progress --camera-height 1.65
+  expect inspect-ground-fits 0 'ground_fits +[0-9]+ arcs, [0-9]+ with a ground plane' -- \
+    "$bin" inspect --map "$tmp/k07h.db"
   # An existing map is never replaced without --overwrite, and stays intact.
   before=$(md5sum "$tmp/k07.db")
   expect teach-no-overwrite 1 'exists already' -- "$bin" teach --sequence "$data/kitti07" --map "$tmp/k07.db"
