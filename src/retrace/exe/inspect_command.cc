@@ -6,7 +6,6 @@
 #include <filesystem>
 #include <iostream>
 #include <optional>
-#include <sstream>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -17,6 +16,7 @@
 #include "retrace/exe/key_image_places.h"
 #include "retrace/map/map_database.h"
 #include "retrace/nav/graph_drawing.h"
+#include "retrace/repeat/map_loading.h"
 #include "retrace/teach/map_report.h"
 #include "retrace/util/error.h"
 
@@ -132,16 +132,16 @@ void RunInspect(const InspectArguments& args) {
     for (const auto& [key, value] : metadata) {
       if (key == "route_length_m") continue;
       if (key == "ground_fits") {
-        // One line per arc (repeat/map_loading.h, StoreGroundFits): how many, and how many found a ground plane.
-        int arcs = 0, planes = 0;
-        std::istringstream lines(value);
-        for (std::string line; std::getline(lines, line); ++arcs) {
-          std::istringstream words(line);
-          std::string id;
-          double distance = 0.0;
-          planes += (words >> id >> distance) && distance > 0.0;
+        // One line per arc (StoreGroundFits): how many, and how many found a ground plane.
+        try {
+          const auto fits = ParseGroundFits(value, args.map_path.string());
+          const auto planes =
+              std::count_if(fits.begin(), fits.end(), [](const auto& f) { return f.second.distance_b > 0; });
+          std::cout << fmt::format("  {:<15} {} arcs, {} with a ground plane (the metric path's)\n", key, fits.size(),
+                                   planes);
+        } catch (const InputError& e) {
+          std::cout << fmt::format("  {:<15} unreadable ({})\n", key, e.what());
         }
-        std::cout << fmt::format("  {:<15} {} arcs, {} with a ground plane (the metric path's)\n", key, arcs, planes);
         continue;
       }
       std::cout << fmt::format("  {:<15} {}\n", key, value);

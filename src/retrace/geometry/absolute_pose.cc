@@ -93,14 +93,15 @@ double NormalEquations(const Rigid3d& pose, const std::vector<Vector3d>& points,
   for (const int i : indices) {
     Correspondence c;
     if (!Linearise(pose, points[i], bearings[i], point_covariances ? &(*point_covariances)[i] : nullptr, &c)) continue;
-    const Eigen::Vector2d r = c.whitening * c.r;
+    const bool whiten = point_covariances != nullptr;  // else the whitening is the identity
+    const Eigen::Vector2d r = whiten ? Eigen::Vector2d(c.whitening * c.r) : c.r;
     cost += r.squaredNorm();
     if (jtj == nullptr) continue;
     // d p / d δω = -[p]ₓ, d p / d δt = I.
     Eigen::Matrix<double, 2, 6> j;
     j.leftCols<3>() = -c.d_r_d_p * CrossProductMatrix(c.p);
     j.rightCols<3>() = c.d_r_d_p;
-    j = c.whitening * j;
+    if (whiten) j = c.whitening * j;
     *jtj += j.transpose() * j;
     *jtr += j.transpose() * r;
   }

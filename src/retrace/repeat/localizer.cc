@@ -554,8 +554,7 @@ AbsolutePose Localizer::EstimatePoseInArc(const ArcData& arc, PoseSpread* spread
   AbsolutePose pose = EstimateAbsolutePose(points, bearings, camera_->FocalLength(), pose_options_,
                                            options_.pose_point_uncertainty ? &covariances : nullptr);
   if (spread != nullptr && pose.success) {
-    *spread =
-        SpreadOfInliers(pose, points, bearings, CameraCentre(arc.arc->to_from_from).norm(), camera_->FocalLength());
+    *spread = SpreadOfInliers(pose, points, bearings, centre_b.norm(), camera_->FocalLength());
   }
   return pose;
 }

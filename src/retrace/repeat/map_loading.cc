@@ -26,33 +26,6 @@ double ParseMetadataNumber(const std::string& text, const std::string& key, cons
   throw InputError(map.string(), "metadata " + key + " is not a number: '" + text + "'");
 }
 
-// The "ground_fits" metadata (StoreGroundFits) onto the map's arcs.
-void ReadGroundFits(const std::string& text, const std::filesystem::path& map_path, Map* map) {
-  std::istringstream lines(text);
-  std::string line;
-  for (int number = 1; std::getline(lines, line); ++number) {
-    std::istringstream words(line);
-    std::string id, distance, sigma, extra;
-    if (!(words >> id >> distance >> sigma) || (words >> extra)) {
-      throw InputError(map_path.string(),
-                       fmt::format("metadata ground_fits line {} is not three numbers: '{}'", number, line));
-    }
-    const double arc_id = ParseMetadataNumber(id, "ground_fits", map_path);
-    MapArc* arc = arc_id >= 0 && arc_id == std::floor(arc_id) && arc_id <= 2e9
-                      ? map->MutableArc(static_cast<arc_t>(arc_id))
-                      : nullptr;
-    if (arc == nullptr) {
-      throw InputError(map_path.string(), fmt::format("metadata ground_fits line {}: no arc {}", number, id));
-    }
-    MapArc::GroundFit fit{ParseMetadataNumber(distance, "ground_fits", map_path),
-                          ParseMetadataNumber(sigma, "ground_fits", map_path)};
-    if (fit.distance_b < 0 || fit.distance_sigma < 0) {
-      throw InputError(map_path.string(), fmt::format("metadata ground_fits line {}: negative: '{}'", number, line));
-    }
-    arc->ground_fit = fit;
-  }
-}
-
 }  // namespace
 
 MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const LocalizerOptions& base) {
@@ -110,7 +83,13 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
     }
     loaded.options.path.ground.normal_in_camera = normal.normalized();
     // The arcs' ground planes fitted for that normal.
-    if (const auto fits = database->Metadata("ground_fits")) ReadGroundFits(*fits, path, &loaded.map);
+    if (const auto text = database->Metadata("ground_fits")) {
+      for (const auto& [id, fit] : ParseGroundFits(*text, path.string())) {
+        MapArc* arc = loaded.map.MutableArc(id);
+        if (arc == nullptr) throw InputError(path.string(), fmt::format("metadata ground_fits: no arc {}", id));
+        arc->ground_fit = fit;
+      }
+    }
   }
   std::string error;
   if (!loaded.options.Check(&error)) throw InputError(path.string(), "tracking settings stored in the map: " + error);
@@ -182,6 +161,30 @@ std::optional<Vector3d> StoreGroundFits(MapDatabase* database, const CameraModel
   database->SetMetadata("ground_normal", fmt::format("{:.17g} {:.17g} {:.17g}", normal->x(), normal->y(), normal->z()));
   database->SetMetadata("ground_fits", fits);
   return normal;
+}
+
+std::vector<std::pair<arc_t, MapArc::GroundFit>> ParseGroundFits(const std::string& text, const std::string& source) {
+  std::vector<std::pair<arc_t, MapArc::GroundFit>> fits;
+  std::istringstream lines(text);
+  std::string line;
+  for (int number = 1; std::getline(lines, line); ++number) {
+    std::istringstream words(line);
+    std::string id, distance, sigma, extra;
+    if (!(words >> id >> distance >> sigma) || (words >> extra)) {
+      throw InputError(source, fmt::format("metadata ground_fits line {} is not three numbers: '{}'", number, line));
+    }
+    const double arc_id = ParseMetadataNumber(id, "ground_fits", source);
+    const MapArc::GroundFit fit{ParseMetadataNumber(distance, "ground_fits", source),
+                                ParseMetadataNumber(sigma, "ground_fits", source)};
+    if (!(arc_id >= 0 && arc_id == std::floor(arc_id) && arc_id <= 2e9) || fit.distance_b < 0 ||
+        fit.distance_sigma < 0) {
+      throw InputError(source, fmt::format("metadata ground_fits line {}: not an arc id and two non-negative "
+                                           "numbers: '{}'",
+                                           number, line));
+    }
+    fits.emplace_back(static_cast<arc_t>(arc_id), fit);
+  }
+  return fits;
 }
 
 }  // namespace retrace

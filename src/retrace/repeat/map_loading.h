@@ -9,6 +9,8 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "retrace/camera/camera_model.h"
 #include "retrace/map/map.h"
@@ -43,5 +45,10 @@ class MapDatabase;
 // show a ground.
 std::optional<Vector3d> StoreGroundFits(MapDatabase* database, const CameraModel& camera,
                                         const TaughtPathOptions& options);
+
+// The arcs' ground planes of the "ground_fits" metadata text (StoreGroundFits), in the order stored. Throws InputError
+// naming `source` for a line that is not "arc distance_b distance_sigma" with a non-negative whole arc id and
+// non-negative finite numbers.
+std::vector<std::pair<arc_t, MapArc::GroundFit>> ParseGroundFits(const std::string& text, const std::string& source);
 
 }  // namespace retrace
