@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 
+#include <opencv2/core/hal/hal.hpp>
 #include <opencv2/imgproc.hpp>
 
 namespace retrace {
@@ -310,6 +311,52 @@ std::vector<cv::DMatch> MatchWideBaseline(const WideBaselineFeatures& query, con
     if (best[i] < 0 || !(best_d[i] < ratio_squared * second_d[i])) continue;  // Segvic 2009 §4.1
     if (options.cross_check && best_query_of_train[best[i]] != i) continue;
     matches.emplace_back(i, best[i], std::sqrt(best_d[i]));
+  }
+  return matches;
+}
+
+std::vector<cv::DMatch> MatchAlongEpipolarPlanes(const WideBaselineFeatures& query, const WideBaselineFeatures& train,
+                                                 const std::vector<Eigen::Vector3d>& query_bearings,
+                                                 const std::vector<Eigen::Vector3d>& train_bearings,
+                                                 const Eigen::Matrix3d& essential, double max_angle,
+                                                 const WideBaselineOptions& options) {
+  CV_Assert(query.descriptors.type() == CV_8U && train.descriptors.type() == CV_8U &&
+            query.descriptors.cols == train.descriptors.cols);
+  CV_Assert(query_bearings.size() == query.size() && train_bearings.size() == train.size());
+  const double max_sine = std::sin(max_angle);
+  const int bytes = query.descriptors.cols;
+  std::vector<cv::DMatch> best_of_train(train.size(), cv::DMatch(-1, -1, std::numeric_limits<float>::infinity()));
+  for (size_t i = 0; i < query.size(); ++i) {
+    if (query_bearings[i].squaredNorm() == 0.0) continue;
+    // The epipolar plane of query key-point i in the train camera: normal E x_q.
+    const Eigen::Vector3d normal = essential * query_bearings[i].normalized();
+    if (!(normal.norm() > 0.0)) continue;
+    const Eigen::Vector3d unit_normal = normal.normalized();
+    int best = -1;
+    int best_d = std::numeric_limits<int>::max(), second_d = std::numeric_limits<int>::max();
+    const uchar* descriptor = query.descriptors.ptr<uchar>(static_cast<int>(i));
+    for (size_t j = 0; j < train.size(); ++j) {
+      const double length = train_bearings[j].norm();
+      if (length == 0.0 || std::abs(unit_normal.dot(train_bearings[j])) > max_sine * length) continue;
+      const int d = cv::hal::normHamming(descriptor, train.descriptors.ptr<uchar>(static_cast<int>(j)), bytes);
+      if (d < best_d) {
+        second_d = best_d;
+        best_d = d;
+        best = static_cast<int>(j);
+      } else if (d < second_d) {
+        second_d = d;
+      }
+    }
+    if (best < 0) continue;
+    // The ratio test within the band; a lone candidate passes.
+    if (second_d != std::numeric_limits<int>::max() && !(best_d < options.ratio * second_d)) continue;
+    if (best_d < best_of_train[best].distance) {
+      best_of_train[best] = cv::DMatch(static_cast<int>(i), best, static_cast<float>(best_d));
+    }
+  }
+  std::vector<cv::DMatch> matches;
+  for (const cv::DMatch& m : best_of_train) {
+    if (m.queryIdx >= 0) matches.push_back(m);
   }
   return matches;
 }

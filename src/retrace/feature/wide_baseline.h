@@ -13,6 +13,7 @@
 
 #include <vector>
 
+#include <Eigen/Core>
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
 
@@ -61,5 +62,17 @@ WideBaselineFeatures ExtractWideBaselineFeatures(const cv::Mat& image, const Wid
 // descriptors are compared by L2 distance, binary ones by Hamming distance (both sides must be of one kind).
 std::vector<cv::DMatch> MatchWideBaseline(const WideBaselineFeatures& query, const WideBaselineFeatures& train,
                                           const WideBaselineOptions& options = {});
+
+// Guided matching along epipolar lines (Hartley & Zisserman, "Multiple View Geometry", 2nd ed., §11.9): given a
+// relative pose that a few matches support, each query key-point is matched among the train key-points whose
+// bearings lie within `max_angle` (radians) of its epipolar plane, x_tᵀ E x_q = 0 with E = [t]ₓ R of
+// train_from_query. The ratio test (options.ratio, Segvic 2009 §4.1) then compares the best with the second best
+// within that band only, so texture repeated elsewhere in the image no longer hides a match; each train key-point
+// keeps its best query. Bearings of zero length (not unprojectable) are skipped. Binary descriptors only.
+std::vector<cv::DMatch> MatchAlongEpipolarPlanes(const WideBaselineFeatures& query, const WideBaselineFeatures& train,
+                                                 const std::vector<Eigen::Vector3d>& query_bearings,
+                                                 const std::vector<Eigen::Vector3d>& train_bearings,
+                                                 const Eigen::Matrix3d& essential, double max_angle,
+                                                 const WideBaselineOptions& options);
 
 }  // namespace retrace

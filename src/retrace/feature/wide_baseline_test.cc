@@ -1,6 +1,7 @@
 #include "retrace/feature/wide_baseline.h"
 
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -118,6 +119,101 @@ TEST(WideBaseline, RatioTestThinsOutRepeatedStructure) {
   const size_t loose_matches = MatchWideBaseline(fa, fb, loose).size();
   ASSERT_GT(loose_matches, 100u);
   EXPECT_LT(strict_matches, loose_matches / 2) << strict_matches << " vs " << loose_matches;
+}
+
+// Two cameras looking at the same points: camera t is camera q moved 1 unit to the right and turned by 5 degrees
+// about the vertical. Each point has a random 32-byte descriptor, seen in t with 8 of its bits flipped; t also sees
+// a copy of every descriptor (6 bits flipped) at a bearing far from the point's epipolar plane — texture repeated
+// elsewhere in the image, which makes the global ratio test refuse the right match.
+struct EpipolarScene {
+  WideBaselineFeatures query, train;
+  std::vector<Eigen::Vector3d> query_bearings, train_bearings;
+  Eigen::Matrix3d rotation;     // t_from_q
+  Eigen::Vector3d translation;  // t_from_q
+  int points = 0;               // train key-point i < points is query key-point i's true match
+
+  Eigen::Matrix3d Essential(const Eigen::Matrix3d& r, const Eigen::Vector3d& t) const {
+    Eigen::Matrix3d cross;
+    cross << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
+    return cross * r;
+  }
+};
+
+EpipolarScene MakeEpipolarScene(int points, uint64_t seed) {
+  EpipolarScene scene;
+  scene.points = points;
+  cv::RNG rng(seed);
+  const double angle = 5.0 * M_PI / 180.0;
+  scene.rotation = Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  scene.translation = -scene.rotation * Eigen::Vector3d(1.0, 0.0, 0.0);  // centre of t at x = 1 in q's frame
+  scene.query.descriptors = cv::Mat(points, 32, CV_8U);
+  scene.train.descriptors = cv::Mat(2 * points, 32, CV_8U);
+  rng.fill(scene.query.descriptors, cv::RNG::UNIFORM, 0, 256);
+  const auto flip_bits = [&rng](cv::Mat row, int bits) {
+    for (int k = 0; k < bits; ++k) {
+      const int bit = rng.uniform(0, 256);
+      row.at<uchar>(0, bit / 8) ^= static_cast<uchar>(1 << (bit % 8));
+    }
+  };
+  scene.train_bearings.resize(2 * points);
+  for (int i = 0; i < points; ++i) {
+    const Eigen::Vector3d x(rng.uniform(-8.0, 8.0), rng.uniform(-3.0, 3.0), rng.uniform(6.0, 30.0));
+    scene.query_bearings.push_back(x.normalized());
+    scene.train_bearings[i] = (scene.rotation * x + scene.translation).normalized();
+    scene.query.keypoints.emplace_back(cv::Point2f(0, 0), 8.0f);
+    scene.query.descriptors.row(i).copyTo(scene.train.descriptors.row(i));
+    flip_bits(scene.train.descriptors.row(i), 8);
+    // The copy: the same point seen 0.2 rad lower (far off its epipolar plane, which runs nearly horizontally).
+    const Eigen::Vector3d b = scene.train_bearings[i];
+    scene.train_bearings[points + i] = Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitX()) * b;
+    scene.query.descriptors.row(i).copyTo(scene.train.descriptors.row(points + i));
+    flip_bits(scene.train.descriptors.row(points + i), 6);
+  }
+  for (int i = 0; i < 2 * points; ++i) scene.train.keypoints.emplace_back(cv::Point2f(0, 0), 8.0f);
+  return scene;
+}
+
+TEST(MatchAlongEpipolarPlanes, FindsMatchesTheGlobalRatioTestRefuses) {
+  const EpipolarScene scene = MakeEpipolarScene(200, 5);
+  WideBaselineOptions options;
+  options.ratio = 0.85;  // the binary relocalization's (BinaryFeatureOptions)
+  const std::vector<cv::DMatch> global = MatchWideBaseline(scene.query, scene.train, options);
+  int global_right = 0;
+  for (const cv::DMatch& m : global) global_right += m.trainIdx == m.queryIdx;
+  EXPECT_LT(global_right, 20) << "the copies should hide most right matches from the global ratio test";
+
+  const double band = 2.0 / 300.0;  // 2 px at a focal length of 300 px
+  const std::vector<cv::DMatch> guided =
+      MatchAlongEpipolarPlanes(scene.query, scene.train, scene.query_bearings, scene.train_bearings,
+                               scene.Essential(scene.rotation, scene.translation), band, options);
+  int right = 0;
+  for (const cv::DMatch& m : guided) right += m.trainIdx == m.queryIdx;
+  EXPECT_GE(right, 190);
+  EXPECT_EQ(right, static_cast<int>(guided.size())) << "every guided match is a right one";
+
+  // Along the planes of a wrong pose (the translation tilted 30 degrees upwards, about the optical axis) the right
+  // matches are mostly not there.
+  const Eigen::Vector3d wrong_translation = Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ()) * scene.translation;
+  const std::vector<cv::DMatch> wrong =
+      MatchAlongEpipolarPlanes(scene.query, scene.train, scene.query_bearings, scene.train_bearings,
+                               scene.Essential(scene.rotation, wrong_translation), band, options);
+  int wrong_right = 0;
+  for (const cv::DMatch& m : wrong) wrong_right += m.trainIdx == m.queryIdx;
+  EXPECT_LT(wrong_right, 20);
+}
+
+TEST(MatchAlongEpipolarPlanes, SkipsBearingsThatDoNotExist) {
+  EpipolarScene scene = MakeEpipolarScene(50, 9);
+  for (int i = 0; i < 10; ++i) scene.query_bearings[i].setZero();
+  for (int i = 10; i < 20; ++i) scene.train_bearings[i].setZero();
+  const std::vector<cv::DMatch> guided =
+      MatchAlongEpipolarPlanes(scene.query, scene.train, scene.query_bearings, scene.train_bearings,
+                               scene.Essential(scene.rotation, scene.translation), 2.0 / 300.0, WideBaselineOptions());
+  for (const cv::DMatch& m : guided) {
+    EXPECT_GE(m.queryIdx, 10);
+    EXPECT_FALSE(m.trainIdx >= 10 && m.trainIdx < 20);
+  }
+  EXPECT_GE(guided.size(), 25u);
 }
 
 TEST(WideBaseline, BlankImageGivesNoFeaturesAndNoMatches) {
