@@ -12,6 +12,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "retrace/geometry/essential.h"
 #include "retrace/geometry/relative_pose.h"
 #include "retrace/repeat/localizer_internal.h"
 
@@ -44,11 +45,21 @@ int SingleKeyImageBootstrapFeatures(const LocalizerOptions& options, size_t cand
 }
 
 std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBaselineFeatures& current,
-                                                                 const std::vector<node_t>& candidates,
-                                                                 bool screening) {
+                                                                  const std::vector<node_t>& candidates, bool whole_map,
+                                                                  bool screening) {
   std::vector<MatchedKeyImage> verified;
   const int min_inliers =
       options_.binary_relocalization ? options_.min_binary_inliers : options_.min_bootstrap_inliers;
+  // Bearings of every key-point (zero where the camera model has none), for guided matching.
+  const auto unproject_all = [this](const WideBaselineFeatures& features) {
+    std::vector<Vector3d> bearings(features.size(), Vector3d::Zero());
+    for (size_t i = 0; i < features.size(); ++i) {
+      const cv::Point2f& p = features.keypoints[i].pt;
+      if (!camera_->Unproject(Vector2d(p.x, p.y), &bearings[i])) bearings[i].setZero();
+    }
+    return bearings;
+  };
+  std::vector<Vector3d> current_bearings;  // computed at the first guided matching
   for (const node_t node : candidates) {
     const WideBaselineFeatures& key = NodeWideBaseline(node);
     const std::vector<cv::DMatch> matches = MatchWideBaseline(key, current, relocalization_matching_);
@@ -85,6 +96,48 @@ std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBase
     }
     candidate.geometry =
         EstimateRelativePose(bearings_key, bearings_current, camera_->FocalLength(), geometry_options);
+    candidate.support = candidate.geometry.num_inliers;
+    // A pose that enough matches support: matched again along its epipolar planes (guided_matching_min_inliers).
+    std::vector<cv::DMatch> guided;
+    if (candidate.geometry.success && !whole_map && options_.binary_relocalization &&
+        options_.guided_matching_min_inliers > 0 &&
+        candidate.geometry.num_inliers >= options_.guided_matching_min_inliers) {
+      if (current_bearings.empty()) current_bearings = unproject_all(current);
+      const Rigid3d& current_from_key = candidate.geometry.b_from_a;
+      const Matrix3d essential = CrossProductMatrix(current_from_key.translation) * current_from_key.rotation;
+      // The band: the RANSAC's inlier threshold, as an angle.
+      const double band = relocalization_geometry_.ransac.max_error_px / camera_->FocalLength();
+      const std::vector<Vector3d> key_bearings = unproject_all(key);
+      guided = MatchAlongEpipolarPlanes(key, current, key_bearings, current_bearings, essential, band,
+                                        relocalization_matching_);
+      // Within a band most key-points are chance candidates, and a chance match lies on the band by construction:
+      // only matches as close in descriptor as the pose's own inliers are kept (the largest Hamming distance among
+      // them; on the validation drives chance matches along a band lie 20-30 bits farther at the median).
+      float inlier_distance = 0.0f;
+      for (size_t i = 0; i < used.size(); ++i) {
+        if (candidate.geometry.inlier_mask[i]) inlier_distance = std::max(inlier_distance, used[i]->distance);
+      }
+      guided.erase(std::remove_if(guided.begin(), guided.end(),
+                                  [inlier_distance](const cv::DMatch& m) { return m.distance > inlier_distance; }),
+                   guided.end());
+      std::vector<Vector3d> guided_key, guided_current;
+      std::vector<const cv::DMatch*> guided_used;
+      for (const cv::DMatch& m : guided) {  // (both bearings exist: MatchAlongEpipolarPlanes skips the others)
+        guided_key.push_back(key_bearings[m.queryIdx]);
+        guided_current.push_back(current_bearings[m.trainIdx]);
+        guided_used.push_back(&m);
+      }
+      spdlog::debug("repeat: key-image {}: {} inliers, {} matches along the epipolar planes", node,
+                    candidate.geometry.num_inliers, guided_key.size());
+      if (static_cast<int>(guided_key.size()) >= min_inliers) {
+        TwoViewGeometry again =
+            EstimateRelativePose(guided_key, guided_current, camera_->FocalLength(), relocalization_geometry_);
+        if (again.success && again.num_inliers > candidate.geometry.num_inliers) {
+          candidate.geometry = std::move(again);
+          used = std::move(guided_used);
+        }
+      }
+    }
     // A frame taken (almost) where the key-image was shows no parallax: the rotation-only fit still verifies it.
     const bool verified_geometry = candidate.geometry.success ||
                                    candidate.geometry.failure == TwoViewFailure::kInsufficientParallax;
@@ -132,11 +185,11 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
   std::vector<MatchedKeyImage> verified;
   for (size_t i = 0; i < budget; ++i) {
     tried->push_back(ranked[i]);
-    std::vector<MatchedKeyImage> one = MatchKeyImages(current, {ranked[i]}, /*screening=*/whole_map);
+    std::vector<MatchedKeyImage> one = MatchKeyImages(current, {ranked[i]}, whole_map, /*screening=*/whole_map);
     spdlog::debug("repeat: retrieval candidate {} (rank {} of {}): {}", ranked[i], i, ranked.size(),
-                  one.empty() ? std::string("not verified") : fmt::format("{} inliers", one.front().geometry.num_inliers));
+                  one.empty() ? std::string("not verified") : fmt::format("{} inliers", one.front().support));
     if (one.empty()) continue;
-    const bool confident = one.front().geometry.num_inliers >= options_.retrieval_confident_inliers;
+    const bool confident = one.front().support >= options_.retrieval_confident_inliers;
     verified.push_back(std::move(one.front()));
     if (confident && limited) break;
   }
@@ -369,7 +422,7 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   const auto verify = [&](const std::vector<node_t>& nodes) {
     if (nodes.empty()) return;
     result->key_images_matched += static_cast<int>(nodes.size());
-    std::vector<MatchedKeyImage> more = MatchKeyImages(current, nodes);
+    std::vector<MatchedKeyImage> more = MatchKeyImages(current, nodes, /*whole_map=*/global);
     verified.insert(verified.end(), std::make_move_iterator(more.begin()), std::make_move_iterator(more.end()));
   };
   // Over the whole map, the place must be verified beyond one pair of images: enough key-images of the arc and of
