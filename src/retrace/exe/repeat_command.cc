@@ -528,7 +528,7 @@ void RegisterRepeatCommand(CLI::App& app) {
   cmd->add_option("--guided-matching", args->options.guided_matching_min_inliers,
                   "Near a loss or the start, match a key-image again along the epipolar planes of a relative pose "
                   "with at least this many inliers, to verify it (0: off; README \"Guided matching near a loss\")")
-      ->check(CLI::NonNegativeNumber)
+      ->check(CLI::Range(0, 1000))
       ->capture_default_str();
   cmd->add_flag("!--keep-references", args->options.redefine_references,
                 "Do not redefine feature references at topological transitions (Segvic 2009 5.2.2 does)");

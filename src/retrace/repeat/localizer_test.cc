@@ -27,6 +27,10 @@ TEST(LocalizerOptions, CheckRejectsBadValues) {
   options.prediction_skipped_levels = -1;
   EXPECT_FALSE(options.Check());
   options = LocalizerOptions();
+  options.guided_matching_min_inliers = -1;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("guided_matching_min_inliers"), std::string::npos) << error;
+  options = LocalizerOptions();
   options.belief.min_confidence = 1.5;
   EXPECT_FALSE(options.Check(&error));
   EXPECT_NE(error.find("belief"), std::string::npos) << error;
