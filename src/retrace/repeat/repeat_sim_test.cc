@@ -38,6 +38,7 @@ struct RepeatRun {
   std::vector<FrameResult> results;
   TopologicalEvaluation evaluation;
 };
+
 // Repeats run.repeat on run.map with `options` (results and evaluation replaced).
 void Repeat(const LocalizerOptions& options, RepeatRun* run) {
   Localizer localizer(run->map, *run->repeat.camera, options);
