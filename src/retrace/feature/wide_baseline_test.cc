@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "retrace/feature/synthetic_texture.h"
+#include "retrace/geometry/essential.h"
 
 namespace retrace {
 namespace {
@@ -128,15 +129,8 @@ TEST(WideBaseline, RatioTestThinsOutRepeatedStructure) {
 struct EpipolarScene {
   WideBaselineFeatures query, train;
   std::vector<Eigen::Vector3d> query_bearings, train_bearings;
-  Eigen::Matrix3d rotation;     // t_from_q
-  Eigen::Vector3d translation;  // t_from_q
-  int points = 0;               // train key-point i < points is query key-point i's true match
-
-  Eigen::Matrix3d Essential(const Eigen::Matrix3d& r, const Eigen::Vector3d& t) const {
-    Eigen::Matrix3d cross;
-    cross << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
-    return cross * r;
-  }
+  Rigid3d t_from_q;
+  int points = 0;  // train key-point i < points is query key-point i's true match
 };
 
 EpipolarScene MakeEpipolarScene(int points, uint64_t seed) {
@@ -144,8 +138,8 @@ EpipolarScene MakeEpipolarScene(int points, uint64_t seed) {
   scene.points = points;
   cv::RNG rng(seed);
   const double angle = 5.0 * M_PI / 180.0;
-  scene.rotation = Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitY()).toRotationMatrix();
-  scene.translation = -scene.rotation * Eigen::Vector3d(1.0, 0.0, 0.0);  // centre of t at x = 1 in q's frame
+  const Matrix3d rotation = Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  scene.t_from_q = Rigid3d(rotation, -rotation * Eigen::Vector3d(1.0, 0.0, 0.0));  // t's centre at x = 1 in q's frame
   scene.query.descriptors = cv::Mat(points, 32, CV_8U);
   scene.train.descriptors = cv::Mat(2 * points, 32, CV_8U);
   rng.fill(scene.query.descriptors, cv::RNG::UNIFORM, 0, 256);
@@ -159,7 +153,7 @@ EpipolarScene MakeEpipolarScene(int points, uint64_t seed) {
   for (int i = 0; i < points; ++i) {
     const Eigen::Vector3d x(rng.uniform(-8.0, 8.0), rng.uniform(-3.0, 3.0), rng.uniform(6.0, 30.0));
     scene.query_bearings.push_back(x.normalized());
-    scene.train_bearings[i] = (scene.rotation * x + scene.translation).normalized();
+    scene.train_bearings[i] = (scene.t_from_q * x).normalized();
     scene.query.keypoints.emplace_back(cv::Point2f(0, 0), 8.0f);
     scene.query.descriptors.row(i).copyTo(scene.train.descriptors.row(i));
     flip_bits(scene.train.descriptors.row(i), 8);
@@ -185,7 +179,7 @@ TEST(MatchAlongEpipolarPlanes, FindsMatchesTheGlobalRatioTestRefuses) {
   const double band = 2.0 / 300.0;  // 2 px at a focal length of 300 px
   const std::vector<cv::DMatch> guided =
       MatchAlongEpipolarPlanes(scene.query, scene.train, scene.query_bearings, scene.train_bearings,
-                               scene.Essential(scene.rotation, scene.translation), band, options);
+                               EssentialFromPose(scene.t_from_q), band, options);
   int right = 0;
   for (const cv::DMatch& m : guided) right += m.trainIdx == m.queryIdx;
   EXPECT_GE(right, 190);
@@ -193,10 +187,11 @@ TEST(MatchAlongEpipolarPlanes, FindsMatchesTheGlobalRatioTestRefuses) {
 
   // Along the planes of a wrong pose (the translation tilted 30 degrees upwards, about the optical axis) the right
   // matches are mostly not there.
-  const Eigen::Vector3d wrong_translation = Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ()) * scene.translation;
+  const Rigid3d wrong_pose(scene.t_from_q.rotation,
+                           Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ()) * scene.t_from_q.translation);
   const std::vector<cv::DMatch> wrong =
       MatchAlongEpipolarPlanes(scene.query, scene.train, scene.query_bearings, scene.train_bearings,
-                               scene.Essential(scene.rotation, wrong_translation), band, options);
+                               EssentialFromPose(wrong_pose), band, options);
   int wrong_right = 0;
   for (const cv::DMatch& m : wrong) wrong_right += m.trainIdx == m.queryIdx;
   EXPECT_LT(wrong_right, 20);
@@ -208,7 +203,7 @@ TEST(MatchAlongEpipolarPlanes, SkipsBearingsThatDoNotExist) {
   for (int i = 10; i < 20; ++i) scene.train_bearings[i].setZero();
   const std::vector<cv::DMatch> guided =
       MatchAlongEpipolarPlanes(scene.query, scene.train, scene.query_bearings, scene.train_bearings,
-                               scene.Essential(scene.rotation, scene.translation), 2.0 / 300.0, WideBaselineOptions());
+                               EssentialFromPose(scene.t_from_q), 2.0 / 300.0, WideBaselineOptions());
   for (const cv::DMatch& m : guided) {
     EXPECT_GE(m.queryIdx, 10);
     EXPECT_FALSE(m.trainIdx >= 10 && m.trainIdx < 20);

@@ -103,8 +103,7 @@ std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBase
         options_.guided_matching_min_inliers > 0 &&
         candidate.geometry.num_inliers >= options_.guided_matching_min_inliers) {
       if (current_bearings.empty()) current_bearings = unproject_all(current);
-      const Rigid3d& current_from_key = candidate.geometry.b_from_a;
-      const Matrix3d essential = CrossProductMatrix(current_from_key.translation) * current_from_key.rotation;
+      const Matrix3d essential = EssentialFromPose(candidate.geometry.b_from_a);  // current_from_key
       // The band: the RANSAC's inlier threshold, as an angle.
       const double band = relocalization_geometry_.ransac.max_error_px / camera_->FocalLength();
       const std::vector<Vector3d> key_bearings = unproject_all(key);
