@@ -114,8 +114,11 @@ void BindLocalizer(py::module_& module) {
                        "the camera's height above the ground is (given to teach or to the Localizer) and the frame's\n"
                        "absolute pose in the arc's reconstruction is usable.")
       .def_readonly("lateral_m", &PathPose::lateral_m,
-                    "Signed distance from the taught path, m (positive to the right in the direction of travel).")
+                    "Signed distance from the taught path, m (positive to the right in the direction of travel), the "
+                    "recent frames' combined.")
       .def_readonly("lateral_sigma_m", &PathPose::lateral_sigma_m, "Its standard deviation, m.")
+      .def_readonly("frame_lateral_m", &PathPose::frame_lateral_m, "This frame's own distance from the path, m.")
+      .def_readonly("frame_lateral_sigma_m", &PathPose::frame_lateral_sigma_m, "Its standard deviation, m.")
       .def_readonly("heading_error_rad", &PathPose::heading_error_rad,
                     "The optical axis against the path's tangent, radians (positive to the right).")
       .def_readonly("along_m", &PathPose::along_m, "Distance along the path from node_from, m.")

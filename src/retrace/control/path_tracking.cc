@@ -73,33 +73,36 @@ double CameraPointCurvature(double lateral_m, double heading_error_rad, const Pa
   return std::tan(turn) / options.camera_forward;
 }
 
+namespace {
+
+ObservationWindowOptions OffsetWindowOptions(const PathTrackingOptions& options) {
+  ObservationWindowOptions window;
+  window.window = options.offset_window;
+  window.process_sigma = options.offset_process_sigma;
+  window.min_sigma = options.min_offset_sigma;
+  window.outlier_probability = options.offset_outlier_probability;
+  window.outlier_range = options.offset_outlier_range;
+  return window;
+}
+
+}  // namespace
+
 PathTracker::PathTracker(const PathTrackingOptions& options) : options_(options) {
   std::string error;
   if (!options_.Check(&error)) throw std::invalid_argument("PathTrackingOptions: " + error);
+  offsets_ = ObservationWindow(OffsetWindowOptions(options_));
 }
 
 double PathTracker::FilteredOffset(const PathTrackingInput& input, double dt) {
   // The camera moved speed·dt since the last frame in the direction φ = ψ − atan(d κ) relative to the path.
-  if (!frames_.empty()) {
+  if (offsets_.size() > 0) {
     const double travelled = speed_ * dt;
     const double direction = input.heading_error_rad - std::atan(options_.camera_forward * curvature_);
     distance_ += travelled;
     drift_ += travelled * std::sin(direction);
   }
-  frames_.push_back({distance_, input.lateral_m - drift_, std::max(options_.min_offset_sigma, input.lateral_sigma_m)});
-  // The window's frames, and at most kMaxOffsetFrames of them (a robot standing still adds frames but no distance).
-  constexpr size_t kMaxOffsetFrames = 64;
-  while (distance_ - frames_.front().distance > options_.offset_window || frames_.size() > kMaxOffsetFrames) {
-    frames_.pop_front();
-  }
-  const double q2 = options_.offset_process_sigma * options_.offset_process_sigma;
-  std::vector<CarriedObservation> observations;
-  for (const Frame& f : frames_) {
-    const double behind = distance_ - f.distance;
-    observations.push_back({f.offset, f.sigma, q2 * behind, behind > 0 ? -1 : 0});
-  }
-  const CombinedObservation offset =
-      CombineCarriedObservations(observations, options_.offset_outlier_probability, options_.offset_outlier_range);
+  offsets_.Add(distance_, input.lateral_m - drift_, input.lateral_sigma_m);
+  const CombinedObservation offset = offsets_.Combine();
   return offset.valid ? offset.value + drift_ : input.lateral_m;
 }
 
@@ -108,7 +111,7 @@ PathTrackingCommand PathTracker::Update(const PathTrackingInput& input, bool pre
   const double dt = std::max(0.0, input.dt);
   if (!input.tracking) {
     // Lost: stop now; the wheels keep their angle (nothing to steer by).
-    frames_.clear();
+    offsets_.Clear();
     speed_ = 0.0;
     command.mode = SteeringMode::kStop;
     command.curvature = curvature_;
@@ -127,7 +130,7 @@ PathTrackingCommand PathTracker::Update(const PathTrackingInput& input, bool pre
   } else {
     command.mode = SteeringMode::kImage;  // nothing new to steer by: hold the wheels
   }
-  if (command.mode != SteeringMode::kPath) frames_.clear();  // the filtered offset starts again with the metric path
+  if (command.mode != SteeringMode::kPath) offsets_.Clear();  // the filtered offset starts again with the metric path
   wanted = std::clamp(wanted, -options_.max_curvature, options_.max_curvature);
   const double step = options_.max_curvature_rate * dt;
   curvature_ = dt > 0 ? std::clamp(wanted, curvature_ - step, curvature_ + step) : wanted;

@@ -29,8 +29,9 @@
 // gave no metric offset; zero at once when the localizer is not tracking (a robot must not drive blind), and ramped
 // up at `max_acceleration` when it tracks again.
 
-#include <deque>
 #include <string>
+
+#include "retrace/util/robust_random_walk.h"
 
 namespace retrace {
 
@@ -110,15 +111,9 @@ class PathTracker {
   PathTrackingOptions options_;
   double curvature_ = 0.0;
   double speed_ = 0.0;
-  // The recent frames' offsets for FilteredOffset: where each was (metres driven) and its offset minus the motion's
-  // drift up to it.
-  struct Frame {
-    double distance;
-    double offset;
-    double sigma;
-  };
+  // The recent frames' offsets for FilteredOffset, each less the motion's drift up to it, at the metres driven.
   double FilteredOffset(const PathTrackingInput& input, double dt);
-  std::deque<Frame> frames_;
+  ObservationWindow offsets_;
   double distance_ = 0.0;
   double drift_ = 0.0;  // ∫ sin φ ds
 };

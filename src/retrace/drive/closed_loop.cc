@@ -116,8 +116,9 @@ ClosedLoopSummary DriveClosedLoop(Simulator* simulator, Localizer* localizer, co
     input.tracking = result.state == LocalizerState::kTracking;
     input.confidence = result.confidence;
     input.metric = result.path.valid;
-    input.lateral_m = result.path.lateral_m;
-    input.lateral_sigma_m = result.path.lateral_sigma_m;
+    // The frame's own offset: the path tracker combines the recent frames itself, carried by the motion it commanded.
+    input.lateral_m = result.path.frame_lateral_m;
+    input.lateral_sigma_m = result.path.frame_lateral_sigma_m;
     input.heading_error_rad = result.path.heading_error_rad;
     input.curvature_ahead = result.path.curvature_ahead;  // 0 when the frame has no metric path
     input.image_steering_valid = result.steering_valid;

@@ -4,7 +4,8 @@
 //   frame,image,timestamp,state,arc,node_from,node_to,tracked,tracked_previous,tracked_current,tracked_next,
 //   resumed,rejected,dropped,drifted,redefined,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,steering,ms,
 //   position_via_from,position_via_to,position_via_pose,sigma_p_pose,pose_inliers,key_images_matched,confidence,
-//   evidence,belief_arc,lateral_m,lateral_sigma_m,heading_error_rad,along_m,to_next_m,curvature_ahead
+//   evidence,belief_arc,lateral_m,lateral_sigma_m,heading_error_rad,along_m,to_next_m,curvature_ahead,
+//   frame_lateral_m,frame_lateral_sigma_m
 // frame = 0-based index in the input sequence (after --every/--offset), state = tracking | lost | relocalizing,
 // node ids and arc -1 when not tracking, σ_p columns -1 when not estimated, ms = processing time of the frame,
 // position_on_arc the belief's position along the arc (0 at node_from, 1 at node_to), the position_via_* columns
@@ -12,11 +13,12 @@
 // gave none), key_images_matched the key-images verified by wide-baseline matching in a bootstrap or relocalization
 // frame (0 otherwise), confidence the belief's probability that the camera is on the reported arc (in lost frames:
 // on the arc it finds most likely, belief_arc), evidence 1 when this frame gave the belief a placement it accepts;
-// the last six (repeat/taught_path.h; empty unless the camera's height is known and the frame's absolute pose is
+// the last eight (repeat/taught_path.h; empty unless the camera's height is known and the frame's absolute pose is
 // usable): the camera's signed distance from the taught path in metres (positive to the right in the direction of
-// travel) and its standard deviation, the optical axis against the path's tangent (radians, positive to the right),
-// the distance along the path from node_from and left to node_to (m), the sharpest curvature ahead (1/m, positive
-// to the left).
+// travel; the recent frames' combined, LocalizerOptions::lateral_filter) and its standard deviation, the optical
+// axis against the path's tangent (radians, positive to the right), the distance along the path from node_from and
+// left to node_to (m), the sharpest curvature ahead (1/m, positive to the left), and this frame's own distance from
+// the path and its standard deviation.
 
 #include <algorithm>
 #include <chrono>
@@ -321,7 +323,7 @@ void RunRepeat(const RepeatArguments& args) {
          "resumed,rejected,dropped,drifted,redefined,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,"
          "steering,ms,position_via_from,position_via_to,position_via_pose,sigma_p_pose,pose_inliers,"
          "key_images_matched,confidence,evidence,belief_arc,lateral_m,lateral_sigma_m,heading_error_rad,along_m,"
-         "to_next_m,curvature_ahead\n";
+         "to_next_m,curvature_ahead,frame_lateral_m,frame_lateral_sigma_m\n";
   csv.flush();
   if (!args.overlay.empty()) std::filesystem::create_directories(args.overlay);
 
@@ -347,10 +349,11 @@ void RunRepeat(const RepeatArguments& args) {
                          OptionalNumber(r.position_via_to), OptionalNumber(r.position_via_pose), r.sigma_p_pose,
                          r.pose_inliers, r.key_images_matched, r.confidence, r.evidence ? 1 : 0, r.belief_arc);
       if (r.path.valid) {
-        csv << fmt::format(",{:.4f},{:.4f},{:.5f},{:.3f},{:.3f},{:.5f}\n", r.path.lateral_m, r.path.lateral_sigma_m,
-                           r.path.heading_error_rad, r.path.along_m, r.path.to_next_m, r.path.curvature_ahead);
+        csv << fmt::format(",{:.4f},{:.4f},{:.5f},{:.3f},{:.3f},{:.5f},{:.4f},{:.4f}\n", r.path.lateral_m,
+                           r.path.lateral_sigma_m, r.path.heading_error_rad, r.path.along_m, r.path.to_next_m,
+                           r.path.curvature_ahead, r.path.frame_lateral_m, r.path.frame_lateral_sigma_m);
       } else {
-        csv << ",,,,,,\n";
+        csv << ",,,,,,,,\n";
       }
       csv.flush();
       if (!csv) throw InputError(args.output.string(), "write failed");
@@ -420,7 +423,7 @@ void RunRepeat(const RepeatArguments& args) {
     truth << "frame,true_arc_index,tolerated_arc_index,estimated_arc_index,correct,lost,error,true_position_on_arc,"
              "tolerated_after_arc_index,true_lateral_m,true_heading_error_rad\n";
     // The metric path against the truth: the frame's true pose against the taught camera path around its arc.
-    std::vector<double> lateral_errors, heading_errors;
+    std::vector<double> lateral_errors, frame_lateral_errors, heading_errors;
     for (size_t i = 0; i < results.size(); ++i) {
       const FrameTruth& t = evaluation.per_frame[i];
       PathTruth path_truth;
@@ -439,6 +442,7 @@ void RunRepeat(const RepeatArguments& args) {
       }
       if (path_truth.valid && r.path.valid) {
         lateral_errors.push_back(std::abs(r.path.lateral_m - path_truth.lateral_m));
+        frame_lateral_errors.push_back(std::abs(r.path.frame_lateral_m - path_truth.lateral_m));
         heading_errors.push_back(std::abs(r.path.heading_error_rad - path_truth.heading_error_rad));
       }
       truth << fmt::format("{},{},{},{},{},{},{},{},{},{},{}\n", results[i].frame_index, t.true_arc_index,
@@ -448,10 +452,13 @@ void RunRepeat(const RepeatArguments& args) {
                            path_truth.valid ? OptionalNumber(path_truth.heading_error_rad) : "");
     }
     if (!lateral_errors.empty()) {
-      std::cout << fmt::format("metric path against ground truth: {} frames, |lateral_m error| median {:.3f} m, 95th "
-                               "percentile {:.3f} m; |heading error| median {:.2f} deg, 95th percentile {:.2f} deg\n",
-                               lateral_errors.size(), Quantile(lateral_errors, 0.5), Quantile(lateral_errors, 0.95),
-                               Quantile(heading_errors, 0.5) * 180 / M_PI, Quantile(heading_errors, 0.95) * 180 / M_PI);
+      std::cout << fmt::format(
+          "metric path against ground truth: {} frames, |lateral_m error| median {:.3f} m, 95th "
+          "percentile {:.3f} m (each frame's own: {:.3f} / {:.3f} m); |heading error| median "
+          "{:.2f} deg, 95th percentile {:.2f} deg\n",
+          lateral_errors.size(), Quantile(lateral_errors, 0.5), Quantile(lateral_errors, 0.95),
+          Quantile(frame_lateral_errors, 0.5), Quantile(frame_lateral_errors, 0.95),
+          Quantile(heading_errors, 0.5) * 180 / M_PI, Quantile(heading_errors, 0.95) * 180 / M_PI);
     }
     if (!truth) throw InputError(truth_path.string(), "cannot be written");
     std::cout << "per-frame ground truth: " << truth_path.string() << "\n";
@@ -501,6 +508,12 @@ void RegisterRepeatCommand(CLI::App& app) {
                   "Height of the camera above the ground (m) for the metric offset from the taught path (default: "
                   "the one given to teach, stored in the map; without one the lateral_m columns stay empty)")
       ->check(CLI::Range(0.0, 100.0));
+  cmd->add_option(
+         "--lateral-window", args->options.lateral_filter.window,
+         "Metres driven over which the recent frames' offsets from the taught path are combined into lateral_m "
+         "(robustly, as a random walk; 0: each frame's own, which frame_lateral_m always holds)")
+      ->check(CLI::Range(0.0, 1000.0))
+      ->capture_default_str();
   cmd->add_option("--min-confidence", args->options.belief.min_confidence,
                   "Belief confidence needed to report tracking (probability that the arc is right)")
       ->capture_default_str();

@@ -59,6 +59,8 @@ bool LocalizerOptions::Check(std::string* error) const {
   if (!placement.Check(&placement_error)) return fail("placement: " + placement_error);
   std::string path_error;
   if (!path.Check(&path_error)) return fail("path: " + path_error);
+  std::string lateral_error;
+  if (!lateral_filter.Check(&lateral_error)) return fail("lateral_filter: " + lateral_error);
   if (retry_interval < 1) return fail("retry_interval must be >= 1");
   if (min_features < 8) return fail("min_features must be >= 8");
   if (max_bad_frames < 1) return fail("max_bad_frames must be >= 1");
@@ -411,6 +413,12 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
                                 last_pose_->centre_covariance ? &*last_pose_->centre_covariance : nullptr, arc_);
   }
   if (result.state != LocalizerState::kTracking) {
+    lateral_window_.Clear();
+    last_metric_.reset();
+  } else if (result.path.valid) {
+    FilterLateralOffset(result.arc, &result.path);
+  }
+  if (result.state != LocalizerState::kTracking) {
     result.position_valid = false;
     result.steering_valid = false;
     result.steering = 0.0;
@@ -419,6 +427,32 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
   ReleaseUnusedKeyImages();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
+}
+
+void Localizer::FilterLateralOffset(arc_t arc, PathPose* path) {
+  path->frame_lateral_m = path->lateral_m;
+  path->frame_lateral_sigma_m = path->lateral_sigma_m;
+  // The distance driven since the last frame with a metric path: along the same arc, or across its end into the
+  // next; anything else (a jump, a backward transition, the first frame) starts the window again.
+  std::optional<double> step;
+  if (last_metric_ && last_metric_->arc == arc) {
+    step = path->along_m - last_metric_->along_m;
+  } else if (last_metric_) {
+    const std::vector<arc_t>& next = belief_.Successors(last_metric_->arc);
+    if (std::find(next.begin(), next.end(), arc) != next.end()) step = last_metric_->to_next_m + path->along_m;
+  }
+  last_metric_ = MetricPlace{arc, path->along_m, path->to_next_m};
+  if (!(options_.lateral_filter.process_sigma > 0)) return;
+  if (!step) {
+    lateral_window_.Clear();
+  } else {
+    travelled_m_ += std::abs(*step);  // the walk's variance grows with the distance driven, either way
+  }
+  lateral_window_.Add(travelled_m_, path->lateral_m, path->lateral_sigma_m);
+  const CombinedObservation combined = lateral_window_.Combine();
+  if (!combined.valid) return;
+  path->lateral_m = combined.value;
+  path->lateral_sigma_m = combined.sigma;
 }
 
 void Localizer::ReleaseUnusedKeyImages() {

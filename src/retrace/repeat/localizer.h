@@ -119,6 +119,7 @@
 #include "retrace/repeat/belief.h"
 #include "retrace/repeat/placement.h"
 #include "retrace/repeat/taught_path.h"
+#include "retrace/util/robust_random_walk.h"
 
 namespace retrace {
 
@@ -349,6 +350,16 @@ struct LocalizerOptions {
   // Where the camera is relative to the taught path in metres (taught_path.h), reported in FrameResult::path when
   // path.camera_height is set (the camera's height above the ground; 0 = unknown, no metric path).
   TaughtPathOptions path;
+  // The lateral offset reported (FrameResult::path.lateral_m, its σ lateral_sigma_m) is not the frame's alone
+  // (path.frame_lateral_m): a frame whose pose rests on features at one depth (a far facade) may put the camera a
+  // metre off with a σ of centimetres, several frames in a row (README, "Where the car is, in metres"). The offsets
+  // of the recent tracked frames, at the distance driven along the taught path (along_m and to_next_m from frame to
+  // frame), are combined robustly as a random walk (util/robust_random_walk.h) — the path tracker's model and
+  // values (control/path_tracking.h: 20 m, 0.05 m/√m, σ at least 2 cm, 10 % wrong over 10 m) without its carrying
+  // by the commanded motion, which repeat does not know: so the path tracker steers by the frame's own offset and
+  // its own window. The window starts again after a frame that is not tracking or a jump between arcs that do not
+  // follow each other. process_sigma 0: the frame's own offset.
+  ObservationWindowOptions lateral_filter;
   // The absolute pose: P3P samples, MSAC with the inlier threshold `inlier_threshold_px` (set by the Localizer).
   AbsolutePoseOptions pose;
 
@@ -668,6 +679,19 @@ class Localizer {
                              const PoseSpread& spread, std::optional<LaneEntry>* lane) const;
   // The taught path in metres (after map_: it refers to it).
   std::unique_ptr<TaughtPath> path_;
+  // The recent tracked frames' lateral offsets (LocalizerOptions::lateral_filter), the metres driven along the taught
+  // path, and the last frame with a metric path (its arc, along_m and to_next_m).
+  ObservationWindow lateral_window_;
+  double travelled_m_ = 0.0;
+  struct MetricPlace {
+    arc_t arc = kInvalidArcId;
+    double along_m = 0.0;
+    double to_next_m = 0.0;
+  };
+  std::optional<MetricPlace> last_metric_;
+  // FrameResult::path.lateral_m from the recent frames (LocalizerOptions::lateral_filter); `path` holds this
+  // frame's own, on `arc`.
+  void FilterLateralOffset(arc_t arc, PathPose* path);
   // Current bearings of the tracked features (this frame).
   std::unordered_map<feature_t, Vector3d> bearings_;
 };

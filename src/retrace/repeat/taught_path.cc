@@ -387,6 +387,8 @@ PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const
   double variance = std::pow(pose.lateral_m * arc_sigma, 2);
   if (centre_covariance != nullptr) variance += *scale * *scale * across.dot(*centre_covariance * across);
   pose.lateral_sigma_m = std::sqrt(variance);
+  pose.frame_lateral_m = pose.lateral_m;
+  pose.frame_lateral_sigma_m = pose.lateral_sigma_m;
   pose.scale_sigma = arc_sigma;
   pose.valid = std::isfinite(pose.lateral_m) && std::isfinite(pose.heading_error_rad) && std::isfinite(pose.along_m);
   return pose;

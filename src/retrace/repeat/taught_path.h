@@ -75,6 +75,10 @@ struct PathPose {
   // Standard deviations (first order): the lateral offset's from the camera centre's covariance and the scale's.
   double lateral_sigma_m = 0.0;
   double scale_sigma = 0.0;        // relative standard deviation of the arc's metric scale
+  // The localizer reports in lateral_m / lateral_sigma_m the recent frames' offsets combined
+  // (LocalizerOptions::lateral_filter), and this frame's own here (TaughtPath::Locate: the same as lateral_m).
+  double frame_lateral_m = 0.0;
+  double frame_lateral_sigma_m = 0.0;
 };
 
 // One arc's ground-plane scale carried into the unit of the arc being scaled (through `steps` node scales, on one

@@ -72,4 +72,38 @@ CombinedObservation CombineCarriedObservations(const std::vector<CarriedObservat
   return combined;
 }
 
+bool ObservationWindowOptions::Check(std::string* error) const {
+  const auto fail = [&](const std::string& message) {
+    if (error != nullptr) *error = message;
+    return false;
+  };
+  if (!(window >= 0) || max_observations < 1) return fail("window must be >= 0 and max_observations >= 1");
+  if (!(process_sigma >= 0) || !(min_sigma > 0)) return fail("process_sigma must be >= 0 and min_sigma positive");
+  if (!(outlier_probability >= 0) || !(outlier_probability < 1) || !(outlier_range > 0)) {
+    return fail("outlier_probability must be in [0, 1) and outlier_range positive");
+  }
+  return true;
+}
+
+void ObservationWindow::Add(double distance, double value, double sigma) {
+  observations_.push_back({distance, value, std::max(options_.min_sigma, sigma)});
+  while (distance - observations_.front().distance > options_.window ||
+         observations_.size() > options_.max_observations) {
+    observations_.pop_front();
+  }
+}
+
+CombinedObservation ObservationWindow::Combine() const {
+  if (observations_.empty()) return {};
+  const double latest = observations_.back().distance;
+  const double q2 = options_.process_sigma * options_.process_sigma;
+  std::vector<CarriedObservation> carried;
+  carried.reserve(observations_.size());
+  for (const Observation& o : observations_) {
+    const double behind = latest - o.distance;
+    carried.push_back({o.value, o.sigma, q2 * behind, behind > 0 ? -1 : 0});
+  }
+  return CombineCarriedObservations(carried, options_.outlier_probability, options_.outlier_range);
+}
+
 }  // namespace retrace

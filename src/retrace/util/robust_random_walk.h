@@ -15,6 +15,9 @@
 // responsibility w_j (E) and takes x = 1ᵀC_w⁻¹y / 1ᵀC_w⁻¹1 with σ_j² / w_j on the diagonal (M); its variance is
 // 1 / 1ᵀC_w⁻¹1.
 
+#include <cstddef>
+#include <deque>
+#include <string>
 #include <vector>
 
 namespace retrace {
@@ -36,5 +39,41 @@ struct CombinedObservation {
 // `outlier_probability` p in [0, 1) and `outlier_range` L > 0 as above.
 CombinedObservation CombineCarriedObservations(const std::vector<CarriedObservation>& observations,
                                                double outlier_probability, double outlier_range);
+
+// The recent observations of a quantity that walks along a travelled distance (a vehicle's lateral offset from its
+// path), combined at the latest one: each carried over the distance since it was made as a random walk of
+// `process_sigma` per √(unit of distance), combined by CombineCarriedObservations. The path tracker's offset
+// (control/path_tracking.h) and the localizer's lateral offset (repeat/localizer.h) keep one each.
+struct ObservationWindowOptions {
+  // Observations more than `window` units of distance behind the latest are forgotten, and all but the last
+  // `max_observations` (a vehicle standing still adds observations but no distance).
+  double window = 20.0;
+  size_t max_observations = 64;
+  double process_sigma = 0.05;
+  // An observation's σ is at least this; it is wrong with `outlier_probability`, uniform over `outlier_range`.
+  double min_sigma = 0.02;
+  double outlier_probability = 0.1;
+  double outlier_range = 10.0;
+
+  bool Check(std::string* error = nullptr) const;
+};
+
+class ObservationWindow {
+ public:
+  explicit ObservationWindow(const ObservationWindowOptions& options = {}) : options_(options) {}
+  // `distance`: where the observation was made (never less than the last one's).
+  void Add(double distance, double value, double sigma);
+  // The observations combined at the latest one's distance; invalid when there is none.
+  CombinedObservation Combine() const;
+  void Clear() { observations_.clear(); }
+  size_t size() const { return observations_.size(); }
+
+ private:
+  struct Observation {
+    double distance, value, sigma;
+  };
+  ObservationWindowOptions options_;
+  std::deque<Observation> observations_;
+};
 
 }  // namespace retrace
