@@ -26,6 +26,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <string>
 
@@ -211,6 +212,44 @@ void WriteConfidencePlot(const std::vector<FrameResult>& results, const Topologi
   options.y_max = 1.4;  // room for the legend above the confident frames
   options.reference_lines.push_back({threshold, "tracking threshold"});
   if (!cv::imwrite(path.string(), RenderPlot({correct, wrong, lost}, options))) {
+    throw InputError(path.string(), "cannot be written");
+  }
+}
+
+// The metric offset from the taught path per frame against ground truth: the reported one (the recent frames
+// combined) and each frame's own, where a person sees runs of frames a metre off and whether the combination
+// outvoted them. `truth[i]` is the true offset of results[i] (NaN where unknown).
+void WriteLateralPlot(const std::vector<FrameResult>& results, const std::vector<double>& truth,
+                      const std::filesystem::path& path) {
+  PlotSeries true_offset, combined, own;
+  true_offset.label = "true offset from the taught path";
+  true_offset.color = cv::Scalar(160, 160, 160);
+  true_offset.thickness = 5;
+  combined.label = "lateral_m (recent frames combined)";
+  combined.color = cv::Scalar(60, 160, 40);
+  combined.thickness = 2;
+  own.label = "frame_lateral_m (the frame's own)";
+  own.color = cv::Scalar(200, 120, 0);
+  own.thickness = 1;
+  for (PlotSeries* s : {&true_offset, &combined, &own}) s->style = PlotSeries::Style::kPoints;
+  for (size_t i = 0; i < results.size() && i < truth.size(); ++i) {
+    const double x = static_cast<double>(results[i].frame_index);
+    if (std::isfinite(truth[i])) {
+      true_offset.x.push_back(x);
+      true_offset.y.push_back(truth[i]);
+    }
+    if (results[i].path.valid) {
+      combined.x.push_back(x);
+      combined.y.push_back(results[i].path.lateral_m);
+      own.x.push_back(x);
+      own.y.push_back(results[i].path.frame_lateral_m);
+    }
+  }
+  PlotOptions options;
+  options.title = "repeat: offset from the taught path against ground truth (positive: right)";
+  options.x_label = "frame";
+  options.y_label = "lateral offset (m)";
+  if (!cv::imwrite(path.string(), RenderPlot({true_offset, own, combined}, options))) {
     throw InputError(path.string(), "cannot be written");
   }
 }
@@ -424,6 +463,7 @@ void RunRepeat(const RepeatArguments& args) {
              "tolerated_after_arc_index,true_lateral_m,true_heading_error_rad\n";
     // The metric path against the truth: the frame's true pose against the taught camera path around its arc.
     std::vector<double> lateral_errors, frame_lateral_errors, heading_errors;
+    std::vector<double> true_lateral(results.size(), std::numeric_limits<double>::quiet_NaN());
     for (size_t i = 0; i < results.size(); ++i) {
       const FrameTruth& t = evaluation.per_frame[i];
       PathTruth path_truth;
@@ -440,6 +480,7 @@ void RunRepeat(const RepeatArguments& args) {
                                               static_cast<size_t>(first_frame), static_cast<size_t>(last_frame));
         }
       }
+      if (path_truth.valid) true_lateral[i] = path_truth.lateral_m;
       if (path_truth.valid && r.path.valid) {
         lateral_errors.push_back(std::abs(r.path.lateral_m - path_truth.lateral_m));
         frame_lateral_errors.push_back(std::abs(r.path.frame_lateral_m - path_truth.lateral_m));
@@ -466,6 +507,7 @@ void RunRepeat(const RepeatArguments& args) {
       WriteTruthPlot(results, evaluation, args.overlay / "arcs_vs_truth.png");
       WritePositionPlot(results, evaluation, args.overlay / "positions_vs_truth.png");
       WriteConfidencePlot(results, evaluation, options.belief.min_confidence, args.overlay / "confidence.png");
+      if (!lateral_errors.empty()) WriteLateralPlot(results, true_lateral, args.overlay / "lateral_vs_truth.png");
     }
   }
 }

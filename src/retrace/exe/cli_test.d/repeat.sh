@@ -15,6 +15,13 @@ if [[ -d $data/kitti07 ]]; then
   # One CSV row per frame after the header, states and arcs filled in.
   expect repeat-csv-rows 0 "^81 tracking$" -- \
     bash -c "echo \$(wc -l < '$tmp/repeat_run.csv') \$(sed -n 2p '$tmp/repeat_run.csv' | cut -d, -f4)"
+  # Given the camera's height: the metric path's columns (the recent frames combined, then each frame's own) and,
+  # with --overlay, the offset against ground truth drawn per frame.
+  expect repeat-lateral-plot 0 "^lateral_m frame_lateral_m,frame_lateral_sigma_m lateral_vs_truth.png$" -- \
+    bash -c "'$bin' repeat --map '$tmp/repeat_route.db' --sequence '$k' --every 2 --offset 1 --start-arc 0 \
+      --camera-height 1.65 --output '$tmp/repeat_metric.csv' --overlay '$tmp/repeat_overlay' --evaluate \
+      --no-progress >/dev/null && echo \$(head -1 '$tmp/repeat_metric.csv' | cut -d, -f33) \
+      \$(head -1 '$tmp/repeat_metric.csv' | cut -d, -f39-40) \$(ls '$tmp/repeat_overlay' | grep lateral)"
   expect repeat-bad-start-arc 1 "^retrace: error: start arc: the map has no arc 99$" -- \
     "$bin" repeat --map "$tmp/repeat_route.db" --sequence "$k" --start-arc 99 --output "$tmp/r.csv" --no-progress
 fi
