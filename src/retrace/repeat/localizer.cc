@@ -429,6 +429,19 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
   return result;
 }
 
+namespace {
+
+// The factor that raises a pose's covariance to a residual noise of at least `floor_px` per component: the
+// covariance is the residual variance per component, sum of squares / (2n - 6), times (JᵀJ)⁻¹ (AbsolutePose).
+double NoiseFloorFactor(const AbsolutePose& pose, double floor_px) {
+  const double n = static_cast<double>(pose.num_inliers);
+  if (!(floor_px > 0) || !(n > 3) || !std::isfinite(pose.rms_residual_px)) return 1.0;
+  const double variance = pose.rms_residual_px * pose.rms_residual_px * 2.0 * n / (2.0 * n - 6.0);
+  return variance > 0 ? std::max(1.0, floor_px * floor_px / variance) : 1.0;
+}
+
+}  // namespace
+
 void Localizer::FilterLateralOffset(arc_t arc, PathPose* path) {
   path->frame_lateral_m = path->lateral_m;
   path->frame_lateral_sigma_m = path->lateral_sigma_m;
@@ -448,7 +461,12 @@ void Localizer::FilterLateralOffset(arc_t arc, PathPose* path) {
   } else {
     travelled_m_ += std::abs(*step);  // the walk's variance grows with the distance driven, either way
   }
-  lateral_window_.Add(travelled_m_, path->lateral_m, path->lateral_sigma_m);
+  // The frame's σ with the pose's residual noise floored (LocalizerOptions::lateral_noise_floor_px): the part from
+  // the arc's scale, |lateral| · scale σ, stays as it is.
+  const double scale_part = path->lateral_m * path->scale_sigma;
+  const double pose_part = std::max(0.0, path->lateral_sigma_m * path->lateral_sigma_m - scale_part * scale_part);
+  const double factor = last_pose_ ? last_pose_->noise_floor_factor : 1.0;
+  lateral_window_.Add(travelled_m_, path->lateral_m, std::sqrt(scale_part * scale_part + factor * pose_part));
   const CombinedObservation combined = lateral_window_.Combine();
   if (!combined.valid) return;
   path->lateral_m = combined.value;
@@ -762,8 +780,12 @@ void Localizer::Localize(FrameResult* result) {
     const AbsolutePose pose = EstimatePoseInArc(*arc, &spread);
     last_pose_.reset();
     if (pose.success) {
-      last_pose_ = LastPose{arc_, pose.cam_from_world, frame_counter_, pose.sigma_p < max_sigma_p_px_,
-                            pose.covariance_valid ? std::optional<Matrix3d>(pose.centre_covariance) : std::nullopt};
+      last_pose_ = LastPose{arc_,
+                            pose.cam_from_world,
+                            frame_counter_,
+                            pose.sigma_p < max_sigma_p_px_,
+                            pose.covariance_valid ? std::optional<Matrix3d>(pose.centre_covariance) : std::nullopt,
+                            NoiseFloorFactor(pose, options_.lateral_noise_floor_px * pixel_scale_)};
       result->sigma_p_pose = pose.sigma_p;
       result->pose_inliers = pose.num_inliers;
       const ArcPosition position_pose = LocateOnArc(pose.cam_from_world, arc->arc->to_from_from, arc->bounds);

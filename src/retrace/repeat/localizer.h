@@ -360,6 +360,11 @@ struct LocalizerOptions {
   // its own window. The window starts again after a frame that is not tracking or a jump between arcs that do not
   // follow each other. process_sigma 0: the frame's own offset.
   ObservationWindowOptions lateral_filter;
+  // ... each frame's offset entering it with the σ of a pose whose residual noise is at least this per component
+  // (px at reference_width): the tracker's measured accuracy, tracked features 0.17-0.24 px from the true
+  // projections on the tuning drives (README, "Why those poses lag"). A pose resting on 10-25 features at one depth
+  // explains its errors away (residuals of 0.05 px a metre off the truth) and would otherwise outweigh the others.
+  double lateral_noise_floor_px = 0.2;
   // The absolute pose: P3P samples, MSAC with the inlier threshold `inlier_threshold_px` (set by the Localizer).
   AbsolutePoseOptions pose;
 
@@ -655,6 +660,7 @@ class Localizer {
     size_t frame = 0;           // frame counter of the estimate
     bool usable = false;        // σ_p below the gate
     std::optional<Matrix3d> centre_covariance;
+    double noise_floor_factor = 1.0;  // LocalizerOptions::lateral_noise_floor_px
   };
   std::optional<LastPose> last_pose_;
   // The lane: the lateral offsets of the recent poses the belief took as right and that had not collapsed towards
