@@ -48,21 +48,8 @@ bool PathTrackingOptions::Check(std::string* error) const {
   if (!(uncertain_speed_fraction > 0 && uncertain_speed_fraction <= 1)) {
     return fail(fmt::format("uncertain_speed_fraction must be in (0, 1], got {}", uncertain_speed_fraction));
   }
-  if (!(offset_window >= 0 && offset_window <= 1000)) {
-    return fail(fmt::format("offset_window must be in [0, 1000] m, got {}", offset_window));
-  }
-  if (!(offset_process_sigma >= 0 && offset_process_sigma <= 10)) {
-    return fail(fmt::format("offset_process_sigma must be in [0, 10] m/sqrt(m), got {}", offset_process_sigma));
-  }
-  if (!(min_offset_sigma > 0 && min_offset_sigma <= 10)) {
-    return fail(fmt::format("min_offset_sigma must be in (0, 10] m, got {}", min_offset_sigma));
-  }
-  if (!(offset_outlier_probability >= 0 && offset_outlier_probability < 1)) {
-    return fail(fmt::format("offset_outlier_probability must be in [0, 1), got {}", offset_outlier_probability));
-  }
-  if (!(offset_outlier_range > 0 && offset_outlier_range <= 1000)) {
-    return fail(fmt::format("offset_outlier_range must be in (0, 1000] m, got {}", offset_outlier_range));
-  }
+  std::string offset_error;
+  if (!offset.Check(&offset_error)) return fail("offset: " + offset_error);
   return true;
 }
 
@@ -73,24 +60,10 @@ double CameraPointCurvature(double lateral_m, double heading_error_rad, const Pa
   return std::tan(turn) / options.camera_forward;
 }
 
-namespace {
-
-ObservationWindowOptions OffsetWindowOptions(const PathTrackingOptions& options) {
-  ObservationWindowOptions window;
-  window.window = options.offset_window;
-  window.process_sigma = options.offset_process_sigma;
-  window.min_sigma = options.min_offset_sigma;
-  window.outlier_probability = options.offset_outlier_probability;
-  window.outlier_range = options.offset_outlier_range;
-  return window;
-}
-
-}  // namespace
-
 PathTracker::PathTracker(const PathTrackingOptions& options) : options_(options) {
   std::string error;
   if (!options_.Check(&error)) throw std::invalid_argument("PathTrackingOptions: " + error);
-  offsets_ = ObservationWindow(OffsetWindowOptions(options_));
+  offsets_ = ObservationWindow(options_.offset);
 }
 
 double PathTracker::FilteredOffset(const PathTrackingInput& input, double dt) {
@@ -122,7 +95,7 @@ PathTrackingCommand PathTracker::Update(const PathTrackingInput& input, bool pre
   if (input.metric && !prefer_image) {
     command.mode = SteeringMode::kPath;
     double lateral = input.lateral_m;
-    if (options_.offset_process_sigma > 0) lateral = FilteredOffset(input, dt);
+    if (options_.offset.process_sigma > 0) lateral = FilteredOffset(input, dt);
     wanted = CameraPointCurvature(lateral, input.heading_error_rad, options_);
   } else if (input.image_steering_valid) {
     command.mode = SteeringMode::kImage;

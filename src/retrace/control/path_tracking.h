@@ -17,8 +17,8 @@
 // dψ/ds ≈ −ψ / d (stable when driving forward; sampled every v·Δt metres, stable while v·Δt < 2 d).
 //
 // The offset e the law uses is not the frame's alone: the recent frames' offsets, carried to the current frame by the
-// commanded motion (de/ds = sin φ), are combined robustly (PathTrackingOptions::offset_window and the options after
-// it), so that a run of frames a metre off does not turn the car towards a phantom path.
+// commanded motion (de/ds = sin φ), are combined robustly (PathTrackingOptions::offset), so that a run of frames a
+// metre off does not turn the car towards a phantom path.
 //
 // Without a metric offset (no camera height, or no usable absolute pose in this frame) the law falls back to the
 // image steering of Segvic 2009, eq. (10) (control/steering.h): κ = −image_gain · w. Curvature is limited in value
@@ -56,20 +56,16 @@ struct PathTrackingOptions {
   // Below this belief confidence, or without a metric offset, the speed is scaled by `uncertain_speed_fraction`.
   double confident = 0.99;
   double uncertain_speed_fraction = 0.5;
-  // The offset the law steers by (PathTracker::FilteredOffset): the frames within `offset_window` metres driven (at
-  // most 64), each carried to the current frame by the camera's motion since — direction φ = ψ − atan(d κ) with the
-  // commanded κ, de/ds = sin φ, over the commanded speed·dt — plus a random walk of `offset_process_sigma` m/√m for
-  // what that misses; each right with its own σ (at least `min_offset_sigma`) or wrong with probability
-  // `offset_outlier_probability` (uniform over `offset_outlier_range` m), combined robustly
-  // (util/robust_random_walk.h). Why: a frame whose pose rests on features at one depth (a far facade) may put the
-  // camera a metre off with a σ of centimetres, several frames in a row (seed3 of the validation matrix: 7 frames,
-  // 5.6 m; seed6: 14); the window must hold more right frames than such a run. offset_process_sigma 0: each frame's
-  // own offset.
-  double offset_window = 20.0;
-  double offset_process_sigma = 0.05;
-  double min_offset_sigma = 0.02;
-  double offset_outlier_probability = 0.1;
-  double offset_outlier_range = 10.0;
+  // The offset the law steers by (PathTracker::FilteredOffset): the frames within `offset.window` metres driven (at
+  // most `offset.max_observations`), each carried to the current frame by the camera's motion since — direction
+  // φ = ψ − atan(d κ) with the commanded κ, de/ds = sin φ, over the commanded speed·dt — plus a random walk of
+  // `offset.process_sigma` m/√m for what that misses; each right with its own σ (at least `offset.min_sigma`) or wrong
+  // with probability `offset.outlier_probability` (uniform over `offset.outlier_range` m), combined robustly
+  // (util/robust_random_walk.h; the defaults there: 20 m, 64 frames, 0.05 m/√m, 2 cm, 0.1, 10 m). Why: a frame whose
+  // pose rests on features at one depth (a far facade) may put the camera a metre off with a σ of centimetres, several
+  // frames in a row (seed3 of the validation matrix: 7 frames, 5.6 m; seed6: 14); the window must hold more right
+  // frames than such a run. offset.process_sigma 0: each frame's own offset.
+  ObservationWindowOptions offset;
   bool Check(std::string* error = nullptr) const;
 };
 

@@ -1,9 +1,10 @@
 // Cost of the path law per frame (single thread): PathTracker::Update with the offset filter over its window
-// (offset_process_sigma 0.05: the robust combination of the frames carried by the commanded motion) against each
-// frame's own offset (offset_process_sigma 0), in the same run. Argument: speed in dm/s at 10 frames/s — 80 (8 m/s:
+// (offset.process_sigma 0.05: the robust combination of the frames carried by the commanded motion) against each
+// frame's own offset (offset.process_sigma 0), in the same run. Argument: speed in dm/s at 10 frames/s — 80 (8 m/s:
 // the 20 m window holds 25 frames) and 20 (2 m/s: the window is held to its 64-frame cap).
 //
-//   build/src/retrace/control/bench_control_path_tracking --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+//   build/src/retrace/control/bench_control_path_tracking --benchmark_repetitions=5
+//   --benchmark_report_aggregates_only=true
 
 #include <cmath>
 #include <random>
@@ -17,7 +18,7 @@ namespace {
 
 void RunTracker(benchmark::State& state, double process_sigma) {
   PathTrackingOptions options;
-  options.offset_process_sigma = process_sigma;
+  options.offset.process_sigma = process_sigma;
   options.max_speed = state.range(0) / 10.0;
   PathTracker tracker(options);
   std::mt19937 random(3);

@@ -153,7 +153,7 @@ TEST(PathTracker, ARunOfFramesAMetreOffDoesNotTurnTheCar) {
   };
   PathTrackingOptions filtered = FastOptions();
   PathTrackingOptions own = FastOptions();
-  own.offset_process_sigma = 0.0;
+  own.offset.process_sigma = 0.0;
   const DriveResult with_filter = Drive(path, 8.0, 0.1, 0.0, filtered, 2.7, phantom);
   const DriveResult without = Drive(path, 8.0, 0.1, 0.0, own, 2.7, phantom);
   ASSERT_TRUE(with_filter.reached_end);
@@ -171,7 +171,7 @@ TEST(PathTracker, FilteredOffsetFollowsTheCarOntoThePath) {
     input->lateral_sigma_m = 0.03;
   };
   PathTrackingOptions own = FastOptions();
-  own.offset_process_sigma = 0.0;
+  own.offset.process_sigma = 0.0;
   const DriveResult with_filter = Drive(path, 8.0, 0.1, 1.5, FastOptions(), 2.7, noisy);
   const DriveResult without = Drive(path, 8.0, 0.1, 1.5, own, 2.7, noisy);
   EXPECT_LT(MaxAbsAfter(with_filter, 15.0), 0.1);
@@ -295,13 +295,13 @@ TEST(PathTrackingOptions, RejectsImplausibleValues) {
   EXPECT_NE(error.find("camera_forward"), std::string::npos);
   EXPECT_THROW(PathTracker{options}, std::invalid_argument);
   options = PathTrackingOptions();
-  options.offset_outlier_probability = 1.0;
+  options.offset.outlier_probability = 1.0;
   EXPECT_FALSE(options.Check(&error));
-  EXPECT_NE(error.find("offset_outlier_probability"), std::string::npos);
+  EXPECT_NE(error.find("outlier_probability"), std::string::npos);
   options = PathTrackingOptions();
-  options.min_offset_sigma = 0.0;
+  options.offset.min_sigma = 0.0;
   EXPECT_FALSE(options.Check(&error));
-  EXPECT_NE(error.find("min_offset_sigma"), std::string::npos);
+  EXPECT_NE(error.find("min_sigma"), std::string::npos);
 }
 
 }  // namespace
