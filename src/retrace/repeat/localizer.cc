@@ -412,13 +412,10 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
     result.path = path_->Locate(last_pose_->arc, last_pose_->current_from_from,
                                 last_pose_->centre_covariance ? &*last_pose_->centre_covariance : nullptr, arc_);
   }
+  if (result.state == LocalizerState::kTracking && result.path.valid) FilterLateralOffset(result.arc, &result.path);
   if (result.state != LocalizerState::kTracking) {
-    lateral_window_.Clear();
+    lateral_window_.Clear();  // the combined offset starts again with the next tracked frame
     last_metric_.reset();
-  } else if (result.path.valid) {
-    FilterLateralOffset(result.arc, &result.path);
-  }
-  if (result.state != LocalizerState::kTracking) {
     result.position_valid = false;
     result.steering_valid = false;
     result.steering = 0.0;
