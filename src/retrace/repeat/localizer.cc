@@ -452,7 +452,7 @@ void Localizer::FilterLateralOffset(arc_t arc, PathPose* path) {
     if (std::find(next.begin(), next.end(), arc) != next.end()) step = last_metric_->to_next_m + path->along_m;
   }
   last_metric_ = MetricPlace{arc, path->along_m, path->to_next_m};
-  if (!(options_.lateral_filter.process_sigma > 0)) return;
+  if (!(options_.lateral_filter.process_sigma > 0) || !(options_.lateral_filter.window > 0)) return;  // the own
   if (!step) {
     lateral_window_.Clear();
   } else {

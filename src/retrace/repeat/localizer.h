@@ -358,7 +358,7 @@ struct LocalizerOptions {
   // values (control/path_tracking.h: 20 m, 0.05 m/√m, σ at least 2 cm, 10 % wrong over 10 m) without its carrying
   // by the commanded motion, which repeat does not know: so the path tracker steers by the frame's own offset and
   // its own window. The window starts again after a frame that is not tracking or a jump between arcs that do not
-  // follow each other. process_sigma 0: the frame's own offset.
+  // follow each other. window or process_sigma 0: the frame's own offset (and σ).
   ObservationWindowOptions lateral_filter;
   // ... each frame's offset entering it with the σ of a pose whose residual noise is at least this per component
   // (px at reference_width): the tracker's measured accuracy, tracked features 0.17-0.24 px from the true
