@@ -22,6 +22,12 @@ if [[ -d $data/kitti07 ]]; then
       --camera-height 1.65 --output '$tmp/repeat_metric.csv' --overlay '$tmp/repeat_overlay' --evaluate \
       --no-progress >/dev/null && echo \$(head -1 '$tmp/repeat_metric.csv' | cut -d, -f33) \
       \$(head -1 '$tmp/repeat_metric.csv' | cut -d, -f39-40) \$(ls '$tmp/repeat_overlay' | grep lateral)"
+  # --lateral-window 0: lateral_m is each frame's own (equal to frame_lateral_m, σ too, in every metric row).
+  expect repeat-lateral-window-zero 0 "^0 [1-9][0-9]*$" -- \
+    bash -c "'$bin' repeat --map '$tmp/repeat_route.db' --sequence '$k' --every 2 --offset 1 --start-arc 0 \
+      --camera-height 1.65 --lateral-window 0 --output '$tmp/repeat_own.csv' --no-progress >/dev/null && \
+      awk -F, 'NR > 1 && \$33 != \"\" { rows++; if (\$33 != \$39 || \$34 != \$40) differ++ } END { print differ + 0, rows + 0 }' \
+      '$tmp/repeat_own.csv'"
   expect repeat-bad-start-arc 1 "^retrace: error: start arc: the map has no arc 99$" -- \
     "$bin" repeat --map "$tmp/repeat_route.db" --sequence "$k" --start-arc 99 --output "$tmp/r.csv" --no-progress
 fi
