@@ -292,10 +292,12 @@ AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world, 
     const double variance = cost / (2.0 * result.num_inliers - 6.0);
     const Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(jtj);
     if (lu.isInvertible()) {
-      const Matrix3d translation_covariance = variance * lu.inverse().bottomRightCorner<3, 3>();
+      const Eigen::Matrix<double, 6, 6> covariance = variance * lu.inverse();
+      const Matrix3d translation_covariance = covariance.bottomRightCorner<3, 3>();
       const Matrix3d& r = pose.rotation;
       result.centre_covariance = r.transpose() * translation_covariance * r;
-      result.covariance_valid = result.centre_covariance.allFinite();
+      result.rotation_covariance = covariance.topLeftCorner<3, 3>();
+      result.covariance_valid = result.centre_covariance.allFinite() && result.rotation_covariance.allFinite();
     }
   }
   result.success = true;

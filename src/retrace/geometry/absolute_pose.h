@@ -70,6 +70,9 @@ struct AbsolutePose {
   // covariances are given). Without them it treats the points as exact, a lower bound on how well the camera is
   // placed. Valid when `covariance_valid`.
   Matrix3d centre_covariance = Matrix3d::Zero();
+  // Covariance of the rotation (radians²) as a small rotation δω of the camera in its own frame, cam_from_world
+  // becoming exp(δω) · cam_from_world: the same normal equations restricted to the rotation. Valid with it.
+  Matrix3d rotation_covariance = Matrix3d::Zero();
   bool covariance_valid = false;
   int num_iterations = 0;  // samples drawn
 };

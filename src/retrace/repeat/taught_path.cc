@@ -92,6 +92,9 @@ bool TaughtPathOptions::Check(std::string* error) const {
   if (!(camera_height >= 0 && camera_height <= 100)) {
     return fail(fmt::format("camera_height must be in [0, 100] m, got {}", camera_height));
   }
+  if (!(tangent_sigma_rad >= 0 && tangent_sigma_rad < 1)) {
+    return fail(fmt::format("tangent_sigma_rad must be in [0, 1), got {}", tangent_sigma_rad));
+  }
   if (normal_arcs < 1 || normal_arcs > 1000) return fail(fmt::format("normal_arcs must be in 1..1000, got {}", normal_arcs));
   if (scale_window < 0 || scale_window > 100) {
     return fail(fmt::format("scale_window must be in 0..100, got {}", scale_window));
@@ -268,7 +271,7 @@ std::vector<Vector2d> KeyImageTangents(const std::vector<Vector2d>& centres, con
 }
 
 PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const Matrix3d* centre_covariance,
-                            arc_t reported_arc) {
+                            arc_t reported_arc, const Matrix3d* rotation_covariance) {
   PathPose pose;
   const MapArc* arc = map_.FindArc(pose_arc);
   if (!enabled() || arc == nullptr || !GroundNormal()) return pose;
@@ -387,6 +390,18 @@ PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const
   double variance = std::pow(pose.lateral_m * arc_sigma, 2);
   if (centre_covariance != nullptr) variance += *scale * *scale * across.dot(*centre_covariance * across);
   pose.lateral_sigma_m = std::sqrt(variance);
+  // ... along the path likewise; the heading turns about the ground's normal, which a small rotation δω of the camera
+  // (its own frame) turns by the normal's component of δω there (first order, exact for a level optical axis).
+  const Vector3d along_path = tangent.x() * right + tangent.y() * forward;
+  double along_variance = std::pow(pose.along_m * arc_sigma, 2);
+  if (centre_covariance != nullptr) along_variance += *scale * *scale * along_path.dot(*centre_covariance * along_path);
+  pose.along_sigma_m = std::sqrt(along_variance);
+  double heading_variance = options_.tangent_sigma_rad * options_.tangent_sigma_rad;
+  if (rotation_covariance != nullptr) {
+    const Vector3d normal_in_camera = current_from_a.rotation * n;
+    heading_variance += std::max(0.0, normal_in_camera.dot(*rotation_covariance * normal_in_camera));
+  }
+  pose.heading_sigma_rad = std::sqrt(heading_variance);
   pose.frame_lateral_m = pose.lateral_m;
   pose.frame_lateral_sigma_m = pose.lateral_sigma_m;
   pose.scale_sigma = arc_sigma;

@@ -58,6 +58,11 @@ struct TaughtPathOptions {
   double relative_scale_sigma = 0.015;
   double ground_scale_sigma = 0.03;
   double ground_outlier_probability = 0.15;
+  // The taught path's direction where the camera is, as an angle (radians): it follows the arcs' two-view
+  // translations, whose direction was off by 0.24° (median; 90th percentile 0.75°) on the tuning and town drives of
+  // the validation matrix (README, "Where the car is, in metres") — a Gaussian with that median has σ 0.36°. It adds
+  // to the pose's own in heading_sigma_rad.
+  double tangent_sigma_rad = 0.006;
 
   bool Check(std::string* error = nullptr) const;
 };
@@ -75,6 +80,10 @@ struct PathPose {
   // Standard deviations (first order): the lateral offset's from the camera centre's covariance and the scale's.
   double lateral_sigma_m = 0.0;
   double scale_sigma = 0.0;        // relative standard deviation of the arc's metric scale
+  // The heading error's (the path's direction, TaughtPathOptions::tangent_sigma_rad, and the rotation's covariance
+  // about the ground's normal) and along_m's (the centre's covariance along the path, and the scale's).
+  double heading_sigma_rad = 0.0;
+  double along_sigma_m = 0.0;
   // The localizer reports in lateral_m / lateral_sigma_m the recent frames' offsets combined
   // (LocalizerOptions::lateral_filter), and this frame's own here (TaughtPath::Locate: the same as lateral_m).
   double frame_lateral_m = 0.0;
@@ -128,9 +137,10 @@ class TaughtPath {
 
   // The camera placed at `current_from_a` in the reconstruction of `pose_arc` (its frame and unit), with its
   // centre's covariance there (may be null), relative to the taught path around `reported_arc` (pose_arc or one of
-  // its neighbours). Invalid when disabled or no metric scale is known.
-  PathPose Locate(arc_t pose_arc, const Rigid3d& current_from_a, const Matrix3d* centre_covariance,
-                  arc_t reported_arc);
+  // its neighbours). `rotation_covariance`: of the camera's rotation in its own frame (AbsolutePose; may be null),
+  // for heading_sigma_rad. Invalid when disabled or no metric scale is known.
+  PathPose Locate(arc_t pose_arc, const Rigid3d& current_from_a, const Matrix3d* centre_covariance, arc_t reported_arc,
+                  const Matrix3d* rotation_covariance = nullptr);
 
  private:
   struct ArcGround;
