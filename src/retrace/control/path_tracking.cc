@@ -68,7 +68,7 @@ PathTracker::PathTracker(const PathTrackingOptions& options) : options_(options)
 
 double PathTracker::FilteredOffset(const PathTrackingInput& input, double dt) {
   // The camera moved speed·dt since the last frame in the direction φ = ψ − atan(d κ) relative to the path.
-  if (offsets_.size() > 0) {
+  if (!offsets_.empty()) {
     const double travelled = speed_ * dt;
     const double direction = input.heading_error_rad - std::atan(options_.camera_forward * curvature_);
     distance_ += travelled;

@@ -114,6 +114,7 @@ Localizer::Localizer(Map map, const CameraModel& camera, const LocalizerOptions&
   std::string error;
   if (!options_.Check(&error)) throw std::invalid_argument("LocalizerOptions: " + error);
   pixel_scale_ = static_cast<double>(camera.width()) / options_.reference_width;
+  lateral_window_ = ObservationWindow(options_.lateral_filter);
   max_sigma_p_px_ = options_.max_sigma_p_px * pixel_scale_;
   pyramid_options_ = TrackingPyramidOptions(camera.width(), options_.reference_width, options_.smoothing_sigma_px);
   geometry_options_ = options_.geometry;
@@ -441,8 +442,6 @@ double NoiseFloorFactor(const AbsolutePose& pose, double floor_px) {
 }  // namespace
 
 void Localizer::FilterLateralOffset(arc_t arc, PathPose* path) {
-  path->frame_lateral_m = path->lateral_m;
-  path->frame_lateral_sigma_m = path->lateral_sigma_m;
   // The distance driven since the last frame with a metric path: along the same arc, or across its end into the
   // next; anything else (a jump, a backward transition, the first frame) starts the window again.
   std::optional<double> step;

@@ -67,6 +67,7 @@ class ObservationWindow {
   CombinedObservation Combine() const;
   void Clear() { observations_.clear(); }
   size_t size() const { return observations_.size(); }
+  bool empty() const { return observations_.empty(); }
 
  private:
   struct Observation {

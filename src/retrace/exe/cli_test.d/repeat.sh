@@ -28,6 +28,13 @@ if [[ -d $data/kitti07 ]]; then
       --camera-height 1.65 --lateral-window 0 --output '$tmp/repeat_own.csv' --no-progress >/dev/null && \
       awk -F, 'NR > 1 && \$33 != \"\" { rows++; if (\$33 != \$39 || \$34 != \$40) differ++ } END { print differ + 0, rows + 0 }' \
       '$tmp/repeat_own.csv'"
+  # A window shorter than a frame's travel holds one frame: lateral_m is then each frame's own value in every row
+  # (the option reaches the localizer's window; its σ is the floored one, LocalizerOptions::lateral_noise_floor_px).
+  expect repeat-lateral-window-short 0 "^0 [1-9][0-9]*$" -- \
+    bash -c "'$bin' repeat --map '$tmp/repeat_route.db' --sequence '$k' --every 2 --offset 1 --start-arc 0 \
+      --camera-height 1.65 --lateral-window 0.01 --output '$tmp/repeat_short.csv' --no-progress >/dev/null && \
+      awk -F, 'NR > 1 && \$33 != \"\" { rows++; if (\$33 != \$39) differ++ } END { print differ + 0, rows + 0 }' \
+      '$tmp/repeat_short.csv'"
   expect repeat-bad-start-arc 1 "^retrace: error: start arc: the map has no arc 99$" -- \
     "$bin" repeat --map "$tmp/repeat_route.db" --sequence "$k" --start-arc 99 --output "$tmp/r.csv" --no-progress
 fi
