@@ -96,6 +96,8 @@ PathTrackingCommand PathTracker::Update(const PathTrackingInput& input, bool pre
     command.mode = SteeringMode::kPath;
     double lateral = input.lateral_m;
     if (options_.offset.process_sigma > 0) lateral = FilteredOffset(input, dt);
+    command.lateral_m = lateral;
+    command.heading_error_rad = input.heading_error_rad;  // each frame's own (a filter over frames, README: not kept)
     wanted = CameraPointCurvature(lateral, input.heading_error_rad, options_);
   } else if (input.image_steering_valid) {
     command.mode = SteeringMode::kImage;

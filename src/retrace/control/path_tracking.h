@@ -29,6 +29,7 @@
 // gave no metric offset; zero at once when the localizer is not tracking (a robot must not drive blind), and ramped
 // up at `max_acceleration` when it tracks again.
 
+#include <limits>
 #include <string>
 
 #include "retrace/util/robust_random_walk.h"
@@ -90,6 +91,10 @@ struct PathTrackingCommand {
   SteeringMode mode = SteeringMode::kStop;
   double curvature = 0.0;  // 1/m, positive turning left
   double speed = 0.0;      // m/s
+  // The lateral offset and heading error the law steered by (kPath: the offset of the recent frames combined, the
+  // frame's own heading error); NaN in the other modes.
+  double lateral_m = std::numeric_limits<double>::quiet_NaN();
+  double heading_error_rad = std::numeric_limits<double>::quiet_NaN();
 };
 
 // The camera-point law alone (no limits): κ = tan(ψ + atan(e / D)) / d.

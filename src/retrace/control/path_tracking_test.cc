@@ -53,6 +53,7 @@ TestPath MakePath(double length, const std::function<double(double)>& kappa) {
 
 struct DriveResult {
   std::vector<double> lateral;  // per frame, after the start
+  std::vector<double> steered;  // the offset the law steered by (PathTrackingCommand::lateral_m), per command
   std::vector<double> driven;   // metres
   bool reached_end = false;
 };
@@ -86,6 +87,7 @@ DriveResult Drive(const TestPath& path, double speed, double dt, double start_of
       break;
     }
     const PathTrackingCommand command = tracker.Update(input);
+    result.steered.push_back(command.lateral_m);
     // The simulator's car takes the front-wheel angle atan(L kappa), limited to 35 degrees.
     const double wheels = std::clamp(std::atan(wheelbase * command.curvature), -0.61, 0.61);
     const double kappa = std::tan(wheels) / wheelbase;
@@ -160,6 +162,13 @@ TEST(PathTracker, ARunOfFramesAMetreOffDoesNotTurnTheCar) {
   ASSERT_TRUE(without.reached_end);
   EXPECT_LT(MaxAbsAfter(with_filter, 0.0), 0.05);
   EXPECT_GT(MaxAbsAfter(without, 0.0), 0.3);
+  // The command reports the offset it steered by: the truth within a few centimetres during the seven frames (told
+  // 1 m off), and each frame's own where the window is off.
+  ASSERT_GT(with_filter.steered.size(), 67u);
+  for (int frame = 60; frame < 67; ++frame) {
+    EXPECT_NEAR(with_filter.steered[frame], with_filter.lateral[frame], 0.05) << frame;
+    EXPECT_NEAR(without.steered[frame], without.lateral[frame] - 1.0, 1e-12) << frame;
+  }
 }
 
 TEST(PathTracker, FilteredOffsetFollowsTheCarOntoThePath) {
@@ -266,6 +275,9 @@ TEST(PathTracker, StopsAtOnceWhenLostAndRampsUpWhenTrackingAgain) {
   const PathTrackingCommand image = tracker.Update(input);
   EXPECT_EQ(image.mode, SteeringMode::kImage);
   EXPECT_DOUBLE_EQ(image.speed, 3.0);
+  EXPECT_TRUE(std::isnan(image.lateral_m));  // no metric offset steered by
+  EXPECT_TRUE(std::isnan(image.heading_error_rad));
+  EXPECT_TRUE(std::isnan(lost.lateral_m));
 }
 
 TEST(PathTracker, SlowsDownForTheCurvatureAheadAndLimitsTheCommand) {

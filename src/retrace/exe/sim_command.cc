@@ -253,7 +253,8 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   if (!csv) throw InputError(csv_path.string(), "cannot be written");
   csv << "frame,timestamp,x,z,heading,state,arc,tracked,steering,wheels,deviation,along,ms,mode,curvature,speed,"
          "lateral_m,heading_error_rad,true_lateral_m,true_heading_error_rad,confidence,evidence,belief_arc,"
-         "position_on_arc\n";
+         "position_on_arc,lateral_sigma_m,frame_lateral_m,frame_lateral_sigma_m,heading_sigma_rad,steered_lateral_m,"
+         "steered_heading_error_rad,path_curvature\n";
   PlotSeries driven, lost, path;
   driven.label = "driven (tracking)";
   driven.style = PlotSeries::Style::kPoints;
@@ -270,6 +271,18 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   }
   PlotSeries deviation;
   deviation.label = "distance from the taught path";
+  // The offset from the taught path: the truth, each frame's own estimate and the one the path law steered by.
+  PlotSeries true_offset, own_offset, steered_offset;
+  true_offset.label = "true offset from the taught path";
+  true_offset.color = cv::Scalar(160, 160, 160);
+  true_offset.thickness = 5;
+  own_offset.label = "frame_lateral_m (the frame's own)";
+  own_offset.color = cv::Scalar(200, 120, 0);
+  own_offset.thickness = 1;
+  steered_offset.label = "steered_lateral_m (what the path law steered by)";
+  steered_offset.color = cv::Scalar(60, 160, 40);
+  steered_offset.thickness = 2;
+  for (PlotSeries* s : {&true_offset, &own_offset, &steered_offset}) s->style = PlotSeries::Style::kPoints;
 
   ClosedLoopSummary summary;
   {
@@ -283,18 +296,41 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
                          step.view->timestamp, c.x(), c.z(), std::atan2(forward.x(), forward.z()),
                          LocalizerStateName(r.state), r.arc, r.tracked, r.steering_valid ? r.steering : 0.0,
                          step.wheels, number(step.deviation), number(step.along), 1000.0 * r.seconds)
-          << fmt::format(",{},{:.5f},{:.3f},{},{},{},{}", SteeringModeName(step.command.mode),
-                         step.command.curvature, step.command.speed, r.path.valid ? number(r.path.lateral_m) : "",
+          << fmt::format(",{},{:.5f},{:.3f},{},{},{},{}", SteeringModeName(step.command.mode), step.command.curvature,
+                         step.command.speed, r.path.valid ? number(r.path.lateral_m) : "",
                          r.path.valid ? number(r.path.heading_error_rad) : "", number(step.true_lateral),
                          number(step.true_heading_error))
-          << fmt::format(",{:.5f},{:d},{},{}\n", r.confidence, r.evidence, r.belief_arc,
-                         r.position_valid ? number(r.position_on_arc) : "");
+          << fmt::format(",{:.5f},{:d},{},{}", r.confidence, r.evidence, r.belief_arc,
+                         r.position_valid ? number(r.position_on_arc) : "")
+          << fmt::format(",{},{},{},{},{}", r.path.valid ? number(r.path.lateral_sigma_m) : "",
+                         r.path.valid ? number(r.path.frame_lateral_m) : "",
+                         r.path.valid ? number(r.path.frame_lateral_sigma_m) : "",
+                         r.path.valid ? fmt::format("{:.4f}", r.path.heading_sigma_rad) : "",
+                         number(step.command.lateral_m))
+          << fmt::format(",{},{}\n",
+                         std::isfinite(step.command.heading_error_rad)
+                             ? fmt::format("{:.4f}", step.command.heading_error_rad)
+                             : "",
+                         r.path.valid ? fmt::format("{:.5f}", r.path.curvature) : "");
       PlotSeries& where = r.state == LocalizerState::kTracking ? driven : lost;
       where.x.push_back(c.x());
       where.y.push_back(c.z());
+      const double frame = static_cast<double>(r.frame_index);
       if (std::isfinite(step.deviation)) {
-        deviation.x.push_back(static_cast<double>(r.frame_index));
+        deviation.x.push_back(frame);
         deviation.y.push_back(step.deviation);
+      }
+      if (std::isfinite(step.true_lateral)) {
+        true_offset.x.push_back(frame);
+        true_offset.y.push_back(step.true_lateral);
+      }
+      if (r.path.valid) {
+        own_offset.x.push_back(frame);
+        own_offset.y.push_back(r.path.frame_lateral_m);
+      }
+      if (std::isfinite(step.command.lateral_m)) {
+        steered_offset.x.push_back(frame);
+        steered_offset.y.push_back(step.command.lateral_m);
       }
       progress.Advance(1, r.state == LocalizerState::kTracking ? fmt::format("arc {}", r.arc)
                                                                : std::string(LocalizerStateName(r.state)));
@@ -346,8 +382,23 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
                                figures.frames, figures.rms, figures.p95, figures.max);
     }
   }
+  const bool offsets = !own_offset.x.empty() || !steered_offset.x.empty();
+  if (offsets) {
+    PlotOptions options;
+    options.title = "closed loop: offset from the taught path, true and estimated (positive: right)";
+    options.x_label = "frame";
+    options.y_label = "lateral offset (m)";
+    std::vector<PlotSeries> series;
+    for (const PlotSeries* s : {&true_offset, &own_offset, &steered_offset}) {
+      if (!s->x.empty()) series.push_back(*s);
+    }
+    const std::filesystem::path plot_path = std::filesystem::path(args.out) / "lateral.png";
+    if (!cv::imwrite(plot_path.string(), RenderPlot(series, options))) {
+      throw InputError(plot_path.string(), "cannot be written");
+    }
+  }
   std::cout << "wrote " << csv_path.string() << ", " << top_path.string()
-            << (deviation.x.empty() ? "" : ", deviation.png") << "\n";
+            << (deviation.x.empty() ? "" : ", deviation.png") << (offsets ? ", lateral.png" : "") << "\n";
 }
 
 
@@ -621,7 +672,8 @@ void RegisterSimCommand(CLI::App& app) {
   args->scenario.Register(drive);
   drive->add_option("--map", args->map, "Map taught on the scenario's teach drive (`retrace teach`, the same --width, "
                     "--height, --seed, --route ...)")->required();
-  drive->add_option("--out", args->out, "Output folder: drive.csv, path.png (and deviation.png)")->required();
+  drive->add_option("--out", args->out, "Output folder: drive.csv, path.png (and deviation.png, lateral.png)")
+      ->required();
   drive->add_option("--taught-poses", args->taught_poses,
                     "Ground-truth poses of the teach drive (its poses.txt): distance from the taught path per frame");
   drive->add_option("--control", args->control,

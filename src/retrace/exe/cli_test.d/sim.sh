@@ -40,3 +40,15 @@ if [[ -f $tmp/repeat_route.db ]]; then
   expect sim-drive-camera-mismatch 1 "repeat_route.db: key-images are 1226x370 but the scenario's camera is 320x240" -- \
     "$bin" sim drive --map "$tmp/repeat_route.db" --out "$tmp/drive" --width 320 --height 240 --quiet
 fi
+# A short closed loop in the default town (taught with the car's camera height): drive.csv holds, per frame, the
+# offset the path law steered by next to each frame's own and the truth, and lateral.png plots them.
+"$bin" sim render --out "$tmp/loop_teach" --frames 60 --width 320 --height 240 --quiet >/dev/null
+"$bin" teach --sequence "$tmp/loop_teach" --map "$tmp/loop.db" --camera-height 1.5 --no-progress >/dev/null
+expect sim-drive-offsets 0 'lateral\.png' -- "$bin" sim drive --map "$tmp/loop.db" --out "$tmp/loop" --width 320 \
+  --height 240 --taught-poses "$tmp/loop_teach/poses.txt" --max-frames 40 --quiet
+# Every frame steered by the metric path, the offset it steered by within 0.1 m of the truth (0.03 m measured).
+expect sim-drive-steered-offset 0 '^40 40 40$' -- awk -F, 'NR == 1 { for (i = 1; i <= NF; ++i) c[$i] = i; next }
+  { path += $c["mode"] == "path"; steered += $c["steered_lateral_m"] != "" && $c["steered_heading_error_rad"] != ""
+    e = $c["steered_lateral_m"] - $c["true_lateral_m"]; near += e < 0.1 && e > -0.1 }
+  END { print path, steered, near }' "$tmp/loop/drive.csv"
+expect sim-drive-lateral-plot 0 'lateral\.png' -- ls "$tmp/loop/lateral.png"
