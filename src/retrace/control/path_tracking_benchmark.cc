@@ -3,8 +3,8 @@
 // frame's own offset (offset.process_sigma 0), in the same run. Argument: speed in dm/s at 10 frames/s — 80 (8 m/s:
 // the 20 m window holds 25 frames) and 20 (2 m/s: the window is held to its 64-frame cap).
 //
-//   build/src/retrace/control/bench_control_path_tracking --benchmark_repetitions=5 \
-//     --benchmark_report_aggregates_only=true
+//   build/src/retrace/control/bench_control_path_tracking --benchmark_repetitions=5
+//       --benchmark_report_aggregates_only=true     (one command)
 
 #include <cmath>
 #include <random>

@@ -544,13 +544,18 @@ class Localizer {
   std::vector<MatchedKeyImage> RetrieveKeyImages(const cv::Mat& image, const WideBaselineFeatures& current,
                                                  const std::vector<node_t>& candidates, std::vector<node_t>* tried,
                                                  int shortlist, bool whole_map);
-  // Verifies each candidate by a relative pose on the matches; over the whole map (`whole_map`: retrieval, or the
-  // places it proposed) the samples are bounded by what finds a model of min_inliers inliers (screening, for
-  // retrieval's candidates) and no guided matching helps a candidate verify (guided_matching_min_inliers; near where
-  // the robot was lost or started it does) (relocalization.cc).
+  // Where the candidates of MatchKeyImages come from, which decides how hard each is tried.
+  enum class CandidateSource {
+    kNearby,           // near where the robot was lost or started: full sample budget, guided matching allowed
+    kWholeMap,         // the places retrieval over the whole map proposed: full budget, no guided matching (look-alike
+                       // places verify with 22-28 inliers over the whole map)
+    kWholeMapScreened  // retrieval's candidates over the whole map: as kWholeMap, with the samples bounded by what
+                       // finds a model of min_inliers inliers (most are other places, refused fast)
+  };
+  // Verifies each candidate by a relative pose on the matches (relocalization.cc).
   std::vector<MatchedKeyImage> MatchKeyImages(const WideBaselineFeatures& current,
-                                              const std::vector<node_t>& candidates, bool whole_map = false,
-                                              bool screening = false);
+                                              const std::vector<node_t>& candidates,
+                                              CandidateSource source = CandidateSource::kNearby);
   // Locates in the current frame the mapped features of `arcs` seen in `key_image` and not tracked yet: each is
   // predicted from the displacement of the nearest matched key-points there, then refined against the reference cut
   // in that key-image and tracked from now on. Adds the features seen to `seen`; returns how many were located.

@@ -45,8 +45,10 @@ int SingleKeyImageBootstrapFeatures(const LocalizerOptions& options, size_t cand
 }
 
 std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBaselineFeatures& current,
-                                                                  const std::vector<node_t>& candidates, bool whole_map,
-                                                                  bool screening) {
+                                                                  const std::vector<node_t>& candidates,
+                                                                  CandidateSource source) {
+  const bool whole_map = source != CandidateSource::kNearby;
+  const bool screening = source == CandidateSource::kWholeMapScreened;
   std::vector<MatchedKeyImage> verified;
   const int min_inliers =
       options_.binary_relocalization ? options_.min_binary_inliers : options_.min_bootstrap_inliers;
@@ -184,7 +186,8 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
   std::vector<MatchedKeyImage> verified;
   for (size_t i = 0; i < budget; ++i) {
     tried->push_back(ranked[i]);
-    std::vector<MatchedKeyImage> one = MatchKeyImages(current, {ranked[i]}, whole_map, /*screening=*/whole_map);
+    std::vector<MatchedKeyImage> one =
+        MatchKeyImages(current, {ranked[i]}, whole_map ? CandidateSource::kWholeMapScreened : CandidateSource::kNearby);
     spdlog::debug("repeat: retrieval candidate {} (rank {} of {}): {}", ranked[i], i, ranked.size(),
                   one.empty() ? std::string("not verified") : fmt::format("{} inliers", one.front().support));
     if (one.empty()) continue;
@@ -421,7 +424,8 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   const auto verify = [&](const std::vector<node_t>& nodes) {
     if (nodes.empty()) return;
     result->key_images_matched += static_cast<int>(nodes.size());
-    std::vector<MatchedKeyImage> more = MatchKeyImages(current, nodes, /*whole_map=*/global);
+    std::vector<MatchedKeyImage> more =
+        MatchKeyImages(current, nodes, global ? CandidateSource::kWholeMap : CandidateSource::kNearby);
     verified.insert(verified.end(), std::make_move_iterator(more.begin()), std::make_move_iterator(more.end()));
   };
   // Over the whole map, the place must be verified beyond one pair of images: enough key-images of the arc and of
