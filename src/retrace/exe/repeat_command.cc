@@ -221,17 +221,8 @@ void WriteConfidencePlot(const std::vector<FrameResult>& results, const Topologi
 // outvoted them. `truth[i]` is the true offset of results[i] (NaN where unknown).
 void WriteLateralPlot(const std::vector<FrameResult>& results, const std::vector<double>& truth,
                       const std::filesystem::path& path) {
-  PlotSeries true_offset, combined, own;
-  true_offset.label = "true offset from the taught path";
-  true_offset.color = cv::Scalar(160, 160, 160);
-  true_offset.thickness = 5;
-  combined.label = "lateral_m (recent frames combined)";
-  combined.color = cv::Scalar(60, 160, 40);
-  combined.thickness = 2;
-  own.label = "frame_lateral_m (the frame's own)";
-  own.color = cv::Scalar(200, 120, 0);
-  own.thickness = 1;
-  for (PlotSeries* s : {&true_offset, &combined, &own}) s->style = PlotSeries::Style::kPoints;
+  OffsetPlotSeries series = MakeOffsetPlotSeries("lateral_m (recent frames combined)");
+  PlotSeries &true_offset = series.truth, &combined = series.combined, &own = series.own;
   for (size_t i = 0; i < results.size() && i < truth.size(); ++i) {
     const double x = static_cast<double>(results[i].frame_index);
     if (std::isfinite(truth[i])) {

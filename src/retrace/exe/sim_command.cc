@@ -272,17 +272,8 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   PlotSeries deviation;
   deviation.label = "distance from the taught path";
   // The offset from the taught path: the truth, each frame's own estimate and the one the path law steered by.
-  PlotSeries true_offset, own_offset, steered_offset;
-  true_offset.label = "true offset from the taught path";
-  true_offset.color = cv::Scalar(160, 160, 160);
-  true_offset.thickness = 5;
-  own_offset.label = "frame_lateral_m (the frame's own)";
-  own_offset.color = cv::Scalar(200, 120, 0);
-  own_offset.thickness = 1;
-  steered_offset.label = "steered_lateral_m (what the path law steered by)";
-  steered_offset.color = cv::Scalar(60, 160, 40);
-  steered_offset.thickness = 2;
-  for (PlotSeries* s : {&true_offset, &own_offset, &steered_offset}) s->style = PlotSeries::Style::kPoints;
+  OffsetPlotSeries offsets = MakeOffsetPlotSeries("steered_lateral_m (what the path law steered by)");
+  PlotSeries &true_offset = offsets.truth, &own_offset = offsets.own, &steered_offset = offsets.combined;
 
   ClosedLoopSummary summary;
   {
@@ -382,8 +373,8 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
                                figures.frames, figures.rms, figures.p95, figures.max);
     }
   }
-  const bool offsets = !own_offset.x.empty() || !steered_offset.x.empty();
-  if (offsets) {
+  const bool any_offset = !own_offset.x.empty() || !steered_offset.x.empty();
+  if (any_offset) {
     PlotOptions options;
     options.title = "closed loop: offset from the taught path, true and estimated (positive: right)";
     options.x_label = "frame";
@@ -398,7 +389,7 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
     }
   }
   std::cout << "wrote " << csv_path.string() << ", " << top_path.string()
-            << (deviation.x.empty() ? "" : ", deviation.png") << (offsets ? ", lateral.png" : "") << "\n";
+            << (deviation.x.empty() ? "" : ", deviation.png") << (any_offset ? ", lateral.png" : "") << "\n";
 }
 
 

@@ -199,4 +199,19 @@ cv::Mat RenderPlot(const std::vector<PlotSeries>& series, const PlotOptions& opt
   return image;
 }
 
+OffsetPlotSeries MakeOffsetPlotSeries(const std::string& combined_label) {
+  OffsetPlotSeries series;
+  series.truth.label = "true offset from the taught path";
+  series.truth.color = cv::Scalar(160, 160, 160);
+  series.truth.thickness = 5;
+  series.own.label = "frame_lateral_m (the frame's own)";
+  series.own.color = cv::Scalar(200, 120, 0);
+  series.own.thickness = 1;
+  series.combined.label = combined_label;
+  series.combined.color = cv::Scalar(60, 160, 40);
+  series.combined.thickness = 2;
+  for (PlotSeries* s : {&series.truth, &series.own, &series.combined}) s->style = PlotSeries::Style::kPoints;
+  return series;
+}
+
 }  // namespace retrace

@@ -52,4 +52,12 @@ std::vector<double> NiceTicks(double low, double high, int target_count = 6);
 // Distinct colours for series (BGR), cycling after a few.
 cv::Scalar SeriesColor(int index);
 
+// The three series of a plot of the camera's offset from the taught path against the truth (repeat --overlay's
+// lateral_vs_truth.png, sim drive's lateral.png), drawn as points in this order: the truth (wide, grey), each frame's
+// own estimate (small, blue) and the estimate combined over frames (green), labelled `combined_label`.
+struct OffsetPlotSeries {
+  PlotSeries truth, own, combined;
+};
+OffsetPlotSeries MakeOffsetPlotSeries(const std::string& combined_label);
+
 }  // namespace retrace

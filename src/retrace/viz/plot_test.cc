@@ -47,6 +47,27 @@ TEST(RenderPlot, BarsAreDrawnWithHeightsInProportion) {
   EXPECT_NEAR(static_cast<double>(right) / left, 2.0, 0.05);
 }
 
+TEST(MakeOffsetPlotSeries, ThreeDistinctPointSeriesDrawnOverTheTruth) {
+  OffsetPlotSeries series = MakeOffsetPlotSeries("steered");
+  EXPECT_EQ(series.combined.label, "steered");
+  for (const PlotSeries* s : {&series.truth, &series.own, &series.combined}) {
+    EXPECT_EQ(s->style, PlotSeries::Style::kPoints);
+  }
+  EXPECT_NE(series.truth.color, series.own.color);
+  EXPECT_NE(series.own.color, series.combined.color);
+  EXPECT_GT(series.truth.thickness, series.combined.thickness);  // the truth stays visible around the estimates
+  // Drawn over the truth (first in the list), the estimates do not hide it where they leave it.
+  for (int i = 0; i < 20; ++i) {
+    series.truth.x.push_back(i);
+    series.truth.y.push_back(1.0);
+    series.combined.x.push_back(i);
+    series.combined.y.push_back(i < 10 ? 0.5 : 1.0);
+  }
+  const cv::Mat image = RenderPlot({series.truth, series.own, series.combined}, PlotOptions());
+  EXPECT_GT(CountColor(image, series.truth.color), 0);
+  EXPECT_GT(CountColor(image, series.combined.color), 0);
+}
+
 TEST(RenderPlot, HandlesEmptyAndNonFiniteData) {
   PlotSeries empty;
   PlotSeries bad;
