@@ -162,8 +162,8 @@ TEST(PathTracker, ARunOfFramesAMetreOffDoesNotTurnTheCar) {
   ASSERT_TRUE(without.reached_end);
   EXPECT_LT(MaxAbsAfter(with_filter, 0.0), 0.05);
   EXPECT_GT(MaxAbsAfter(without, 0.0), 0.3);
-  // The command reports the offset it steered by: the truth within a few centimetres during the seven frames (told
-  // 1 m off), and each frame's own where the window is off.
+  // The command reports the offset it steered by: with the window, the truth within a few centimetres during the
+  // seven frames told 1 m off; without it, each frame's own.
   ASSERT_GT(with_filter.steered.size(), 67u);
   for (int frame = 60; frame < 67; ++frame) {
     EXPECT_NEAR(with_filter.steered[frame], with_filter.lateral[frame], 0.05) << frame;
