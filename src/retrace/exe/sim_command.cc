@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <map>
 
 #include <nlohmann/json.hpp>
@@ -282,7 +283,11 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
       const FrameResult& r = *step.result;
       const Vector3d& c = step.view->world_from_cam.translation;
       const Vector3d forward = step.view->world_from_cam.rotation.col(2);
-      const auto number = [](double v) { return std::isfinite(v) ? fmt::format("{:.3f}", v) : std::string(); };
+      // A value with `digits` decimals, empty when not finite (a column the frame has no value for).
+      const auto number = [](double v, int digits = 3) {
+        return std::isfinite(v) ? fmt::format("{:.{}f}", v, digits) : std::string();
+      };
+      const double no_value = std::numeric_limits<double>::quiet_NaN();
       csv << fmt::format("{},{:.3f},{:.3f},{:.3f},{:.4f},{},{},{},{:.5f},{:.5f},{},{},{:.2f}", r.frame_index,
                          step.view->timestamp, c.x(), c.z(), std::atan2(forward.x(), forward.z()),
                          LocalizerStateName(r.state), r.arc, r.tracked, r.steering_valid ? r.steering : 0.0,
@@ -293,16 +298,12 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
                          number(step.true_heading_error))
           << fmt::format(",{:.5f},{:d},{},{}", r.confidence, r.evidence, r.belief_arc,
                          r.position_valid ? number(r.position_on_arc) : "")
-          << fmt::format(",{},{},{},{},{}", r.path.valid ? number(r.path.lateral_sigma_m) : "",
-                         r.path.valid ? number(r.path.frame_lateral_m) : "",
-                         r.path.valid ? number(r.path.frame_lateral_sigma_m) : "",
-                         r.path.valid ? fmt::format("{:.4f}", r.path.heading_sigma_rad) : "",
-                         number(step.command.lateral_m))
-          << fmt::format(",{},{}\n",
-                         std::isfinite(step.command.heading_error_rad)
-                             ? fmt::format("{:.4f}", step.command.heading_error_rad)
-                             : "",
-                         r.path.valid ? fmt::format("{:.5f}", r.path.curvature) : "");
+          << fmt::format(",{},{},{},{},{},{},{}\n", number(r.path.valid ? r.path.lateral_sigma_m : no_value),
+                         number(r.path.valid ? r.path.frame_lateral_m : no_value),
+                         number(r.path.valid ? r.path.frame_lateral_sigma_m : no_value),
+                         number(r.path.valid ? r.path.heading_sigma_rad : no_value, 4), number(step.command.lateral_m),
+                         number(step.command.heading_error_rad, 4),
+                         number(r.path.valid ? r.path.curvature : no_value, 5));
       PlotSeries& where = r.state == LocalizerState::kTracking ? driven : lost;
       where.x.push_back(c.x());
       where.y.push_back(c.z());

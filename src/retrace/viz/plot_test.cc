@@ -56,16 +56,22 @@ TEST(MakeOffsetPlotSeries, ThreeDistinctPointSeriesDrawnOverTheTruth) {
   EXPECT_NE(series.truth.color, series.own.color);
   EXPECT_NE(series.own.color, series.combined.color);
   EXPECT_GT(series.truth.thickness, series.combined.thickness);  // the truth stays visible around the estimates
-  // Drawn over the truth (first in the list), the estimates do not hide it where they leave it.
+  // Drawn over the truth (first in the list), an estimate lying on it leaves the wider truth visible around it: the
+  // right half of the plot, where the estimates equal the truth (and no legend is drawn), shows both colours.
   for (int i = 0; i < 20; ++i) {
     series.truth.x.push_back(i);
     series.truth.y.push_back(1.0);
     series.combined.x.push_back(i);
     series.combined.y.push_back(i < 10 ? 0.5 : 1.0);
   }
-  const cv::Mat image = RenderPlot({series.truth, series.own, series.combined}, PlotOptions());
-  EXPECT_GT(CountColor(image, series.truth.color), 0);
-  EXPECT_GT(CountColor(image, series.combined.color), 0);
+  PlotOptions options;
+  options.x_min = -0.5;
+  options.x_max = 19.5;
+  const cv::Mat image = RenderPlot({series.truth, series.own, series.combined}, options);
+  const cv::Mat without_truth = RenderPlot({series.own, series.combined}, options);  // the axes' grey stays
+  const auto right = [](const cv::Mat& m) { return m.colRange(m.cols / 2, m.cols); };
+  EXPECT_GT(CountColor(right(image), series.truth.color), CountColor(right(without_truth), series.truth.color) + 20);
+  EXPECT_GT(CountColor(right(image), series.combined.color), 0);
 }
 
 TEST(RenderPlot, HandlesEmptyAndNonFiniteData) {
