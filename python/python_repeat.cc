@@ -121,6 +121,9 @@ void BindLocalizer(py::module_& module) {
       .def_readonly("frame_lateral_sigma_m", &PathPose::frame_lateral_sigma_m, "Its standard deviation, m.")
       .def_readonly("heading_sigma_rad", &PathPose::heading_sigma_rad, "The heading error's standard deviation, rad.")
       .def_readonly("along_sigma_m", &PathPose::along_sigma_m, "along_m's standard deviation, m.")
+      .def_readonly("heading_per_lateral", &PathPose::heading_per_lateral,
+                    "The pose's regression of its heading error on its lateral offset, rad/m (about -1 / depth of "
+                    "its points; 0 unknown).")
       .def_readonly("heading_error_rad", &PathPose::heading_error_rad,
                     "The optical axis against the path's tangent, radians (positive to the right).")
       .def_readonly("along_m", &PathPose::along_m, "Distance along the path from node_from, m.")

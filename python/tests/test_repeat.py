@@ -31,7 +31,8 @@ def assert_same_as_run_csv(result, row):
     assert result.seconds > 0
     # The metric offset from the taught path (the map stores the camera's height).
     path_columns = ("lateral_m", "lateral_sigma_m", "heading_error_rad", "along_m", "to_next_m", "curvature_ahead",
-                    "frame_lateral_m", "frame_lateral_sigma_m", "heading_sigma_rad", "along_sigma_m")
+                    "frame_lateral_m", "frame_lateral_sigma_m", "heading_sigma_rad", "along_sigma_m",
+                    "heading_per_lateral")
     if row["lateral_m"] == "":
         assert result.path is None
     else:
@@ -39,7 +40,7 @@ def assert_same_as_run_csv(result, row):
         assert [f"{p.lateral_m:.4f}", f"{p.lateral_sigma_m:.4f}", f"{p.heading_error_rad:.5f}", f"{p.along_m:.3f}",
                 f"{p.to_next_m:.3f}", f"{p.curvature_ahead:.5f}", f"{p.frame_lateral_m:.4f}",
                 f"{p.frame_lateral_sigma_m:.4f}", f"{p.heading_sigma_rad:.5f}",
-                f"{p.along_sigma_m:.3f}"] == [row[column] for column in path_columns]
+                f"{p.along_sigma_m:.3f}", f"{p.heading_per_lateral:.5f}"] == [row[column] for column in path_columns]
 
 
 def test_localizer_gives_the_states_and_arcs_of_repeat(drives):

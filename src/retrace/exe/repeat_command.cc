@@ -5,7 +5,7 @@
 //   resumed,rejected,dropped,drifted,redefined,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,steering,ms,
 //   position_via_from,position_via_to,position_via_pose,sigma_p_pose,pose_inliers,key_images_matched,confidence,
 //   evidence,belief_arc,lateral_m,lateral_sigma_m,heading_error_rad,along_m,to_next_m,curvature_ahead,
-//   frame_lateral_m,frame_lateral_sigma_m,heading_sigma_rad,along_sigma_m
+//   frame_lateral_m,frame_lateral_sigma_m,heading_sigma_rad,along_sigma_m,heading_per_lateral
 // frame = 0-based index in the input sequence (after --every/--offset), state = tracking | lost | relocalizing,
 // node ids and arc -1 when not tracking, σ_p columns -1 when not estimated, ms = processing time of the frame,
 // position_on_arc the belief's position along the arc (0 at node_from, 1 at node_to), the position_via_* columns
@@ -353,7 +353,8 @@ void RunRepeat(const RepeatArguments& args) {
          "resumed,rejected,dropped,drifted,redefined,sigma_p,sigma_p_from,sigma_p_to,position_on_arc,transition,"
          "steering,ms,position_via_from,position_via_to,position_via_pose,sigma_p_pose,pose_inliers,"
          "key_images_matched,confidence,evidence,belief_arc,lateral_m,lateral_sigma_m,heading_error_rad,along_m,"
-         "to_next_m,curvature_ahead,frame_lateral_m,frame_lateral_sigma_m,heading_sigma_rad,along_sigma_m\n";
+         "to_next_m,curvature_ahead,frame_lateral_m,frame_lateral_sigma_m,heading_sigma_rad,along_sigma_m,"
+         "heading_per_lateral\n";
   csv.flush();
   if (!args.overlay.empty()) std::filesystem::create_directories(args.overlay);
 
@@ -379,12 +380,13 @@ void RunRepeat(const RepeatArguments& args) {
                          OptionalNumber(r.position_via_to), OptionalNumber(r.position_via_pose), r.sigma_p_pose,
                          r.pose_inliers, r.key_images_matched, r.confidence, r.evidence ? 1 : 0, r.belief_arc);
       if (r.path.valid) {
-        csv << fmt::format(",{:.4f},{:.4f},{:.5f},{:.3f},{:.3f},{:.5f},{:.4f},{:.4f},{:.5f},{:.3f}\n", r.path.lateral_m,
-                           r.path.lateral_sigma_m, r.path.heading_error_rad, r.path.along_m, r.path.to_next_m,
-                           r.path.curvature_ahead, r.path.frame_lateral_m, r.path.frame_lateral_sigma_m,
-                           r.path.heading_sigma_rad, r.path.along_sigma_m);
+        csv << fmt::format(",{:.4f},{:.4f},{:.5f},{:.3f},{:.3f},{:.5f},{:.4f},{:.4f},{:.5f},{:.3f},{:.5f}\n",
+                           r.path.lateral_m, r.path.lateral_sigma_m, r.path.heading_error_rad, r.path.along_m,
+                           r.path.to_next_m, r.path.curvature_ahead, r.path.frame_lateral_m,
+                           r.path.frame_lateral_sigma_m, r.path.heading_sigma_rad, r.path.along_sigma_m,
+                           r.path.heading_per_lateral);
       } else {
-        csv << ",,,,,,,,,,\n";
+        csv << ",,,,,,,,,,,\n";
       }
       csv.flush();
       if (!csv) throw InputError(args.output.string(), "write failed");

@@ -297,7 +297,10 @@ AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world, 
       const Matrix3d& r = pose.rotation;
       result.centre_covariance = r.transpose() * translation_covariance * r;
       result.rotation_covariance = covariance.topLeftCorner<3, 3>();
-      result.covariance_valid = result.centre_covariance.allFinite() && result.rotation_covariance.allFinite();
+      // δC = −Rᵀ δt (the left-multiplied update of Refine), so E[δω δCᵀ] = −E[δω δtᵀ] R.
+      result.rotation_centre_covariance = -covariance.topRightCorner<3, 3>() * r;
+      result.covariance_valid = result.centre_covariance.allFinite() && result.rotation_covariance.allFinite() &&
+                                result.rotation_centre_covariance.allFinite();
     }
   }
   result.success = true;

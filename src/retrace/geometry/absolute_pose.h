@@ -73,6 +73,10 @@ struct AbsolutePose {
   // Covariance of the rotation (radians²) as a small rotation δω of the camera in its own frame, cam_from_world
   // becoming exp(δω) · cam_from_world: the same normal equations restricted to the rotation. Valid with it.
   Matrix3d rotation_covariance = Matrix3d::Zero();
+  // Their cross-covariance E[δω δCᵀ] (radians · unit of the points): a camera that rests on points at one depth Z
+  // trades a sideways shift of its centre against a turn (the bas-relief ambiguity), δω ≈ δC / Z about the axis
+  // perpendicular to both, which this holds and the two blocks alone do not.
+  Matrix3d rotation_centre_covariance = Matrix3d::Zero();
   bool covariance_valid = false;
   int num_iterations = 0;  // samples drawn
 };

@@ -667,6 +667,7 @@ class Localizer {
     std::optional<Matrix3d> centre_covariance;
     double noise_floor_factor = 1.0;  // LocalizerOptions::lateral_noise_floor_px
     std::optional<Matrix3d> rotation_covariance;
+    std::optional<Matrix3d> rotation_centre_covariance;
   };
   std::optional<LastPose> last_pose_;
   // The lane: the lateral offsets of the recent poses the belief took as right and that had not collapsed towards

@@ -271,7 +271,8 @@ std::vector<Vector2d> KeyImageTangents(const std::vector<Vector2d>& centres, con
 }
 
 PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const Matrix3d* centre_covariance,
-                            arc_t reported_arc, const Matrix3d* rotation_covariance) {
+                            arc_t reported_arc, const Matrix3d* rotation_covariance,
+                            const Matrix3d* rotation_centre_covariance) {
   PathPose pose;
   const MapArc* arc = map_.FindArc(pose_arc);
   if (!enabled() || arc == nullptr || !GroundNormal()) return pose;
@@ -402,6 +403,20 @@ PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const
     heading_variance += std::max(0.0, normal_in_camera.dot(*rotation_covariance * normal_in_camera));
   }
   pose.heading_sigma_rad = std::sqrt(heading_variance);
+  // The heading's regression on the offset. A small rotation δω turns the optical axis by Rᵀ (z × δω) (the camera
+  // becoming exp(δω) · current_from_a), which turns its trace on the ground by δψ = gᵀ δω, g = (R g_axis) × z with
+  // g_axis the heading's gradient in the axis; the offset moves by δe = s acrossᵀ δC (s metres per unit).
+  if (centre_covariance != nullptr && rotation_centre_covariance != nullptr) {
+    const double x = tangent.dot(look);
+    const double y = tangent.y() * look.x() - tangent.x() * look.y();  // ψ = atan2(y, x)
+    const Vector2d gradient_look = (x * Vector2d(tangent.y(), -tangent.x()) - y * tangent) / (x * x + y * y);
+    const Vector3d gradient_axis = gradient_look.x() * right + gradient_look.y() * forward;
+    const Vector3d g = (current_from_a.rotation * gradient_axis).cross(Vector3d::UnitZ());
+    const double lateral_variance = *scale * *scale * across.dot(*centre_covariance * across);
+    if (lateral_variance > 0) {
+      pose.heading_per_lateral = *scale * g.dot(*rotation_centre_covariance * across) / lateral_variance;
+    }
+  }
   pose.frame_lateral_m = pose.lateral_m;
   pose.frame_lateral_sigma_m = pose.lateral_sigma_m;
   pose.scale_sigma = arc_sigma;

@@ -88,6 +88,12 @@ struct PathPose {
   // (LocalizerOptions::lateral_filter), and this frame's own here (TaughtPath::Locate: the same as lateral_m).
   double frame_lateral_m = 0.0;
   double frame_lateral_sigma_m = 0.0;
+  // How the pose's heading error moves with its lateral offset's error (rad/m): the regression cov(ψ, e) / var(e)
+  // of the two through the pose's covariance (the centre's, the rotation's and their cross-covariance; not the
+  // scale's or the path's). A pose fitted to points at about one depth Z trades a sideways shift for a turn that
+  // keeps them in view, ≈ −1 / Z (the bas-relief ambiguity): given a better offset e' than the frame's, the heading
+  // is best taken as ψ + heading_per_lateral · (e' − frame_lateral_m). 0 when unknown.
+  double heading_per_lateral = 0.0;
 };
 
 // One arc's ground-plane scale carried into the unit of the arc being scaled (through `steps` node scales, on one
@@ -138,9 +144,10 @@ class TaughtPath {
   // The camera placed at `current_from_a` in the reconstruction of `pose_arc` (its frame and unit), with its
   // centre's covariance there (may be null), relative to the taught path around `reported_arc` (pose_arc or one of
   // its neighbours). `rotation_covariance`: of the camera's rotation in its own frame (AbsolutePose; may be null),
-  // for heading_sigma_rad. Invalid when disabled or no metric scale is known.
+  // for heading_sigma_rad; `rotation_centre_covariance` their cross-covariance (AbsolutePose; may be null), for
+  // heading_per_lateral. Invalid when disabled or no metric scale is known.
   PathPose Locate(arc_t pose_arc, const Rigid3d& current_from_a, const Matrix3d* centre_covariance, arc_t reported_arc,
-                  const Matrix3d* rotation_covariance = nullptr);
+                  const Matrix3d* rotation_covariance = nullptr, const Matrix3d* rotation_centre_covariance = nullptr);
 
  private:
   struct ArcGround;
