@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <vector>
 
@@ -70,7 +71,11 @@ double PathTracker::FilteredOffset(const PathTrackingInput& input, double dt) {
   // The camera moved speed·dt since the last frame in the direction φ = ψ − atan(d κ) relative to the path.
   if (!offsets_.empty()) {
     const double travelled = speed_ * dt;
-    const double direction = input.heading_error_rad - std::atan(options_.camera_forward * curvature_);
+    // With heading_from_offset the heading of the last frame, taken with its combined offset (this frame's own may
+    // come with an offset the window corrects, and would carry the window's frames by its error).
+    const double heading =
+        options_.heading_from_offset && std::isfinite(steered_heading_) ? steered_heading_ : input.heading_error_rad;
+    const double direction = heading - std::atan(options_.camera_forward * curvature_);
     distance_ += travelled;
     drift_ += travelled * std::sin(direction);
   }
@@ -85,6 +90,7 @@ PathTrackingCommand PathTracker::Update(const PathTrackingInput& input, bool pre
   if (!input.tracking) {
     // Lost: stop now; the wheels keep their angle (nothing to steer by).
     offsets_.Clear();
+    steered_heading_ = std::numeric_limits<double>::quiet_NaN();
     speed_ = 0.0;
     command.mode = SteeringMode::kStop;
     command.curvature = curvature_;
@@ -98,14 +104,21 @@ PathTrackingCommand PathTracker::Update(const PathTrackingInput& input, bool pre
     if (options_.offset.process_sigma > 0) lateral = FilteredOffset(input, dt);
     command.lateral_m = lateral;
     command.heading_error_rad = input.heading_error_rad;  // each frame's own (a filter over frames, README: not kept)
-    wanted = CameraPointCurvature(lateral, input.heading_error_rad, options_);
+    if (options_.heading_from_offset && std::isfinite(input.heading_per_lateral)) {
+      command.heading_error_rad += input.heading_per_lateral * (lateral - input.lateral_m);
+    }
+    steered_heading_ = command.heading_error_rad;
+    wanted = CameraPointCurvature(lateral, command.heading_error_rad, options_);
   } else if (input.image_steering_valid) {
     command.mode = SteeringMode::kImage;
     wanted = -options_.image_gain * input.image_steering;
   } else {
     command.mode = SteeringMode::kImage;  // nothing new to steer by: hold the wheels
   }
-  if (command.mode != SteeringMode::kPath) offsets_.Clear();  // the filtered offset starts again with the metric path
+  if (command.mode != SteeringMode::kPath) {  // the filtered offset starts again with the metric path
+    offsets_.Clear();
+    steered_heading_ = std::numeric_limits<double>::quiet_NaN();
+  }
   wanted = std::clamp(wanted, -options_.max_curvature, options_.max_curvature);
   const double step = options_.max_curvature_rate * dt;
   curvature_ = dt > 0 ? std::clamp(wanted, curvature_ - step, curvature_ + step) : wanted;

@@ -18,7 +18,9 @@
 //
 // The offset e the law uses is not the frame's alone: the recent frames' offsets, carried to the current frame by the
 // commanded motion (de/ds = sin φ), are combined robustly (PathTrackingOptions::offset), so that a run of frames a
-// metre off does not turn the car towards a phantom path.
+// metre off does not turn the car towards a phantom path. Optionally (`heading_from_offset`) the heading is the one
+// that goes with that combined offset through the pose's covariance (the bas-relief ambiguity; README: a trade over
+// the closed-loop drives, off by default).
 //
 // Without a metric offset (no camera height, or no usable absolute pose in this frame) the law falls back to the
 // image steering of Segvic 2009, eq. (10) (control/steering.h): κ = −image_gain · w. Curvature is limited in value
@@ -67,6 +69,11 @@ struct PathTrackingOptions {
   // frames in a row (seed3 of the validation matrix: 7 frames, 5.6 m; seed6: 14); the window must hold more right
   // frames than such a run. offset.process_sigma 0: each frame's own offset.
   ObservationWindowOptions offset;
+  // Steer by the heading the frame's pose gives with the combined offset instead of its own: ψ + b · (e_c − e),
+  // b = PathTrackingInput::heading_per_lateral. A pose resting on points at one depth Z puts the camera δe aside
+  // and turned by about −δe / Z together (the bas-relief ambiguity); where the combined offset e_c corrects δe, this
+  // corrects the turn that came with it.
+  bool heading_from_offset = false;
   bool Check(std::string* error = nullptr) const;
 };
 
@@ -78,6 +85,7 @@ struct PathTrackingInput {
   double lateral_m = 0.0;        // positive right of the path
   double lateral_sigma_m = 0.0;  // its standard deviation
   double heading_error_rad = 0.0;  // positive looking right of the path
+  double heading_per_lateral = 0.0;  // rad/m, the pose's regression of its heading on its offset (0 unknown)
   double curvature_ahead = 0.0;  // 1/m, the sharpest of the taught path ahead (0 when unknown)
   bool image_steering_valid = false;
   double image_steering = 0.0;   // w of eq. (10)
@@ -92,7 +100,8 @@ struct PathTrackingCommand {
   double curvature = 0.0;  // 1/m, positive turning left
   double speed = 0.0;      // m/s
   // The lateral offset and heading error the law steered by (kPath: the offset of the recent frames combined, the
-  // frame's own heading error); NaN in the other modes.
+  // frame's own heading error or, with heading_from_offset, the one that goes with that offset); NaN in the other
+  // modes.
   double lateral_m = std::numeric_limits<double>::quiet_NaN();
   double heading_error_rad = std::numeric_limits<double>::quiet_NaN();
 };
@@ -117,6 +126,7 @@ class PathTracker {
   ObservationWindow offsets_;
   double distance_ = 0.0;
   double drift_ = 0.0;  // ∫ sin φ ds
+  double steered_heading_ = std::numeric_limits<double>::quiet_NaN();  // the last frame's, with heading_from_offset
 };
 
 }  // namespace retrace

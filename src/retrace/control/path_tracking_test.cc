@@ -171,6 +171,33 @@ TEST(PathTracker, ARunOfFramesAMetreOffDoesNotTurnTheCar) {
   }
 }
 
+// The same run with the bas-relief: the seven frames' poses rest on points 20 m ahead, where a camera 1 m left and
+// turned 1/20 rad right of the truth sees them alike (heading_per_lateral −1/20 rad/m). The filtered offset
+// corrects the offset but not the turn that came with it; with heading_from_offset the law steers by the heading
+// that goes with the filtered offset, the truth.
+TEST(PathTracker, ARunOfBasReliefFramesTurnsTheCarOnlyWithTheirOwnHeading) {
+  const TestPath path = MakePath(120.0, [](double) { return 0.0; });
+  const double depth = 20.0;
+  std::vector<double> true_heading;
+  const auto phantom = [&](int frame, PathTrackingInput* input) {
+    const bool wrong = frame >= 60 && frame < 67;
+    true_heading.push_back(input->heading_error_rad);
+    input->lateral_m -= wrong ? 1.0 : 0.0;
+    input->heading_error_rad += wrong ? 1.0 / depth : 0.0;
+    input->heading_per_lateral = -1.0 / depth;
+    input->lateral_sigma_m = wrong ? 0.05 : 0.03;
+  };
+  PathTrackingOptions conditioned = FastOptions();
+  conditioned.heading_from_offset = true;
+  const DriveResult with_heading = Drive(path, 8.0, 0.1, 0.0, conditioned, 2.7, phantom);
+  ASSERT_TRUE(with_heading.reached_end);
+  EXPECT_LT(MaxAbsAfter(with_heading, 0.0), 0.05);
+  true_heading.clear();
+  const DriveResult own_heading = Drive(path, 8.0, 0.1, 0.0, FastOptions(), 2.7, phantom);
+  ASSERT_TRUE(own_heading.reached_end);
+  EXPECT_GT(MaxAbsAfter(own_heading, 0.0), 0.15);
+}
+
 TEST(PathTracker, FilteredOffsetFollowsTheCarOntoThePath) {
   // From 1.5 m beside, the offset closes over ~10 m: carried by the commanded motion, the frames of the window agree
   // with the current one, and the car converges as with each frame's own offset.

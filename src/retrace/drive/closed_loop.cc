@@ -120,6 +120,7 @@ ClosedLoopSummary DriveClosedLoop(Simulator* simulator, Localizer* localizer, co
     input.lateral_m = result.path.frame_lateral_m;
     input.lateral_sigma_m = result.path.frame_lateral_sigma_m;
     input.heading_error_rad = result.path.heading_error_rad;
+    input.heading_per_lateral = result.path.heading_per_lateral;
     input.curvature_ahead = result.path.curvature_ahead;  // 0 when the frame has no metric path
     input.image_steering_valid = result.steering_valid;
     input.image_steering = result.steering;

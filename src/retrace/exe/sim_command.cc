@@ -255,7 +255,7 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   csv << "frame,timestamp,x,z,heading,state,arc,tracked,steering,wheels,deviation,along,ms,mode,curvature,speed,"
          "lateral_m,heading_error_rad,true_lateral_m,true_heading_error_rad,confidence,evidence,belief_arc,"
          "position_on_arc,lateral_sigma_m,frame_lateral_m,frame_lateral_sigma_m,heading_sigma_rad,steered_lateral_m,"
-         "steered_heading_error_rad,path_curvature\n";
+         "steered_heading_error_rad,path_curvature,heading_per_lateral\n";
   PlotSeries driven, lost, path;
   driven.label = "driven (tracking)";
   driven.style = PlotSeries::Style::kPoints;
@@ -298,12 +298,13 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
                          number(step.true_heading_error))
           << fmt::format(",{:.5f},{:d},{},{}", r.confidence, r.evidence, r.belief_arc,
                          r.position_valid ? number(r.position_on_arc) : "")
-          << fmt::format(",{},{},{},{},{},{},{}\n", number(r.path.valid ? r.path.lateral_sigma_m : no_value),
+          << fmt::format(",{},{},{},{},{},{},{}", number(r.path.valid ? r.path.lateral_sigma_m : no_value),
                          number(r.path.valid ? r.path.frame_lateral_m : no_value),
                          number(r.path.valid ? r.path.frame_lateral_sigma_m : no_value),
                          number(r.path.valid ? r.path.heading_sigma_rad : no_value, 4), number(step.command.lateral_m),
                          number(step.command.heading_error_rad, 4),
-                         number(r.path.valid ? r.path.curvature : no_value, 5));
+                         number(r.path.valid ? r.path.curvature : no_value, 5))
+          << fmt::format(",{}\n", number(r.path.valid ? r.path.heading_per_lateral : no_value, 5));
       PlotSeries& where = r.state == LocalizerState::kTracking ? driven : lost;
       where.x.push_back(c.x());
       where.y.push_back(c.z());
@@ -682,6 +683,9 @@ void RegisterSimCommand(CLI::App& app) {
   drive->add_option("--approach-distance", args->drive.tracking.approach_distance,
                     "Distance over which the path law closes a lateral offset (m)")
       ->capture_default_str();
+  drive->add_flag("--heading-from-offset", args->drive.tracking.heading_from_offset,
+                  "Path law: steer by the heading that goes with the recent frames' combined offset (the pose's "
+                  "heading-offset covariance) instead of the frame's own");
   drive->add_option("--image-gain", args->drive.tracking.image_gain,
                     "eq. (10) law: curvature = -gain * w (1/m), [-100, 100]")
       ->capture_default_str();
