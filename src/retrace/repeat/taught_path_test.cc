@@ -9,6 +9,7 @@
 
 #include "retrace/camera/perspective_camera.h"
 #include "retrace/geometry/essential.h"
+#include "retrace/repeat/linear_map_testing.h"
 
 namespace retrace {
 namespace {
@@ -146,21 +147,12 @@ namespace {
 // heading_per_lateral is the regression of the heading error on the lateral offset through the pose's covariance.
 // With a covariance of rank one, (δω, δC) = (u, v) ξ, the heading and the offset move together as the pose moves
 // along (u, v), and the regression is the ratio of their changes — measured here by moving the pose and locating
-// it again. A camera 0.4 m right of a straight 4 m arc, turned 0.05 rad, its ground 1.5 m below.
+// it again. A camera 0.4 m right of a straight 3 m arc, turned 0.05 rad, its ground 1.5 m below.
 TEST(TaughtPathTest, HeadingPerLateralFollowsThePoseCovariance) {
-  Map map;
-  for (node_t id : {0, 1}) {
-    MapNode node;
-    node.id = id;
-    map.AddNode(node);
-  }
-  MapArc arc;
-  arc.id = 0;
-  arc.from = 0;
-  arc.to = 1;
+  Map map = LinearMap(1);
+  MapArc& arc = *map.MutableArc(0);
   arc.to_from_from = Rigid3d(Matrix3d::Identity(), Vector3d(0.0, 0.0, -1.0));  // b one unit ahead of a
   arc.ground_fit = MapArc::GroundFit{0.5, 0.005};                              // 3 m per unit
-  map.AddArc(arc);
   TaughtPathOptions options;
   options.camera_height = 1.5;
   options.ground.normal_in_camera = Vector3d(0.0, 1.0, 0.0);
