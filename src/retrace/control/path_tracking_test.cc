@@ -178,10 +178,8 @@ TEST(PathTracker, ARunOfFramesAMetreOffDoesNotTurnTheCar) {
 TEST(PathTracker, ARunOfBasReliefFramesTurnsTheCarOnlyWithTheirOwnHeading) {
   const TestPath path = MakePath(120.0, [](double) { return 0.0; });
   const double depth = 20.0;
-  std::vector<double> true_heading;
   const auto phantom = [&](int frame, PathTrackingInput* input) {
     const bool wrong = frame >= 60 && frame < 67;
-    true_heading.push_back(input->heading_error_rad);
     input->lateral_m -= wrong ? 1.0 : 0.0;
     input->heading_error_rad += wrong ? 1.0 / depth : 0.0;
     input->heading_per_lateral = -1.0 / depth;
@@ -192,7 +190,6 @@ TEST(PathTracker, ARunOfBasReliefFramesTurnsTheCarOnlyWithTheirOwnHeading) {
   const DriveResult with_heading = Drive(path, 8.0, 0.1, 0.0, conditioned, 2.7, phantom);
   ASSERT_TRUE(with_heading.reached_end);
   EXPECT_LT(MaxAbsAfter(with_heading, 0.0), 0.05);
-  true_heading.clear();
   const DriveResult own_heading = Drive(path, 8.0, 0.1, 0.0, FastOptions(), 2.7, phantom);
   ASSERT_TRUE(own_heading.reached_end);
   EXPECT_GT(MaxAbsAfter(own_heading, 0.0), 0.15);
