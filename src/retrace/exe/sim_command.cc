@@ -287,7 +287,8 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
       const auto number = [](double v, int digits = 3) {
         return std::isfinite(v) ? fmt::format("{:.{}f}", v, digits) : std::string();
       };
-      const double no_value = std::numeric_limits<double>::quiet_NaN();
+      // A value of the frame's metric path, NaN (an empty column) when it has none.
+      const auto on_path = [&r](double v) { return r.path.valid ? v : std::numeric_limits<double>::quiet_NaN(); };
       csv << fmt::format("{},{:.3f},{:.3f},{:.3f},{:.4f},{},{},{},{:.5f},{:.5f},{},{},{:.2f}", r.frame_index,
                          step.view->timestamp, c.x(), c.z(), std::atan2(forward.x(), forward.z()),
                          LocalizerStateName(r.state), r.arc, r.tracked, r.steering_valid ? r.steering : 0.0,
@@ -298,13 +299,11 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
                          number(step.true_heading_error))
           << fmt::format(",{:.5f},{:d},{},{}", r.confidence, r.evidence, r.belief_arc,
                          r.position_valid ? number(r.position_on_arc) : "")
-          << fmt::format(",{},{},{},{},{},{},{}", number(r.path.valid ? r.path.lateral_sigma_m : no_value),
-                         number(r.path.valid ? r.path.frame_lateral_m : no_value),
-                         number(r.path.valid ? r.path.frame_lateral_sigma_m : no_value),
-                         number(r.path.valid ? r.path.heading_sigma_rad : no_value, 4), number(step.command.lateral_m),
-                         number(step.command.heading_error_rad, 4),
-                         number(r.path.valid ? r.path.curvature : no_value, 5))
-          << fmt::format(",{}\n", number(r.path.valid ? r.path.heading_per_lateral : no_value, 5));
+          << fmt::format(",{},{},{},{},{},{},{}", number(on_path(r.path.lateral_sigma_m)),
+                         number(on_path(r.path.frame_lateral_m)), number(on_path(r.path.frame_lateral_sigma_m)),
+                         number(on_path(r.path.heading_sigma_rad), 4), number(step.command.lateral_m),
+                         number(step.command.heading_error_rad, 4), number(on_path(r.path.curvature), 5))
+          << fmt::format(",{}\n", number(on_path(r.path.heading_per_lateral), 5));
       PlotSeries& where = r.state == LocalizerState::kTracking ? driven : lost;
       where.x.push_back(c.x());
       where.y.push_back(c.z());

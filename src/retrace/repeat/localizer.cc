@@ -410,11 +410,8 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
   // The camera relative to the taught path in metres, from this frame's usable absolute pose.
   if (result.state == LocalizerState::kTracking && path_ != nullptr && last_pose_ && last_pose_->usable &&
       last_pose_->frame == frame_counter_) {
-    result.path =
-        path_->Locate(last_pose_->arc, last_pose_->current_from_from,
-                      last_pose_->centre_covariance ? &*last_pose_->centre_covariance : nullptr, arc_,
-                      last_pose_->rotation_covariance ? &*last_pose_->rotation_covariance : nullptr,
-                      last_pose_->rotation_centre_covariance ? &*last_pose_->rotation_centre_covariance : nullptr);
+    result.path = path_->Locate(last_pose_->arc, last_pose_->current_from_from,
+                                last_pose_->covariance ? &*last_pose_->covariance : nullptr, arc_);
   }
   if (result.state == LocalizerState::kTracking && result.path.valid) FilterLateralOffset(result.arc, &result.path);
   if (result.state != LocalizerState::kTracking) {
@@ -784,10 +781,11 @@ void Localizer::Localize(FrameResult* result) {
                    pose.cam_from_world,
                    frame_counter_,
                    pose.sigma_p < max_sigma_p_px_,
-                   pose.covariance_valid ? std::optional<Matrix3d>(pose.centre_covariance) : std::nullopt,
-                   NoiseFloorFactor(pose, options_.lateral_noise_floor_px * pixel_scale_),
-                   pose.covariance_valid ? std::optional<Matrix3d>(pose.rotation_covariance) : std::nullopt,
-                   pose.covariance_valid ? std::optional<Matrix3d>(pose.rotation_centre_covariance) : std::nullopt};
+                   pose.covariance_valid
+                       ? std::optional<PoseCovariance>(PoseCovariance{pose.centre_covariance, pose.rotation_covariance,
+                                                                      pose.rotation_centre_covariance})
+                       : std::nullopt,
+                   NoiseFloorFactor(pose, options_.lateral_noise_floor_px * pixel_scale_)};
       result->sigma_p_pose = pose.sigma_p;
       result->pose_inliers = pose.num_inliers;
       const ArcPosition position_pose = LocateOnArc(pose.cam_from_world, arc->arc->to_from_from, arc->bounds);

@@ -664,10 +664,8 @@ class Localizer {
     Rigid3d current_from_from;  // in the arc's frame and unit
     size_t frame = 0;           // frame counter of the estimate
     bool usable = false;        // σ_p below the gate
-    std::optional<Matrix3d> centre_covariance;
+    std::optional<PoseCovariance> covariance;
     double noise_floor_factor = 1.0;  // LocalizerOptions::lateral_noise_floor_px
-    std::optional<Matrix3d> rotation_covariance;
-    std::optional<Matrix3d> rotation_centre_covariance;
   };
   std::optional<LastPose> last_pose_;
   // The lane: the lateral offsets of the recent poses the belief took as right and that had not collapsed towards

@@ -270,9 +270,8 @@ std::vector<Vector2d> KeyImageTangents(const std::vector<Vector2d>& centres, con
   return tangents;
 }
 
-PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const Matrix3d* centre_covariance,
-                            arc_t reported_arc, const Matrix3d* rotation_covariance,
-                            const Matrix3d* rotation_centre_covariance) {
+PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const PoseCovariance* covariance,
+                            arc_t reported_arc) {
   PathPose pose;
   const MapArc* arc = map_.FindArc(pose_arc);
   if (!enabled() || arc == nullptr || !GroundNormal()) return pose;
@@ -388,34 +387,31 @@ PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const
 
   // First-order uncertainty of the lateral offset: the centre's covariance across the path, and the scale's.
   const Vector3d across = right_of_path.x() * right + right_of_path.y() * forward;
-  double variance = std::pow(pose.lateral_m * arc_sigma, 2);
-  if (centre_covariance != nullptr) variance += *scale * *scale * across.dot(*centre_covariance * across);
-  pose.lateral_sigma_m = std::sqrt(variance);
+  const double pose_lateral_variance =
+      covariance != nullptr ? *scale * *scale * across.dot(covariance->centre * across) : 0.0;
+  pose.lateral_sigma_m = std::sqrt(std::pow(pose.lateral_m * arc_sigma, 2) + pose_lateral_variance);
   // ... along the path likewise; the heading turns about the ground's normal, which a small rotation δω of the camera
   // (its own frame) turns by the normal's component of δω there (first order, exact for a level optical axis).
   const Vector3d along_path = tangent.x() * right + tangent.y() * forward;
   double along_variance = std::pow(pose.along_m * arc_sigma, 2);
-  if (centre_covariance != nullptr) along_variance += *scale * *scale * along_path.dot(*centre_covariance * along_path);
+  if (covariance != nullptr) along_variance += *scale * *scale * along_path.dot(covariance->centre * along_path);
   pose.along_sigma_m = std::sqrt(along_variance);
   double heading_variance = options_.tangent_sigma_rad * options_.tangent_sigma_rad;
-  if (rotation_covariance != nullptr) {
+  if (covariance != nullptr) {
     const Vector3d normal_in_camera = current_from_a.rotation * n;
-    heading_variance += std::max(0.0, normal_in_camera.dot(*rotation_covariance * normal_in_camera));
+    heading_variance += std::max(0.0, normal_in_camera.dot(covariance->rotation * normal_in_camera));
   }
   pose.heading_sigma_rad = std::sqrt(heading_variance);
   // The heading's regression on the offset. A small rotation δω turns the optical axis by Rᵀ (z × δω) (the camera
   // becoming exp(δω) · current_from_a), which turns its trace on the ground by δψ = gᵀ δω, g = (R g_axis) × z with
   // g_axis the heading's gradient in the axis; the offset moves by δe = s acrossᵀ δC (s metres per unit).
-  if (centre_covariance != nullptr && rotation_centre_covariance != nullptr) {
+  if (pose_lateral_variance > 0) {
     const double x = tangent.dot(look);
     const double y = tangent.y() * look.x() - tangent.x() * look.y();  // ψ = atan2(y, x)
     const Vector2d gradient_look = (x * Vector2d(tangent.y(), -tangent.x()) - y * tangent) / (x * x + y * y);
     const Vector3d gradient_axis = gradient_look.x() * right + gradient_look.y() * forward;
     const Vector3d g = (current_from_a.rotation * gradient_axis).cross(Vector3d::UnitZ());
-    const double lateral_variance = *scale * *scale * across.dot(*centre_covariance * across);
-    if (lateral_variance > 0) {
-      pose.heading_per_lateral = *scale * g.dot(*rotation_centre_covariance * across) / lateral_variance;
-    }
+    pose.heading_per_lateral = *scale * g.dot(covariance->rotation_centre * across) / pose_lateral_variance;
   }
   pose.frame_lateral_m = pose.lateral_m;
   pose.frame_lateral_sigma_m = pose.lateral_sigma_m;

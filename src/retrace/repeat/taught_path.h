@@ -96,6 +96,15 @@ struct PathPose {
   double heading_per_lateral = 0.0;
 };
 
+// The covariance of an absolute pose in an arc's reconstruction (AbsolutePose, geometry/absolute_pose.h): of the
+// camera centre (arc frame and unit²), of its rotation δω in its own frame (radians²), and their cross-covariance
+// E[δω δCᵀ].
+struct PoseCovariance {
+  Matrix3d centre = Matrix3d::Zero();
+  Matrix3d rotation = Matrix3d::Zero();
+  Matrix3d rotation_centre = Matrix3d::Zero();
+};
+
 // One arc's ground-plane scale carried into the unit of the arc being scaled (through `steps` node scales, on one
 // side of it).
 struct CarriedScale {
@@ -141,13 +150,11 @@ class TaughtPath {
   // key-images, ≈ 5-8 ms at 320x240); distance_b 0 when there is none. What teach stores (StoreGroundFits).
   MapArc::GroundFit GroundFit(arc_t arc);
 
-  // The camera placed at `current_from_a` in the reconstruction of `pose_arc` (its frame and unit), with its
-  // centre's covariance there (may be null), relative to the taught path around `reported_arc` (pose_arc or one of
-  // its neighbours). `rotation_covariance`: of the camera's rotation in its own frame (AbsolutePose; may be null),
-  // for heading_sigma_rad; `rotation_centre_covariance` their cross-covariance (AbsolutePose; may be null), for
-  // heading_per_lateral. Invalid when disabled or no metric scale is known.
-  PathPose Locate(arc_t pose_arc, const Rigid3d& current_from_a, const Matrix3d* centre_covariance, arc_t reported_arc,
-                  const Matrix3d* rotation_covariance = nullptr, const Matrix3d* rotation_centre_covariance = nullptr);
+  // The camera placed at `current_from_a` in the reconstruction of `pose_arc` (its frame and unit), relative to the
+  // taught path around `reported_arc` (pose_arc or one of its neighbours). `covariance` (may be null: the pose taken
+  // as exact) gives lateral_sigma_m, along_sigma_m, heading_sigma_rad and heading_per_lateral. Invalid when disabled
+  // or no metric scale is known.
+  PathPose Locate(arc_t pose_arc, const Rigid3d& current_from_a, const PoseCovariance* covariance, arc_t reported_arc);
 
  private:
   struct ArcGround;

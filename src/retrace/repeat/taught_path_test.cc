@@ -167,11 +167,8 @@ TEST(TaughtPathTest, HeadingPerLateralFollowsThePoseCovariance) {
   for (const auto& [u, v] : {std::pair{Vector3d(0.0, 1.0, 0.0), Vector3d(-1.0, 0.0, 0.0)},
                              std::pair{Vector3d(0.1, 0.7, 0.2), Vector3d(0.5, 0.2, 0.3)},
                              std::pair{Vector3d(0.0, -0.3, 0.0), Vector3d(2.0, 0.0, 0.4)}}) {
-    const Matrix3d centre_covariance = v * v.transpose();
-    const Matrix3d rotation_covariance = u * u.transpose();
-    const Matrix3d cross = u * v.transpose();
-    const PathPose located =
-        path.Locate(0, pose_at(centre, rotation), &centre_covariance, 0, &rotation_covariance, &cross);
+    const PoseCovariance covariance{v * v.transpose(), u * u.transpose(), u * v.transpose()};
+    const PathPose located = path.Locate(0, pose_at(centre, rotation), &covariance, 0);
     ASSERT_TRUE(located.valid);
     EXPECT_NEAR(located.lateral_m, 0.4, 1e-9);
     EXPECT_NEAR(located.heading_error_rad, 0.05, 1e-9);  // turned right of the path (about the downward normal)
@@ -182,9 +179,8 @@ TEST(TaughtPathTest, HeadingPerLateralFollowsThePoseCovariance) {
         (moved.heading_error_rad - located.heading_error_rad) / (moved.lateral_m - located.lateral_m);
     EXPECT_NEAR(located.heading_per_lateral, expected, 1e-4 * std::max(1.0, std::abs(expected)));
   }
-  // Without the cross-covariance it is unknown.
-  const Matrix3d centre_covariance = Matrix3d::Identity();
-  EXPECT_EQ(path.Locate(0, pose_at(centre, rotation), &centre_covariance, 0).heading_per_lateral, 0.0);
+  // Without a covariance it is unknown.
+  EXPECT_EQ(path.Locate(0, pose_at(centre, rotation), nullptr, 0).heading_per_lateral, 0.0);
 }
 
 }  // namespace
