@@ -204,6 +204,7 @@ struct DriveArguments {
   // found by retrieval over the whole map (no_start_arc, a robot that does not know where it was put down).
   arc_t start_arc = kInvalidArcId;
   bool no_start_arc = false;
+  bool placed_start_fine = false;  // FeatureTrackerOptions::placed_features_start_fine of the localizer
   ClosedLoopOptions drive;
 };
 
@@ -222,6 +223,7 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
 
   LocalizerOptions base;
   base.path.camera_height = args.camera_height > 0 ? args.camera_height : scenario.vehicle.camera_height;
+  base.tracker.placed_features_start_fine = args.placed_start_fine;
   MapForLocalizer loaded = LoadMapForLocalizer(args.map, base);
   Simulator simulator(ApplyVariant(scenario, ScenarioVariant::kRepeat));
   const CameraModel& camera = simulator.camera();
@@ -682,6 +684,9 @@ void RegisterSimCommand(CLI::App& app) {
   drive->add_option("--approach-distance", args->drive.tracking.approach_distance,
                     "Distance over which the path law closes a lateral offset (m)")
       ->capture_default_str();
+  drive->add_flag("--placed-start-fine", args->placed_start_fine,
+                  "Localizer: track the mapped features it placed from a fine pyramid level in every frame (`repeat "
+                  "--placed-start-fine`)");
   drive->add_flag("--heading-from-offset", args->drive.tracking.heading_from_offset,
                   "Path law: steer by the heading that goes with the recent frames' combined offset (the pose's "
                   "heading-offset covariance) instead of the frame's own");

@@ -991,7 +991,9 @@ feature_t FeatureTracker::AddFeature(const ImagePyramid& pyramid, const Vector2d
   alignment.residual = 0.0;
   alignment.converged = true;
   alignment.status = TrackStatus::kTracked;
-  return AddFeature(reference, alignment, id);
+  const feature_t added = AddFeature(reference, alignment, id);
+  if (added != kInvalidFeatureId) placed_.back() = 0;  // the reference is this image's own
+  return added;
 }
 
 std::vector<feature_t> FeatureTracker::AddFeatures(const ImagePyramid& pyramid,
@@ -1019,6 +1021,7 @@ feature_t FeatureTracker::AddFeature(const ReferencePatch& reference, const Alig
   features_.push_back(feature);
   references_.push_back(reference);
   velocities_.push_back(Vector2d::Zero());
+  placed_.push_back(1);
   return id;
 }
 
@@ -1035,7 +1038,8 @@ const std::vector<TrackedFeature>& FeatureTracker::Track(const ImagePyramid& pyr
     // and fall back to the full coarse-to-fine alignment unless that converged (onto a window that does not
     // match, residual above R; see FeatureTrackerOptions::predicted_start_level).
     bool done = false;
-    if (options_.predicted_start_level >= 0 && own_velocity && feature.num_frames >= 2) {
+    if (options_.predicted_start_level >= 0 &&
+        ((own_velocity && feature.num_frames >= 2) || (options_.placed_features_start_fine && placed_[i]))) {
       results[i] = AlignFromLevel(pyramid, references_[i], initial, options_.alignment,
                                   options_.predicted_start_level);
       done = results[i].ok() || (results[i].converged && results[i].status == TrackStatus::kResidualTooLarge);
@@ -1091,6 +1095,7 @@ const std::vector<TrackedFeature>& FeatureTracker::Track(const ImagePyramid& pyr
       updated.num_frames += 1;
       velocities_[kept] = result.warp.position - previous_position;
       features_[kept] = updated;
+      placed_[kept] = placed_[i];
       if (kept != i) references_[kept] = std::move(references_[i]);
       ++kept;
     }
@@ -1099,6 +1104,7 @@ const std::vector<TrackedFeature>& FeatureTracker::Track(const ImagePyramid& pyr
   features_.resize(kept);
   references_.resize(kept);
   velocities_.resize(kept);
+  placed_.resize(kept);
   return last_results_;
 }
 
@@ -1108,6 +1114,7 @@ bool FeatureTracker::Remove(feature_t id) {
   features_.erase(features_.begin() + index);
   references_.erase(references_.begin() + index);
   velocities_.erase(velocities_.begin() + index);
+  placed_.erase(placed_.begin() + index);
   return true;
 }
 

@@ -528,5 +528,67 @@ TEST(FeatureTracker, AbruptMotionChangeFallsBackToCoarseToFine) {
   }
 }
 
+// A feature placed by RefinePrediction has a reference cut from another view (a key-image): only its finest windows
+// were checked against this image, and its coarsest ones (60 px wide) may see surroundings that moved otherwise (other
+// depths: parallax), onto which they slide. Here each feature's neighbourhood (±16 px) stays where the reference image
+// has it and everything else is shifted by 16 px (a background seen from beside the taught path), and the camera
+// stands still for three frames: with FeatureTrackerOptions::placed_features_start_fine they start at
+// predicted_start_level and stay where they were placed; without, having no velocity of their own, they start at the
+// coarsest level and a third or more are lost (in the simulated town, standing still after a relocalization: 16 of
+// 19).
+TEST(FeatureTracker, FeaturePlacedFromAnotherViewKeepsItsFineAlignment) {
+  const cv::Mat reference_image = SmallTexture(8).Render(320, 240);
+  const ImagePyramid reference_pyramid(Quantise(reference_image));
+  CornerDetectorOptions detector;
+  detector.max_corners = 40;
+  detector.border = 40;
+  detector.min_distance = 45.0;
+  const std::vector<Corner> corners = DetectCorners(reference_pyramid, detector);
+  ASSERT_GE(corners.size(), 12u);
+  // The current image: the reference image shifted by (16, 4) px, but for the neighbourhood of each corner.
+  cv::Mat current;
+  const cv::Mat shift = (cv::Mat_<double>(2, 3) << 1.0, 0.0, 16.0, 0.0, 1.0, 4.0);
+  cv::warpAffine(reference_image, current, shift, reference_image.size(), cv::INTER_CUBIC, cv::BORDER_REFLECT);
+  constexpr int kKept = 16;
+  for (const Corner& c : corners) {
+    const cv::Rect around(static_cast<int>(std::lround(c.position.x())) - kKept,
+                          static_cast<int>(std::lround(c.position.y())) - kKept, 2 * kKept + 1, 2 * kKept + 1);
+    reference_image(around & cv::Rect(0, 0, 320, 240)).copyTo(current(around & cv::Rect(0, 0, 320, 240)));
+  }
+  const ImagePyramid pyramid(Quantise(current));
+  const ImagePyramid fine_levels = pyramid.FinestLevels(pyramid.NumLevels() - 1);
+  for (const bool start_fine : {true, false}) {
+    FeatureTrackerOptions options;
+    options.placed_features_start_fine = start_fine;
+    FeatureTracker tracker(options);
+    std::map<feature_t, Vector2d> placed;
+    for (const Corner& c : corners) {
+      ReferencePatch reference;
+      ASSERT_TRUE(reference.Create(reference_pyramid, c.position));
+      // Placed as the localizer places a mapped feature: a prediction refined on the finest levels.
+      const AlignmentResult refined =
+          RefinePrediction(fine_levels, reference, c.position + Vector2d(0.8, -0.6), 1.0, RefinePredictionOptions());
+      if (!refined.ok()) continue;
+      const feature_t id = tracker.AddFeature(reference, refined);
+      ASSERT_NE(id, kInvalidFeatureId);
+      placed[id] = c.position;
+    }
+    ASSERT_GE(placed.size(), 10u);
+    for (int frame = 0; frame < 3; ++frame) tracker.Track(pyramid);
+    double max_error = 0.0;
+    for (const TrackedFeature& feature : tracker.Features()) {
+      max_error = std::max(max_error, (feature.warp.position - placed[feature.id]).norm());
+    }
+    std::printf("  placed features starting fine %d: %d of %zu kept over 3 frames, max error %.4f px\n", start_fine,
+                tracker.NumFeatures(), placed.size(), max_error);
+    if (start_fine) {
+      EXPECT_EQ(tracker.NumFeatures(), static_cast<int>(placed.size()));
+      EXPECT_LT(max_error, 0.1);
+    } else {
+      EXPECT_LE(tracker.NumFeatures(), static_cast<int>(0.75 * placed.size()));
+    }
+  }
+}
+
 }  // namespace
 }  // namespace retrace
