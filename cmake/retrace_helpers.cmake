@@ -12,13 +12,18 @@ function(retrace_add_library)
   target_link_libraries(retrace_${ARG_NAME} PUBLIC ${ARG_DEPS})
 endfunction()
 
-# retrace_add_test(NAME <name> SRCS <files...> DEPS <targets...>)
-# One GoogleTest executable per *_test.cc, registered in ctest as <layer>/<name>.
+# retrace_add_test(NAME <name> SRCS <files...> DEPS <targets...> [END_TO_END])
+# One GoogleTest executable per *_test.cc, registered in ctest as <layer>/<name>. END_TO_END marks a test that
+# teaches, repeats or drives whole sequences (minutes under the sanitizers): it carries the ctest label
+# end_to_end and is neither built nor registered when RETRACE_BUILD_END_TO_END_TESTS is OFF.
 function(retrace_add_test)
   if(NOT RETRACE_BUILD_TESTS)
     return()
   endif()
-  cmake_parse_arguments(ARG "" "NAME" "SRCS;DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "END_TO_END" "NAME" "SRCS;DEPS" ${ARGN})
+  if(ARG_END_TO_END AND NOT RETRACE_BUILD_END_TO_END_TESTS)
+    return()
+  endif()
   get_filename_component(layer "${CMAKE_CURRENT_SOURCE_DIR}" NAME)
   set(target "${layer}_${ARG_NAME}")
   add_executable(${target} ${ARG_SRCS})
@@ -27,6 +32,9 @@ function(retrace_add_test)
   target_link_libraries(${target} PRIVATE ${ARG_DEPS} retrace_testing GTest::gtest GTest::gtest_main)
   add_test(NAME "${layer}/${ARG_NAME}" COMMAND ${target})
   set_tests_properties("${layer}/${ARG_NAME}" PROPERTIES TIMEOUT 600)
+  if(ARG_END_TO_END)
+    set_tests_properties("${layer}/${ARG_NAME}" PROPERTIES LABELS end_to_end)
+  endif()
 endfunction()
 
 # retrace_add_benchmark(NAME <name> SRCS <files...> DEPS <targets...>)
