@@ -81,7 +81,8 @@
 // Candidates are ranked by whole-image appearance (the quantised thumbnails stored in the map, AppearanceIndex) fused
 // with their visual words (VisualWords of the stored descriptors; `visual_word_retrieval`) and verified geometrically (relative pose on the matches) in that order, within a budget: at most
 // `retrieval_shortlist` of them (`start_retrieval_shortlist` before the first localization), stopping at the first
-// with `retrieval_confident_inliers` (issue 16: a relocalizing frame costs the same on a map of any size). The
+// with `retrieval_confident_inliers` (issue 16: a relocalizing frame costs the same on a map of any size; at a start,
+// at the first candidate after it that is not within the belief's reach of it). The
 // verified key-image with most inliers wins. Its arc is chosen by which side of the key-image the camera is on (the
 // sign test of eq. (9), which needs no scale); the key-image is a measurement of the belief. The mapped features
 // of that arc and of its two neighbours seen in the matched key-images are then located in the frame from the
@@ -275,11 +276,19 @@ struct LocalizerOptions {
   // more on one frame, a lost robot moving along cannot. On the map of 1264 key-images (`retrace bench kidnap --map
   // lawn.db --sequence repeat --starts 100 --frames 3 --start-retrieval-shortlist N --seed 1`) the right key-image was
   // among the five most alike in 73 % of the first frames, among 10 in 77 %, 20 in 84 %, 40 in 91 % (within 3
-  // frames 90 / 91 / 94 / 97 %, never a wrong place), the first frame's 95th percentile 69, 72, 69 and 101 ms CPU.
+  // frames 90 / 91 / 94 / 97 %, never a wrong place), the first frame's 95th percentile 69, 72, 69 and 101 ms CPU
+  // (measured when the start too stopped at the first confident candidate).
   int start_retrieval_shortlist = 20;
   // ... stopping at the first verified with at least this many inliers (a look-alike street elsewhere in the
   // simulated town verified with 42 SIFT inliers; the right key-image has hundreds on kitti07 and 60-150 in the
-  // simulated town). Without a start arc the belief, not this, decides what is reported.
+  // simulated town). Without a start arc the belief, not this, decides what is reported. Before the first
+  // localization the candidates ranked after the first confident one are verified too as long as they lie within the
+  // belief's reach of it (PlaceBeliefOptions::reach arcs; the first candidate ranked elsewhere ends the search), and
+  // the most inliers win: the key-image measurement of the belief (PlacementModel::key_image_sigma) takes the
+  // verified key-image for the nearest one, and a start has no earlier place to tell key-images of the same street
+  // apart. Validation drive seed1's first frame, at key-image 0, verified key-image 3 (rank 0 by appearance, 66
+  // inliers; key-images 1 and 2 verify with 58 and 34) before key-image 0 (rank 1, 91) and was reported `tracking`
+  // three arcs ahead for two frames.
   int retrieval_confident_inliers = 60;
   // Relocalization features: binary (upright ORB, binary_features.h), read from the key-images' signatures that
   // teach stored in the map (computed when the map has none), 4 ms per 320x240 frame; false: SIFT from three
@@ -538,12 +547,13 @@ class Localizer {
     std::vector<double> size_ratios;                   // key-point size in the frame / in the key-image
   };
   // Verifies `candidates` by wide-baseline matching, the most similar in appearance to `image` first, at most
-  // `shortlist` of them (0: all; see LocalizerOptions::retrieval_shortlist); every candidate tried is added to
-  // `tried`. A retrieval over the whole map (`whole_map`) also ranks by visual words (visual_word_retrieval) and
-  // screens its candidates (MatchKeyImages).
+  // `shortlist` of them (0: all; see LocalizerOptions::retrieval_shortlist), stopping at the first confident one
+  // (retrieval_confident_inliers) or, with `confident_reach` > 0, going on down the ranking while the candidates lie
+  // within that many arcs of it; every candidate tried is added to `tried`. A retrieval over the whole map
+  // (`whole_map`) also ranks by visual words (visual_word_retrieval) and screens its candidates (MatchKeyImages).
   std::vector<MatchedKeyImage> RetrieveKeyImages(const cv::Mat& image, const WideBaselineFeatures& current,
                                                  const std::vector<node_t>& candidates, std::vector<node_t>* tried,
-                                                 int shortlist, bool whole_map);
+                                                 int shortlist, bool whole_map, int confident_reach);
   // Where the candidates of MatchKeyImages come from, which decides how hard each is tried.
   enum class CandidateSource {
     kNearby,           // near where the robot was lost or started: full sample budget, guided matching allowed

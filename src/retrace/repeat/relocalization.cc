@@ -160,7 +160,7 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
                                                                     const WideBaselineFeatures& current,
                                                                     const std::vector<node_t>& candidates,
                                                                     std::vector<node_t>* tried, int shortlist,
-                                                                    bool whole_map) {
+                                                                    bool whole_map, int confident_reach) {
   // Rank by appearance: an exhaustive scan of the quantised thumbnails (about 0.3 µs per key-image).
   std::vector<size_t> entries;
   entries.reserve(candidates.size());
@@ -179,12 +179,18 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
   std::vector<node_t> ranked;
   ranked.reserve(candidates.size());
   for (const size_t entry : order) ranked.push_back(appearance_nodes_[entry]);
-  // The verification budget: the most alike first, at most `shortlist` of them, stopping at the first confident one
-  // (0: every candidate, none skipped).
+  // The verification budget: the most alike first, at most `shortlist` of them (0: every candidate, none skipped),
+  // stopping at the first confident one — or, with `confident_reach`, at the first candidate ranked after it that
+  // lies farther along the map from it than that many arcs.
   const bool limited = shortlist > 0;
   const size_t budget = limited ? std::min(static_cast<size_t>(shortlist), ranked.size()) : ranked.size();
   std::vector<MatchedKeyImage> verified;
+  std::optional<std::vector<node_t>> near_confident;  // the key-images within confident_reach of the first confident
   for (size_t i = 0; i < budget; ++i) {
+    if (near_confident &&
+        std::find(near_confident->begin(), near_confident->end(), ranked[i]) == near_confident->end()) {
+      break;
+    }
     tried->push_back(ranked[i]);
     std::vector<MatchedKeyImage> one =
         MatchKeyImages(current, {ranked[i]}, whole_map ? CandidateSource::kWholeMapScreened : CandidateSource::kNearby);
@@ -193,7 +199,10 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
     if (one.empty()) continue;
     const bool confident = one.front().support >= options_.retrieval_confident_inliers;
     verified.push_back(std::move(one.front()));
-    if (confident && limited) break;
+    if (!confident || !limited || near_confident) continue;
+    const std::vector<const ArcData*> at = ArcsAt(ranked[i]);
+    if (confident_reach <= 0 || at.empty()) break;
+    near_confident = NodesNear(at.front()->arc->id, confident_reach);
   }
   return verified;
 }
@@ -310,10 +319,12 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
     }
     // Over the whole map most candidates are other places, and a lost robot's frame rate depends on how fast they
     // are refused (screening, MatchKeyImages); near where it was lost a candidate is likely the place: full budget.
-    // Not localized since the start: the start's larger budget (LocalizerOptions::start_retrieval_shortlist).
-    const int shortlist =
-        last_arc == kInvalidArcId ? options_.start_retrieval_shortlist : options_.retrieval_shortlist;
-    verified = RetrieveKeyImages(frame.image, current, candidates, &tried, shortlist, /*whole_map=*/global);
+    // Not localized since the start: the start's larger budget (LocalizerOptions::start_retrieval_shortlist), and
+    // the candidates ranked after the first confident one that lie within the belief's reach of it verified too.
+    const bool start = last_arc == kInvalidArcId;
+    const int shortlist = start ? options_.start_retrieval_shortlist : options_.retrieval_shortlist;
+    verified = RetrieveKeyImages(frame.image, current, candidates, &tried, shortlist, /*whole_map=*/global,
+                                 /*confident_reach=*/start ? options_.belief.reach : 0);
     candidate_count = candidates.size();
   }
   result->key_images_matched = static_cast<int>(tried.size());

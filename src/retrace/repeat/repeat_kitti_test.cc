@@ -183,12 +183,15 @@ TEST_F(RepeatKitti, StartInTheMiddle) {
 }
 
 // The appearance shortlist finds the arc that verifying every key-image finds, from the same located features.
+// A first frame: the start's budget applies, a shortlist of 4 of the map's 18 key-images (the default 20 covers this
+// map).
 TEST_F(RepeatKitti, RetrievalShortlistAgreesWithMatchingEveryKeyImage) {
   SubsampledSequence odd(OpenSequence(kitti_), 2, 81);
   const Frame frame = *odd.Next();
-  LocalizerOptions every;  // a first frame: the start's budget applies
+  LocalizerOptions shortlist, every;
+  shortlist.start_retrieval_shortlist = 4;
   every.start_retrieval_shortlist = 0;
-  const FrameResult shortlisted = Localizer(*map_, *camera_).ProcessFrame(frame);
+  const FrameResult shortlisted = Localizer(*map_, *camera_, shortlist).ProcessFrame(frame);
   const FrameResult exhaustive = Localizer(*map_, *camera_, every).ProcessFrame(frame);
   std::cout << "frame 81 from scratch: shortlist verified " << shortlisted.key_images_matched << " key-images in "
             << 1000 * shortlisted.seconds << " ms, every key-image " << exhaustive.key_images_matched << " in "
@@ -221,6 +224,38 @@ TEST_F(RepeatKitti, StartAndLossHaveTheirOwnVerificationBudgets) {
   const FrameResult lost = localizer.ProcessFrame(grey);
   EXPECT_NE(lost.state, LocalizerState::kTracking);
   EXPECT_EQ(lost.key_images_matched, 2);
+}
+
+// A start goes on verifying the candidates ranked after the first confident one while they lie within the belief's
+// reach of it, and takes the one with most inliers (the first confident one can be a key-image further along the same
+// street: LocalizerOptions::retrieval_confident_inliers); a robot lost after it was localized stops at the first
+// confident candidate. Frame 81's most alike key-images verify with hundreds of inliers: a start that stopped at the
+// first verified as many key-images as the relocalization of the same frame after a loss (2 and 2, measured).
+TEST_F(RepeatKitti, AStartVerifiesTheCandidatesNearTheFirstConfidentOne) {
+  SubsampledSequence odd(OpenSequence(kitti_), 2, 81);
+  const Frame frame = *odd.Next();
+  Frame grey = frame;
+  grey.image = cv::Mat(frame.image.size(), CV_8UC1, cv::Scalar(128));
+  LocalizerOptions options;
+  options.start_retrieval_shortlist = 10;
+  options.retrieval_shortlist = 10;
+  Localizer localizer(*map_, *camera_, options);
+  const FrameResult start = localizer.ProcessFrame(frame);
+  ASSERT_EQ(start.state, LocalizerState::kTracking);
+  // The arc the exhaustive verification of every key-image finds.
+  LocalizerOptions every;
+  every.start_retrieval_shortlist = 0;
+  const FrameResult exhaustive = Localizer(*map_, *camera_, every).ProcessFrame(frame);
+  ASSERT_EQ(exhaustive.state, LocalizerState::kTracking);
+  EXPECT_EQ(start.arc, exhaustive.arc);
+  // Lost in the grey frame (its relocalization verifies nothing), relocalized in the next near where it was lost.
+  EXPECT_NE(localizer.ProcessFrame(grey).state, LocalizerState::kTracking);
+  const FrameResult relocalized = localizer.ProcessFrame(frame);
+  std::cout << "frame 81: the start verified " << start.key_images_matched << " key-images, the relocalization "
+            << relocalized.key_images_matched << "\n";
+  EXPECT_TRUE(relocalized.bootstrapped);
+  EXPECT_GT(start.key_images_matched, relocalized.key_images_matched);
+  EXPECT_LT(start.key_images_matched, 10);  // a candidate ranked elsewhere ended the search
 }
 
 // The key-images' relocalization signatures that teach stored, and the same computed by the localizer for a map
