@@ -79,19 +79,19 @@
 // `relocalization_neighbourhood` arcs of where it was lost, widened by `relocalization_widening` arcs per frame
 // since, and the whole map only after `global_relocalization_frames` (look-alike streets elsewhere verify too).
 // Candidates are ranked by whole-image appearance (the quantised thumbnails stored in the map, AppearanceIndex) fused
-// with their visual words (VisualWords of the stored descriptors; `visual_word_retrieval`) and verified geometrically (relative pose on the matches) in that order, within a budget: at most
-// `retrieval_shortlist` of them (`start_retrieval_shortlist` before the first localization), stopping at the first
-// with `retrieval_confident_inliers` (issue 16: a relocalizing frame costs the same on a map of any size; at a start,
-// at the first candidate after it that is not within the belief's reach of it). The
-// verified key-image with most inliers wins. Its arc is chosen by which side of the key-image the camera is on (the
-// sign test of eq. (9), which needs no scale); the key-image is a measurement of the belief. The mapped features
-// of that arc and of its two neighbours seen in the matched key-images are then located in the frame from the
-// displacement of the nearest matched key-points and refined against their references (without the coarsest
-// pyramid level, like every refined prediction); the regular transfer predicts the remaining ones from the next
-// frame on. Key-images of these three arcs that retrieval did not verify are verified for this:
-// the arc's own first, the neighbours' outer ones only when too few features were located through those.
-// A bootstrap over the whole map is a multiple test against look-alike places: it also needs a second key-image of
-// those arcs verified and more located features the more key-images it searched (min_global_agreeing_key_images,
+// with their visual words (VisualWords of the stored descriptors; `visual_word_retrieval`) and verified geometrically
+// (relative pose on the matches) in that order, within a budget: at most `retrieval_shortlist` of them
+// (`start_retrieval_shortlist` before the first localization), stopping at the first with `retrieval_confident_inliers`
+// (issue 16: a relocalizing frame costs the same on a map of any size; at a start, at the first candidate after it that
+// is not within the belief's reach of it). The verified key-image with most inliers wins. Its arc is chosen by which
+// side of the key-image the camera is on (the sign test of eq. (9), which needs no scale); the key-image is a
+// measurement of the belief. The mapped features of that arc and of its two neighbours seen in the matched key-images
+// are then located in the frame from the displacement of the nearest matched key-points and refined against their
+// references (without the coarsest pyramid level, like every refined prediction); the regular transfer predicts the
+// remaining ones from the next frame on. Key-images of these three arcs that retrieval did not verify are verified for
+// this: the arc's own first, the neighbours' outer ones only when too few features were located through those. A
+// bootstrap over the whole map is a multiple test against look-alike places: it also needs a second key-image of those
+// arcs verified and more located features the more key-images it searched (min_global_agreeing_key_images,
 // GlobalBootstrapFeatures) — or, with one key-image verified, more still (SingleKeyImageBootstrapFeatures) — and,
 // when a place elsewhere verified too, the place whose key-image locates clearly more mapped features
 // (retrieval_ambiguity_ratio).

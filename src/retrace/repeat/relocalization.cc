@@ -157,10 +157,10 @@ std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBase
 }
 
 std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::Mat& image,
-                                                                    const WideBaselineFeatures& current,
-                                                                    const std::vector<node_t>& candidates,
-                                                                    std::vector<node_t>* tried, int shortlist,
-                                                                    bool whole_map, int confident_reach) {
+                                                                     const WideBaselineFeatures& current,
+                                                                     const std::vector<node_t>& candidates,
+                                                                     std::vector<node_t>* tried, int shortlist,
+                                                                     bool whole_map, int confident_reach) {
   // Rank by appearance: an exhaustive scan of the quantised thumbnails (about 0.3 µs per key-image).
   std::vector<size_t> entries;
   entries.reserve(candidates.size());

@@ -90,6 +90,18 @@ class RepeatKitti : public ::testing::Test {
     return run;
   }
 
+  // Frame 81 of the odd frames (the middle of the drive), and a uniform grey frame in its place (it verifies no
+  // key-image).
+  static Frame OddFrame81() {
+    SubsampledSequence odd(OpenSequence(kitti_), 2, 81);
+    return *odd.Next();
+  }
+  static Frame Grey(const Frame& frame) {
+    Frame grey = frame;
+    grey.image = cv::Mat(frame.image.size(), CV_8UC1, cv::Scalar(128));
+    return grey;
+  }
+
   static std::filesystem::path kitti_;
   static CameraModel* camera_;
   static Map* map_;
@@ -186,8 +198,7 @@ TEST_F(RepeatKitti, StartInTheMiddle) {
 // A first frame: the start's budget applies, a shortlist of 4 of the map's 18 key-images (the default 20 covers this
 // map).
 TEST_F(RepeatKitti, RetrievalShortlistAgreesWithMatchingEveryKeyImage) {
-  SubsampledSequence odd(OpenSequence(kitti_), 2, 81);
-  const Frame frame = *odd.Next();
+  const Frame frame = OddFrame81();
   LocalizerOptions shortlist, every;
   shortlist.start_retrieval_shortlist = 4;
   every.start_retrieval_shortlist = 0;
@@ -208,10 +219,8 @@ TEST_F(RepeatKitti, RetrievalShortlistAgreesWithMatchingEveryKeyImage) {
 // start_retrieval_shortlist key-images per frame, one lost after it was localized up to retrieval_shortlist. A
 // uniform grey frame verifies no key-image, so every budget is used up; no candidate can be confident.
 TEST_F(RepeatKitti, StartAndLossHaveTheirOwnVerificationBudgets) {
-  SubsampledSequence odd(OpenSequence(kitti_), 2, 81);
-  const Frame frame = *odd.Next();
-  Frame grey = frame;
-  grey.image = cv::Mat(frame.image.size(), CV_8UC1, cv::Scalar(128));
+  const Frame frame = OddFrame81();
+  const Frame grey = Grey(frame);
   LocalizerOptions options;
   options.start_retrieval_shortlist = 7;
   options.retrieval_shortlist = 2;
@@ -232,10 +241,8 @@ TEST_F(RepeatKitti, StartAndLossHaveTheirOwnVerificationBudgets) {
 // confident candidate. Frame 81's most alike key-images verify with hundreds of inliers: a start that stopped at the
 // first verified as many key-images as the relocalization of the same frame after a loss (2 and 2, measured).
 TEST_F(RepeatKitti, AStartVerifiesTheCandidatesNearTheFirstConfidentOne) {
-  SubsampledSequence odd(OpenSequence(kitti_), 2, 81);
-  const Frame frame = *odd.Next();
-  Frame grey = frame;
-  grey.image = cv::Mat(frame.image.size(), CV_8UC1, cv::Scalar(128));
+  const Frame frame = OddFrame81();
+  const Frame grey = Grey(frame);
   LocalizerOptions options;
   options.start_retrieval_shortlist = 10;
   options.retrieval_shortlist = 10;
@@ -262,8 +269,7 @@ TEST_F(RepeatKitti, AStartVerifiesTheCandidatesNearTheFirstConfidentOne) {
 // without them (a map of an older retrace): frame 81 from scratch is localized on the same arc with the same
 // features, and the stored key-points are those LoadMapForLocalizer would compute.
 TEST_F(RepeatKitti, StoredSignaturesAreThoseComputedForOlderMaps) {
-  SubsampledSequence odd(OpenSequence(kitti_), 2, 81);
-  const Frame frame = *odd.Next();
+  const Frame frame = OddFrame81();
   Map without = *map_;
   for (const MapNode& node : map_->nodes()) {
     ASSERT_FALSE(node.signature.empty()) << "teach stores every key-image's signature";
