@@ -548,8 +548,9 @@ class Localizer {
   };
   // Verifies `candidates` by wide-baseline matching, the most similar in appearance to `image` first, at most
   // `shortlist` of them (0: all; see LocalizerOptions::retrieval_shortlist), stopping at the first confident one
-  // (retrieval_confident_inliers) or, with `confident_reach` > 0, going on down the ranking while the candidates lie
-  // within that many arcs of it; every candidate tried is added to `tried`. A retrieval over the whole map
+  // (retrieval_confident_inliers) or, with `confident_reach` > 0, going on down the ranking while the candidates are
+  // key-images of the arcs within that many arcs of the first arc at it (NodesNear); every candidate tried is added
+  // to `tried`. A retrieval over the whole map
   // (`whole_map`) also ranks by visual words (visual_word_retrieval) and screens its candidates (MatchKeyImages).
   std::vector<MatchedKeyImage> RetrieveKeyImages(const cv::Mat& image, const WideBaselineFeatures& current,
                                                  const std::vector<node_t>& candidates, std::vector<node_t>* tried,

@@ -180,8 +180,8 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
   ranked.reserve(candidates.size());
   for (const size_t entry : order) ranked.push_back(appearance_nodes_[entry]);
   // The verification budget: the most alike first, at most `shortlist` of them (0: every candidate, none skipped),
-  // stopping at the first confident one — or, with `confident_reach`, at the first candidate ranked after it that
-  // lies farther along the map from it than that many arcs.
+  // stopping at the first confident one — or, with `confident_reach`, at the first candidate ranked after it that is
+  // not a key-image of the arcs within that many arcs of the first arc at it (NodesNear).
   const bool limited = shortlist > 0;
   const size_t budget = limited ? std::min(static_cast<size_t>(shortlist), ranked.size()) : ranked.size();
   std::vector<MatchedKeyImage> verified;
@@ -200,8 +200,9 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
     const bool confident = one.front().support >= options_.retrieval_confident_inliers;
     verified.push_back(std::move(one.front()));
     if (!confident || !limited || near_confident) continue;
+    if (confident_reach <= 0) break;
     const std::vector<const ArcData*> at = ArcsAt(ranked[i]);
-    if (confident_reach <= 0 || at.empty()) break;
+    if (at.empty()) break;
     near_confident = NodesNear(at.front()->arc->id, confident_reach);
   }
   return verified;
