@@ -705,8 +705,17 @@ ArcPosition Localizer::UpdateBelief(const Placements& placements) {
     measurements.push_back(*placements.neighbour);
   }
   if (bootstrap_key_image_) {
+    // Beside the path the verified key-image is a looser measurement (PlacementModel::key_image_beside_sigma): the
+    // camera's distance from the path by this frame's pose, else by the lane's last pose, the larger when both.
+    const auto beside_of = [this](const LaneEntry& entry) {
+      const double length = belief_.ArcLength(entry.place.arc);
+      return length > 0 ? std::abs(entry.lateral) / length : 0.0;
+    };
+    double beside = 0.0;
+    if (placements.lane) beside = beside_of(*placements.lane);
+    if (!lane_.empty()) beside = std::max(beside, beside_of(lane_.back()));
     measurements.push_back(KeyImageMeasurement(*Arc(bootstrap_key_image_->arc)->arc, bootstrap_key_image_->node,
-                                               bootstrap_key_image_->candidates, options_.placement));
+                                               bootstrap_key_image_->candidates, options_.placement, beside));
     bootstrap_key_image_.reset();
   }
   const std::vector<double> inlier = belief_.Update(measurements, frame_counter_);

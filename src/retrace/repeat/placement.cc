@@ -151,6 +151,7 @@ bool PlacementModel::Check(std::string* error) const {
   if (!(geometry_extrapolation_length > 0)) return fail("geometry_extrapolation_length must be positive");
   if (!(pose_shared_error_px >= 0)) return fail("pose_shared_error_px must be >= 0");
   if (!(pose_height_sigma >= 0)) return fail("pose_height_sigma must be >= 0");
+  if (!(key_image_beside_sigma >= 0)) return fail("key_image_beside_sigma must be >= 0");
   if (!(pose_height_outlier_span > 0)) return fail("pose_height_outlier_span must be positive");
   if (!(pose_lateral_sigma >= 0)) return fail("pose_lateral_sigma must be >= 0");
   if (!(lane_heading_sigma > 0) || !(lane_window > 0)) {
@@ -338,8 +339,11 @@ PlaceMeasurement GeometryMeasurement(arc_t arc, const ArcPosition& position, Arc
   return {arc, position.along, model.geometry_sigma, std::min(outlier_probability, 0.999)};
 }
 
-PlaceMeasurement KeyImageMeasurement(const MapArc& arc, node_t node, int candidates, const PlacementModel& model) {
-  return {arc.id, node == arc.from ? 0.0 : 1.0, model.key_image_sigma, model.key_image_outlier_probability,
+PlaceMeasurement KeyImageMeasurement(const MapArc& arc, node_t node, int candidates, const PlacementModel& model,
+                                     double beside) {
+  const double sigma = std::isfinite(beside) ? std::hypot(model.key_image_sigma, model.key_image_beside_sigma * beside)
+                                             : model.key_image_sigma;
+  return {arc.id, node == arc.from ? 0.0 : 1.0, sigma, model.key_image_outlier_probability,
           static_cast<double>(std::max(candidates, 1))};
 }
 

@@ -131,6 +131,14 @@ struct PlacementModel {
   // pick is any of the candidates: the outlier range is their number of arc lengths).
   double key_image_sigma = 0.5;
   double key_image_outlier_probability = 0.2;
+  // ... beside the taught path the verified key-image lies farther along it from the camera: over the 904
+  // relocalizations of the validation matrix's simulated drives (README, "A key-image verified beside the path"),
+  // the camera's distance along the path from the key-image it verified had an RMS of 0.37-0.38 arc lengths with the
+  // camera less than 0.35 arc lengths beside the path, 0.69 at 0.35-0.5, 0.91 at 0.5-0.7 and 1.35 at 0.7-1 (mostly
+  // behind it: from beside the path a key-image ahead matches the frame best). So for a camera l arc lengths beside
+  // the path (by this frame's pose or the lane's last one, the larger) σ = hypot(key_image_sigma, this × l): 0.57 at
+  // l = 0.2, 0.99 at 0.6, 1.29 at 0.85. 0: not used.
+  double key_image_beside_sigma = 1.4;
   // The camera rides at the key-images' height: a camera fixed on a vehicle stays at its mounting height above the
   // road, so its centre lies on the line through the arc's two key-image centres, up to where the road leaves that
   // line, the vehicle's pitch and roll, and the ground normal's error times the lateral offset (PoseDeviation below).
@@ -269,7 +277,9 @@ PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const A
                                  const PoseDeviation& height = PoseDeviation(), double collapse_probability = 0.0);
 // `key`: the key-image of `arc` the current geometry relates the camera to (W_t:a: kA, W_t:b: kB).
 PlaceMeasurement GeometryMeasurement(arc_t arc, const ArcPosition& position, ArcImage key, const PlacementModel& model);
-// The camera is at key-image `node` of `arc` (its start or its end), picked among `candidates` key-images.
-PlaceMeasurement KeyImageMeasurement(const MapArc& arc, node_t node, int candidates, const PlacementModel& model);
+// The camera is at key-image `node` of `arc` (its start or its end), picked among `candidates` key-images; `beside`:
+// the camera's distance from the taught path, arc lengths, when known (PlacementModel::key_image_beside_sigma).
+PlaceMeasurement KeyImageMeasurement(const MapArc& arc, node_t node, int candidates, const PlacementModel& model,
+                                     double beside = 0.0);
 
 }  // namespace retrace

@@ -356,6 +356,15 @@ TEST(PlacementModel, MeasurementsCarryTheirUncertainty) {
   EXPECT_DOUBLE_EQ(KeyImageMeasurement(arc, 11, 20, model).along, 1.0);
   EXPECT_DOUBLE_EQ(KeyImageMeasurement(arc, 10, 20, model).along, 0.0);
   EXPECT_DOUBLE_EQ(KeyImageMeasurement(arc, 10, 20, model).outlier_range, 20.0);
+  // On the taught path a verified key-image is good to about half an arc; beside it, it is looser
+  // (PlacementModel::key_image_beside_sigma): 0.8 arc lengths aside the measured RMS was 1.35 arc lengths.
+  EXPECT_DOUBLE_EQ(KeyImageMeasurement(arc, 10, 20, model).sigma, model.key_image_sigma);
+  EXPECT_DOUBLE_EQ(KeyImageMeasurement(arc, 10, 20, model, 0.0).sigma, model.key_image_sigma);
+  const double beside = KeyImageMeasurement(arc, 10, 20, model, 0.8).sigma;
+  EXPECT_NEAR(beside, std::hypot(model.key_image_sigma, 0.8 * model.key_image_beside_sigma), 1e-12);
+  EXPECT_GT(beside, 1.0);
+  EXPECT_LT(KeyImageMeasurement(arc, 10, 20, model, 0.2).sigma, beside);
+  EXPECT_DOUBLE_EQ(KeyImageMeasurement(arc, 10, 20, model, 0.8).along, 0.0);
   PlacementModel bad;
   bad.geometry_outlier_probability = 1.0;
   EXPECT_FALSE(bad.Check());
