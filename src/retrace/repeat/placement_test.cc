@@ -368,6 +368,9 @@ TEST(PlacementModel, MeasurementsCarryTheirUncertainty) {
   PlacementModel bad;
   bad.geometry_outlier_probability = 1.0;
   EXPECT_FALSE(bad.Check());
+  PlacementModel negative;
+  negative.key_image_beside_sigma = -1.0;
+  EXPECT_FALSE(negative.Check());
 }
 
 // Just after a bootstrap (the speed unknown: here anywhere from a quarter arc back to three arcs ahead per frame,
