@@ -575,52 +575,48 @@ bool SampleAffineWindow(const cv::Mat& image, const AffineState& s, int w, float
     double x = s.x - s.a(0, 0) * half + s.a(0, 1) * v, y = s.y - s.a(1, 0) * half + s.a(1, 1) * v;
     for (int c = 0; c < w; ++c, x += s.a(0, 0), y += s.a(1, 0)) {
       const int fx = static_cast<int>(x), fy = static_cast<int>(y);
-      float wx[4], wy[4];
+      alignas(16) float wx[4];
+      float wy[4];
       CubicWeights(static_cast<float>(x - fx), wx);
       CubicWeights(static_cast<float>(y - fy), wy);
       const float* p = base + (fy - 1) * stride + (fx - 1);
+#if defined(__SSE2__)
+      // The four taps of each of the four rows are one unaligned load: weighted by wy, summed vertically, then the
+      // four lanes weighted by wx.
+      __m128 sum = _mm_mul_ps(_mm_loadu_ps(p), _mm_set1_ps(wy[0]));
+      sum = _mm_add_ps(sum, _mm_mul_ps(_mm_loadu_ps(p + stride), _mm_set1_ps(wy[1])));
+      sum = _mm_add_ps(sum, _mm_mul_ps(_mm_loadu_ps(p + 2 * stride), _mm_set1_ps(wy[2])));
+      sum = _mm_add_ps(sum, _mm_mul_ps(_mm_loadu_ps(p + 3 * stride), _mm_set1_ps(wy[3])));
+      alignas(16) float lanes[4];
+      _mm_store_ps(lanes, _mm_mul_ps(sum, _mm_load_ps(wx)));
+      out[r * w + c] = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+#else
       float sum = 0.0f;
       for (int k = 0; k < 4; ++k, p += stride) {
         sum += wy[k] * (wx[0] * p[0] + wx[1] * p[1] + wx[2] * p[2] + wx[3] * p[3]);
       }
       out[r * w + c] = sum;
+#endif
     }
   }
   return true;
 }
 
-// The affine fallback (AlignmentOptions::affine_fallback): Gauss-Newton on (A, d, lambda, delta) at level 0, inverse
-// compositional with the contrast on the template side as IterateLevel. The Jacobian rows J0(u) = [Tx u, Tx v, Ty u,
-// Ty v, Tx, Ty, T, 1] depend only on the reference, so H0 = sum J0^T J0 is factorised once; the step is
+// The affine warp of the fallback and the refinement (AlignmentOptions::affine_fallback, affine_refinement):
+// Gauss-Newton on (A, d, lambda, delta) at level 0, inverse compositional with the contrast on the template side as
+// IterateLevel. The Jacobian rows J0(u) = [Tx u, Tx v, Ty u, Ty v, Tx, Ty, T, 1] depend only on the reference, so
+// H0^-1 (`inverse_hessian`, ReferencePatch::AffineInverseHessian) is computed once per reference; the step is
 // D^-1 H0^-1 sum J0^T e with D = diag(lambda x 6, 1, 1). A geometric step (P, q) composes inversely:
 // A <- A (I + P)^-1, d <- d - A (I + P)^-1 q. Stops with false when the window leaves the image, a step is
 // singular, the residual stays above `give_up_rms` after 2 iterations or the iterations run out; on true `state`
 // is the converged warp and `rms` / `block_rms` its residuals (from the last error image, as IterateLevel).
-bool IterateAffine(const cv::Mat& image, const WindowView& window, int max_iterations, double epsilon,
-                   double give_up_rms, double min_gain, double max_gain, AffineState* state, int* iterations,
-                   double* rms, double* block_rms) {
+bool IterateAffine(const cv::Mat& image, const WindowView& window, const ReferencePatch::AffineMatrix& inverse_hessian,
+                   int max_iterations, double epsilon, double give_up_rms, double min_gain, double max_gain,
+                   AffineState* state, int* iterations, double* rms, double* block_rms) {
   const int w = window.size, n = w * w, half = w / 2;
   const float* t = window.t;
   const float* gx = t + n;
   const float* gy = t + 2 * n;
-  // H0's upper triangle in float partial sums (a per-pixel 8x8 rank update through Eigen cost more than the
-  // iterations).
-  float h[8][8] = {};
-  for (int k = 0; k < n; ++k) {
-    const float u = static_cast<float>(k % w - half), v = static_cast<float>(k / w - half);
-    const float j[8] = {gx[k] * u, gx[k] * v, gy[k] * u, gy[k] * v, gx[k], gy[k], t[k], 1.0f};
-    for (int a = 0; a < 8; ++a) {
-      for (int b = a; b < 8; ++b) h[a][b] += j[a] * j[b];
-    }
-  }
-  Eigen::Matrix<double, 8, 8> h0;
-  for (int a = 0; a < 8; ++a) {
-    for (int b = a; b < 8; ++b) h0(a, b) = h0(b, a) = h[a][b];
-  }
-  const Eigen::LDLT<Eigen::Matrix<double, 8, 8>> solver(h0);
-  if (solver.info() != Eigen::Success || !(solver.vectorD().minCoeff() > 1e-9 * solver.vectorD().maxCoeff())) {
-    return false;
-  }
   float values[kMaxWindowSize * kMaxWindowSize];
   AffineState& s = *state;
   for (int iteration = 0; iteration < max_iterations; ++iteration) {
@@ -657,7 +653,7 @@ bool IterateAffine(const cv::Mat& image, const WindowView& window, int max_itera
     }
     ++*iterations;
     if (iteration >= 2 && sse > n * give_up_rms * give_up_rms * s.lambda * s.lambda) return false;
-    Eigen::Matrix<double, 8, 1> step = solver.solve(b);
+    Eigen::Matrix<double, 8, 1> step = inverse_hessian * b;
     step.head<6>() /= s.lambda;
     if (!step.allFinite()) return false;
     Eigen::Matrix2d m;
@@ -756,6 +752,38 @@ bool ReferencePatch::Create(const ImagePyramid& pyramid, const Vector2d& positio
   return true;
 }
 
+const ReferencePatch::AffineMatrix* ReferencePatch::AffineInverseHessian() const {
+  if (affine_state_ == 0) {
+    affine_state_ = -1;
+    if (num_levels_ == 0) return nullptr;
+    // H0 = sum J0^T J0 over the level-0 window, J0(u) = [Tx u, Tx v, Ty u, Ty v, Tx, Ty, T, 1] (IterateAffine); its
+    // upper triangle in float partial sums (a per-pixel 8x8 rank update through Eigen costs more).
+    const int w = window_size_, n = w * w, half = w / 2;
+    const float* t = Centered(0);
+    const float* gx = Gx(0);
+    const float* gy = Gy(0);
+    float h[8][8] = {};
+    for (int k = 0; k < n; ++k) {
+      const float u = static_cast<float>(k % w - half), v = static_cast<float>(k / w - half);
+      const float j[8] = {gx[k] * u, gx[k] * v, gy[k] * u, gy[k] * v, gx[k], gy[k], t[k], 1.0f};
+      for (int a = 0; a < 8; ++a) {
+        for (int b = a; b < 8; ++b) h[a][b] += j[a] * j[b];
+      }
+    }
+    Eigen::Matrix<double, 8, 8> h0;
+    for (int a = 0; a < 8; ++a) {
+      for (int b = a; b < 8; ++b) h0(a, b) = h0(b, a) = h[a][b];
+    }
+    const Eigen::LDLT<Eigen::Matrix<double, 8, 8>> solver(h0);
+    if (solver.info() != Eigen::Success || !(solver.vectorD().minCoeff() > 1e-9 * solver.vectorD().maxCoeff())) {
+      return nullptr;
+    }
+    affine_inverse_hessian_ = solver.solve(Eigen::Matrix<double, 8, 8>::Identity());
+    affine_state_ = 1;
+  }
+  return affine_state_ == 1 ? &affine_inverse_hessian_ : nullptr;
+}
+
 namespace {
 
 // AlignToReference starting at pyramid level `start_level` at most.
@@ -833,8 +861,8 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
     }
     // The affine fallback from `from` (see AlignmentOptions::affine_fallback): true when adopted, with `result`
     // filled in as tracked.
-    const auto affine_fallback = [&](const GaussNewtonState& from) {
-      if (!options.affine_fallback) return false;
+    const auto affine_fallback = [&](const GaussNewtonState& from, bool refinement = false) {
+      if (!(refinement ? options.affine_refinement : options.affine_fallback)) return false;
       AffineState affine;
       affine.a = Eigen::Matrix2d::Identity() * from.scale;
       affine.x = from.x;
@@ -842,7 +870,9 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
       affine.lambda = from.lambda;
       affine.delta = from.delta;
       double rms = 0.0, block_rms = 0.0;
-      if (!IterateAffine(image, window, options.max_iterations_affine, options.convergence_epsilon,
+      const ReferencePatch::AffineMatrix* inverse_hessian = reference.AffineInverseHessian();
+      if (inverse_hessian == nullptr ||
+          !IterateAffine(image, window, *inverse_hessian, options.max_iterations_affine, options.convergence_epsilon,
                          kAffineResidualFactor * options.max_residual, options.min_gain, options.max_gain, &affine,
                          &result.iterations, &rms, &block_rms)) {
         return false;
@@ -933,6 +963,13 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
         }
       }
       result.iterations += iterations;
+    }
+    if (options.affine_refinement && result.residual <= options.max_residual &&
+        result.block_residual <= options.max_block_residual && state.scale >= options.min_scale &&
+        state.scale <= options.max_scale) {
+      const AlignmentResult isotropic = result;
+      if (affine_fallback(state, true)) return result;
+      result = isotropic;
     }
     finish(TrackStatus::kTracked, state, 1.0);
     if (state.scale < options.min_scale || state.scale > options.max_scale) {

@@ -57,7 +57,7 @@
 // sheared along the vertical, which (1) cannot absorb, so the alignment converges with its residual above R. When it
 // does so within 1.5 R at level 0, the geometric part is re-estimated as a full affine map x = A u + d from where it
 // ended — the affine Lucas-Kanade of Baker & Matthews (same paper, inverse compositional, the 8x8 Gauss-Newton matrix
-// of [Tx u, Tx v, Ty u, Ty v, Tx, Ty, T, 1] factorised once per call, per-pixel cubic sampling since the warp is no
+// of [Tx u, Tx v, Ty u, Ty v, Tx, Ty, T, 1] inverted once per reference, per-pixel cubic sampling since the warp is no
 // longer axis-aligned) — and adopted when it converges within `max_affine_shift` of where it started with its residuals
 // within the limits, the singular values of A in [min_scale, max_scale] and their ratio at most
 // `max_affine_anisotropy`; the scale reported is sqrt(det A). Measured in feature_tracker_test.cc on a texture
@@ -66,16 +66,25 @@
 // (median): a window sheared that much still matches an isotropic warp within R at a shifted centre, which the fallback
 // does not revisit.
 //
+// AFFINE REFINEMENT (off by default; `repeat --affine-refine`). The fallback revisits only rejected windows; a window
+// sheared or foreshortened a little still matches the isotropic warp within R, at a centre pulled towards where the
+// distortion is balanced (above: 0.36 px median under a shear of 0.25). With `affine_refinement` every alignment
+// accepted at level 0 is refined by the same affine Gauss-Newton from the accepted warp and the refined one adopted
+// when it passes the fallback's checks — the affine model of a small planar patch's appearance, which Shi & Tomasi
+// ("Good features to track", CVPR 1994) use to check a feature against its first view. The inverse 8x8
+// Gauss-Newton matrix is computed once per reference (ReferencePatch::AffineInverseHessian). Measured in
+// feature_tracker_test.cc (AffineRefinementRemovesTheShearBias).
+//
 // RESIDUAL. The reported residual is the RMS over the window of the compensated error in (1),
 //     r = sqrt( (1/N) sum_u [alpha I(s u + d) + beta - T(u)]^2 ),
 // measured at level 0 after convergence, in grey levels of the pre-smoothed REFERENCE (input images are
 // 0..255). It is taken from the error image of the last Gauss-Newton iteration (with its contrast step
 // applied), i.e. at the geometry before the last step, which moved no window corner by more than
-// `convergence_epsilon`: re-sampling the window at the final state would cost as much as an iteration. A track is rejected when r exceeds `max_residual` (R; the paper uses R = 6 at 320x240 with its
-// smoothing; with the default pre-smoothing sigma = 0.5 px, accepted tracks on KITTI 07 have a median r
-// of 2.9 grey levels), when the RMS of the worst 3x3 block of the window exceeds `max_block_residual` (a
-// partial occluder), or when the optimisation fails (not converged, window leaves the image, scale or gain
-// out of range, flat reference).
+// `convergence_epsilon`: re-sampling the window at the final state would cost as much as an iteration. A track is
+// rejected when r exceeds `max_residual` (R; the paper uses R = 6 at 320x240 with its smoothing; with the default
+// pre-smoothing sigma = 0.5 px, accepted tracks on KITTI 07 have a median r of 2.9 grey levels), when the RMS of the
+// worst 3x3 block of the window exceeds `max_block_residual` (a partial occluder), or when the optimisation fails (not
+// converged, window leaves the image, scale or gain out of range, flat reference).
 //
 // All positions are level-0 pixels of the images given (centre of the top-left pixel = (0, 0)); no camera
 // model is involved, so any camera works.
@@ -143,6 +152,13 @@ struct AlignmentOptions {
   // paper's warp alone); `repeat --affine` turns it on for the localizer (LocalizerOptions::affine_fallback), whose
   // references come from key-images taught from another viewpoint.
   bool affine_fallback = false;
+  // AFFINE REFINEMENT (see the header): an alignment accepted under the paper's warp at level 0 is refined from there
+  // with the affine warp, adopted under the same conditions as the fallback's (converged within `max_affine_shift`
+  // of where it started, residuals within the limits, A's singular values in the scale range and their ratio at most
+  // `max_affine_anisotropy`): the paper's isotropic warp fitted to a foreshortened or sheared window converges at a
+  // shifted centre, within R. Off by default; `repeat --affine-refine` turns it on for the localizer's tracked
+  // features (LocalizerOptions::affine_refinement).
+  bool affine_refinement = false;
   double max_affine_anisotropy = 1.6;
   double max_affine_shift = 2.0;
   int max_iterations_affine = 15;
@@ -228,6 +244,11 @@ class ReferencePatch {
   const Eigen::Matrix<float, 5, 5>& ScaleWindowInverseHessianTranslation() const {
     return scale_inverse_hessian_translation_;
   }
+  // The inverse 8x8 Gauss-Newton matrix of the affine warp at level 0 (parameters of A, d, lambda, delta; the affine
+  // fallback and refinement), computed at its first use and kept with the patch; null when it is singular or badly
+  // conditioned.
+  using AffineMatrix = Eigen::Matrix<double, 8, 8, Eigen::DontAlign>;
+  const AffineMatrix* AffineInverseHessian() const;
 
  private:
   size_t Offset(int level) const { return static_cast<size_t>(level) * 4 * window_size_ * window_size_; }
@@ -251,6 +272,9 @@ class ReferencePatch {
   double scale_mean_ = 0.0;
   Eigen::Matrix<float, 5, 5> scale_inverse_hessian_ = Eigen::Matrix<float, 5, 5>::Zero();
   Eigen::Matrix<float, 5, 5> scale_inverse_hessian_translation_ = Eigen::Matrix<float, 5, 5>::Zero();
+  // AffineInverseHessian's cache: 0 not computed yet, 1 valid, -1 singular.
+  mutable int affine_state_ = 0;
+  mutable AffineMatrix affine_inverse_hessian_;
 };
 
 // Aligns `reference` to the image in `pyramid` by minimising (1), starting from `initial` (level-0 pixels),
