@@ -205,6 +205,7 @@ struct DriveArguments {
   arc_t start_arc = kInvalidArcId;
   bool no_start_arc = false;
   bool placed_start_fine = false;  // FeatureTrackerOptions::placed_features_start_fine of the localizer
+  bool affine_refine = false;      // LocalizerOptions::affine_refinement
   ClosedLoopOptions drive;
 };
 
@@ -224,6 +225,7 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   LocalizerOptions base;
   base.path.camera_height = args.camera_height > 0 ? args.camera_height : scenario.vehicle.camera_height;
   base.tracker.placed_features_start_fine = args.placed_start_fine;
+  base.affine_refinement = args.affine_refine;
   MapForLocalizer loaded = LoadMapForLocalizer(args.map, base);
   Simulator simulator(ApplyVariant(scenario, ScenarioVariant::kRepeat));
   const CameraModel& camera = simulator.camera();
@@ -684,6 +686,8 @@ void RegisterSimCommand(CLI::App& app) {
   drive->add_option("--approach-distance", args->drive.tracking.approach_distance,
                     "Distance over which the path law closes a lateral offset (m)")
       ->capture_default_str();
+  drive->add_flag("--affine-refine", args->affine_refine,
+                  "Localizer: refine every tracked feature with an affine warp (`repeat --affine-refine`)");
   drive->add_flag("--placed-start-fine", args->placed_start_fine,
                   "Localizer: track the mapped features it placed from a fine pyramid level in every frame (`repeat "
                   "--placed-start-fine`)");

@@ -125,6 +125,7 @@ Localizer::Localizer(Map map, const CameraModel& camera, const LocalizerOptions&
   FeatureTrackerOptions tracker_options = options_.tracker;
   tracker_options.alignment.max_residual = options_.max_residual;
   tracker_options.alignment.affine_fallback = options_.affine_fallback;
+  tracker_options.alignment.affine_refinement = options_.affine_refinement;
   tracker_options.num_levels = pyramid_options_.num_levels;
   tracker_ = FeatureTracker(tracker_options);
   refine_options_.alignment = options_.tracker.alignment;
@@ -315,6 +316,8 @@ const ReferencePatch* Localizer::Reference(node_t node_id, feature_t feature) {
       if (!patch->Create(NodePyramid(node_id), position->second, tracker_.Options().alignment.window_size,
                          tracker_.Options().num_levels)) {
         patch.reset();
+      } else if (options_.affine_refinement || options_.affine_fallback) {
+        patch->AffineInverseHessian();  // computed once here, carried by every copy the tracker takes
       }
     }
     it = node.references.emplace(feature, std::move(patch)).first;

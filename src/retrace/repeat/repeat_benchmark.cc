@@ -123,14 +123,17 @@ void RunRepeat(const Setup& setup, benchmark::State& state, const LocalizerOptio
   state.counters["width"] = setup.camera->width();
 }
 
-void BM_RepeatKitti(benchmark::State& state) {
+// kitti07 at the width of the benchmark's argument.
+void RunRepeatKitti(benchmark::State& state, const LocalizerOptions& options = LocalizerOptions()) {
   const Setup* setup = GetSetup(static_cast<int>(state.range(0)));
   if (setup == nullptr) {
     state.SkipWithError("kitti07 not found");
     return;
   }
-  RunRepeat(*setup, state);
+  RunRepeat(*setup, state, options);
 }
+
+void BM_RepeatKitti(benchmark::State& state) { RunRepeatKitti(state); }
 // 0 = native 1226x370; 320 = 320x97.
 BENCHMARK(BM_RepeatKitti)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)->Iterations(1);
 
@@ -144,17 +147,24 @@ LocalizerOptions WithAffineFallback() {
   options.affine_fallback = true;
   return options;
 }
-void BM_RepeatKittiAffine(benchmark::State& state) {
-  const Setup* setup = GetSetup(static_cast<int>(state.range(0)));
-  if (setup == nullptr) {
-    state.SkipWithError("kitti07 not found");
-    return;
-  }
-  RunRepeat(*setup, state, WithAffineFallback());
-}
+void BM_RepeatKittiAffine(benchmark::State& state) { RunRepeatKitti(state, WithAffineFallback()); }
 BENCHMARK(BM_RepeatKittiAffine)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)->Iterations(1);
 void BM_RepeatSimAffine(benchmark::State& state) { RunRepeat(*GetSimSetup(), state, WithAffineFallback()); }
 BENCHMARK(BM_RepeatSimAffine)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+// The same drives with the tracks refined by an affine warp and the placed features started at a fine level
+// (`repeat --affine-refine --placed-start-fine`; README, "Tracks refined with an affine warp"): what they cost,
+// measured in the same process.
+LocalizerOptions WithAffineRefinement() {
+  LocalizerOptions options;
+  options.affine_refinement = true;
+  options.tracker.placed_features_start_fine = true;
+  return options;
+}
+void BM_RepeatKittiRefined(benchmark::State& state) { RunRepeatKitti(state, WithAffineRefinement()); }
+BENCHMARK(BM_RepeatKittiRefined)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)->Iterations(1);
+void BM_RepeatSimRefined(benchmark::State& state) { RunRepeat(*GetSimSetup(), state, WithAffineRefinement()); }
+BENCHMARK(BM_RepeatSimRefined)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 // One frame localized from scratch (a fresh Localizer, no key-image features cached), `frame` of the repeat drive.
 void RunFindStart(const Setup& setup, size_t frame, benchmark::State& state) {
