@@ -379,6 +379,9 @@ void RegisterBenchCommand(CLI::App& app) {
                 "Relocalize with SIFT extracted at run time (as before issue 16), not the stored binary key-points");
   cmd->add_flag("!--no-visual-words", args->options.visual_word_retrieval,
                 "Rank the whole map by appearance thumbnails alone, not fused with visual words");
+  cmd->add_flag("--relocalization-affine", args->options.relocalization_affine_fallback,
+                "Align the mapped features a relocalization locates with the affine fallback too (`repeat "
+                "--relocalization-affine`)");
   cmd->callback([args]() {
     std::string error;
     if (!args->options.Check(&error)) throw InputError("bench options", error);

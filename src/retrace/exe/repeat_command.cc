@@ -534,6 +534,9 @@ void RegisterRepeatCommand(CLI::App& app) {
                 "Align tracks whose residual under the paper's warp is above R (within 1.5 R) again with an affine "
                 "warp: more features 2-3 m beside the taught path, at a cost in speed and a few more frames on a "
                 "wrong arc (README, validation matrix)");
+  cmd->add_flag("--relocalization-affine", args->options.relocalization_affine_fallback,
+                "Align the mapped features a relocalization locates with the affine fallback too (a start beside the "
+                "taught path; README, \"Relocalization with the affine fallback\")");
   cmd->add_flag("--placed-start-fine", args->options.tracker.placed_features_start_fine,
                 "Track the mapped features a relocalization or a prediction placed from a fine pyramid level in every "
                 "frame, as they were placed (fewer tracks lost after a relocalization; more frames tracked 2-3 m "

@@ -206,6 +206,7 @@ struct DriveArguments {
   bool no_start_arc = false;
   bool placed_start_fine = false;  // FeatureTrackerOptions::placed_features_start_fine of the localizer
   bool affine_refine = false;      // LocalizerOptions::affine_refinement
+  bool relocalization_affine = false;  // LocalizerOptions::relocalization_affine_fallback
   ClosedLoopOptions drive;
 };
 
@@ -226,6 +227,7 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   base.path.camera_height = args.camera_height > 0 ? args.camera_height : scenario.vehicle.camera_height;
   base.tracker.placed_features_start_fine = args.placed_start_fine;
   base.affine_refinement = args.affine_refine;
+  base.relocalization_affine_fallback = args.relocalization_affine;
   MapForLocalizer loaded = LoadMapForLocalizer(args.map, base);
   Simulator simulator(ApplyVariant(scenario, ScenarioVariant::kRepeat));
   const CameraModel& camera = simulator.camera();
@@ -688,6 +690,9 @@ void RegisterSimCommand(CLI::App& app) {
       ->capture_default_str();
   drive->add_flag("--affine-refine", args->affine_refine,
                   "Localizer: refine every tracked feature with an affine warp (`repeat --affine-refine`)");
+  drive->add_flag("--relocalization-affine", args->relocalization_affine,
+                  "Localizer: align the mapped features a relocalization locates with the affine fallback (`repeat "
+                  "--relocalization-affine`)");
   drive->add_flag("--placed-start-fine", args->placed_start_fine,
                   "Localizer: track the mapped features it placed from a fine pyramid level in every frame (`repeat "
                   "--placed-start-fine`)");

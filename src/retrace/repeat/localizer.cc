@@ -316,7 +316,7 @@ const ReferencePatch* Localizer::Reference(node_t node_id, feature_t feature) {
       if (!patch->Create(NodePyramid(node_id), position->second, tracker_.Options().alignment.window_size,
                          tracker_.Options().num_levels)) {
         patch.reset();
-      } else if (options_.affine_refinement || options_.affine_fallback) {
+      } else if (options_.affine_refinement || options_.affine_fallback || options_.relocalization_affine_fallback) {
         patch->AffineInverseHessian();  // computed once here, carried by every copy the tracker takes
       }
     }

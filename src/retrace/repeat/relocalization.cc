@@ -245,6 +245,7 @@ int Localizer::LocateMappedFeatures(const MatchedKeyImage& key_image, const std:
   RefinePredictionOptions refine = refine_options_;
   refine.max_distance = options_.bootstrap_radius_px * pixel_scale_;
   refine.max_scale_ratio = 1.5;
+  refine.alignment.affine_fallback = options_.affine_fallback || options_.relocalization_affine_fallback;
   const NodeData& node = Node(key_image.node);
   int located_features = 0;
   for (const ArcData* located : arcs) {
