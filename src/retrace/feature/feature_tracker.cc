@@ -964,9 +964,11 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
       }
       result.iterations += iterations;
     }
+    // The refinement starts only from an alignment the checks below accept (residuals, scale, gain).
     if (options.affine_refinement && result.residual <= options.max_residual &&
         result.block_residual <= options.max_block_residual && state.scale >= options.min_scale &&
-        state.scale <= options.max_scale) {
+        state.scale <= options.max_scale && 1.0 / state.lambda >= options.min_gain &&
+        1.0 / state.lambda <= options.max_gain) {
       const AlignmentResult isotropic = result;
       if (affine_fallback(state, true)) return result;
       result = isotropic;
