@@ -859,10 +859,9 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
       position = Vector2d(state.x, state.y) / to_level;
       continue;
     }
-    // The affine fallback from `from` (see AlignmentOptions::affine_fallback): true when adopted, with `result`
-    // filled in as tracked.
-    const auto affine_fallback = [&](const GaussNewtonState& from, bool refinement = false) {
-      if (!(refinement ? options.affine_refinement : options.affine_fallback)) return false;
+    // The affine warp from `from` (AlignmentOptions::affine_fallback and affine_refinement): true when adopted, with
+    // `result` filled in as tracked.
+    const auto align_affine = [&](const GaussNewtonState& from) {
       AffineState affine;
       affine.a = Eigen::Matrix2d::Identity() * from.scale;
       affine.x = from.x;
@@ -970,7 +969,7 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
         state.scale <= options.max_scale && 1.0 / state.lambda >= options.min_gain &&
         1.0 / state.lambda <= options.max_gain) {
       const AlignmentResult isotropic = result;
-      if (affine_fallback(state, true)) return result;
+      if (align_affine(state)) return result;
       result = isotropic;
     }
     finish(TrackStatus::kTracked, state, 1.0);
@@ -982,7 +981,8 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
                !(result.block_residual <= options.max_block_residual)) {
       // Above R: the affine fallback when it is on and the residual within 1.5 R.
       const AlignmentResult isotropic = result;
-      if (!(result.residual <= kAffineResidualFactor * options.max_residual) || !affine_fallback(state)) {
+      if (!options.affine_fallback || !(result.residual <= kAffineResidualFactor * options.max_residual) ||
+          !align_affine(state)) {
         result = isotropic;
         result.status = TrackStatus::kResidualTooLarge;
       }

@@ -245,8 +245,9 @@ class ReferencePatch {
     return scale_inverse_hessian_translation_;
   }
   // The inverse 8x8 Gauss-Newton matrix of the affine warp at level 0 (parameters of A, d, lambda, delta; the affine
-  // fallback and refinement), computed at its first use and kept with the patch; null when it is singular or badly
-  // conditioned.
+  // fallback and refinement), computed at its first use and kept with the patch (and its copies); null when it is
+  // singular or badly conditioned. The first call writes the cache: make it before the patch is shared between
+  // threads (Localizer::Reference does).
   using AffineMatrix = Eigen::Matrix<double, 8, 8, Eigen::DontAlign>;
   const AffineMatrix* AffineInverseHessian() const;
 

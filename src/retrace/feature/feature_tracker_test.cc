@@ -399,6 +399,27 @@ TEST(FeatureTracker, RefinePredictionAcceptsOnlyNearThePrediction) {
   EXPECT_GE(accepted, 8);
 }
 
+// The image mapped by x_new = centre + A (x - centre) + shift (cubic, edges reflected): a facade seen from elsewhere.
+cv::Mat WarpAboutCentre(const cv::Mat& source, const Eigen::Matrix2d& a, const Vector2d& centre,
+                        const Vector2d& shift) {
+  cv::Mat forward(2, 3, CV_64F);
+  for (int r = 0; r < 2; ++r) {
+    for (int c = 0; c < 2; ++c) forward.at<double>(r, c) = a(r, c);
+    forward.at<double>(r, 2) = (centre - a * centre + shift)(r);
+  }
+  cv::Mat warped;
+  cv::warpAffine(source, warped, forward, source.size(), cv::INTER_CUBIC, cv::BORDER_REFLECT);
+  return warped;
+}
+
+// Up to 40 corners of `pyramid` at least 50 px from its border (the affine tests' features).
+std::vector<Corner> AffineTestCorners(const ImagePyramid& pyramid) {
+  CornerDetectorOptions detector;
+  detector.max_corners = 40;
+  detector.border = 50;
+  return DetectCorners(pyramid, detector);
+}
+
 // A facade seen from beside the path it was taught on: the image is compressed horizontally (0.7) and sheared
 // vertically (0.25) about its centre, beyond the paper's translation + isotropic scale. With the paper's warp alone
 // most predicted features are rejected for their residual; the affine fallback accepts most of them, at the right
@@ -409,23 +430,12 @@ TEST(FeatureTracker, AffineFallbackAlignsShearedAppearance) {
   const SyntheticTexture texture = SmallTexture(8);
   const cv::Mat source = texture.Render(320, 240);
   const ImagePyramid pyramid0(Quantise(source));
-  CornerDetectorOptions detector;
-  detector.max_corners = 40;
-  detector.border = 50;
-  const std::vector<Corner> corners = DetectCorners(pyramid0, detector);
+  const std::vector<Corner> corners = AffineTestCorners(pyramid0);
   ASSERT_GE(corners.size(), 20u);
   Eigen::Matrix2d a;
   a << 0.7, 0.0, 0.25, 1.0;
   const Vector2d centre(160.0, 120.0), shift(3.0, -2.0);
-  // x_new = centre + A (x - centre) + shift.
-  cv::Mat forward(2, 3, CV_64F);
-  for (int r = 0; r < 2; ++r) {
-    for (int c = 0; c < 2; ++c) forward.at<double>(r, c) = a(r, c);
-    forward.at<double>(r, 2) = (centre - a * centre + shift)(r);
-  }
-  cv::Mat warped;
-  cv::warpAffine(source, warped, forward, source.size(), cv::INTER_CUBIC, cv::BORDER_REFLECT);
-  const ImagePyramid pyramid1(Quantise(warped));
+  const ImagePyramid pyramid1(Quantise(WarpAboutCentre(source, a, centre, shift)));
   RefinePredictionOptions paper, fallback;
   fallback.alignment.affine_fallback = true;
   int tried = 0, accepted_paper = 0, adopted_affine = 0;
@@ -469,21 +479,11 @@ TEST(FeatureTracker, AffineRefinementRemovesTheShearBias) {
   const SyntheticTexture texture = SmallTexture(8);
   const cv::Mat source = texture.Render(320, 240);
   const ImagePyramid pyramid0(Quantise(source));
-  CornerDetectorOptions detector;
-  detector.max_corners = 40;
-  detector.border = 50;
-  const std::vector<Corner> corners = DetectCorners(pyramid0, detector);
+  const std::vector<Corner> corners = AffineTestCorners(pyramid0);
   ASSERT_GE(corners.size(), 20u);
   const Vector2d centre(160.0, 120.0), shift(2.0, -1.5);
   const auto errors = [&](const Eigen::Matrix2d& a, bool refine, int* accepted, int* refined) {
-    cv::Mat forward(2, 3, CV_64F);
-    for (int r = 0; r < 2; ++r) {
-      for (int c = 0; c < 2; ++c) forward.at<double>(r, c) = a(r, c);
-      forward.at<double>(r, 2) = (centre - a * centre + shift)(r);
-    }
-    cv::Mat warped;
-    cv::warpAffine(source, warped, forward, source.size(), cv::INTER_CUBIC, cv::BORDER_REFLECT);
-    const ImagePyramid pyramid1(Quantise(warped));
+    const ImagePyramid pyramid1(Quantise(WarpAboutCentre(source, a, centre, shift)));
     RefinePredictionOptions options;
     options.alignment.affine_refinement = refine;
     std::vector<double> found;
