@@ -91,6 +91,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -370,8 +371,11 @@ class FeatureTracker {
   // Adds one feature per position; returns the ids (kInvalidFeatureId for the rejected ones).
   std::vector<feature_t> AddFeatures(const ImagePyramid& pyramid, const std::vector<Vector2d>& positions);
   // Adds a feature with a given reference at a known warp (e.g. after RefinePrediction accepted a
-  // prediction).
+  // prediction). The first form copies the reference; the second shares it (the localizer's references, cut once
+  // per key-image and feature, are shared by every track that uses them: a reference is ~15 kB).
   feature_t AddFeature(const ReferencePatch& reference, const AlignmentResult& alignment,
+                       feature_t id = kInvalidFeatureId);
+  feature_t AddFeature(std::shared_ptr<const ReferencePatch> reference, const AlignmentResult& alignment,
                        feature_t id = kInvalidFeatureId);
 
   // Aligns every feature to its reference in the new image. Features whose alignment fails are removed; the
@@ -404,7 +408,8 @@ class FeatureTracker {
   std::vector<double> scratch_dx_, scratch_dy_;
   std::vector<size_t> scratch_without_velocity_;
   std::vector<TrackedFeature> features_;
-  std::vector<ReferencePatch> references_;
+  // Shared and never modified once stored: removing a feature or compacting the list moves pointers, not patches.
+  std::vector<std::shared_ptr<const ReferencePatch>> references_;
   std::vector<Vector2d> velocities_;
   std::vector<uint8_t> placed_;  // 1: reference cut from another image (see placed_features_start_fine)
   std::vector<TrackedFeature> last_results_;

@@ -554,6 +554,39 @@ TEST(FeatureTracker, AddRemoveSetReference) {
   EXPECT_EQ(tracker.NumFeatures(), 1);
 }
 
+// A reference given as a shared patch is tracked against that very patch (the localizer cuts each key-image's
+// reference once and every track of the feature shares it), stays valid when the caller drops its handle, and
+// removing other features does not disturb it. Both forms of AddFeature track alike.
+TEST(FeatureTracker, SharedReferenceIsTrackedWithoutACopy) {
+  const SyntheticTexture texture = SmallTexture(4);
+  const ImagePyramid pyramid0(Quantise(texture.Render(320, 240)));
+  const ImagePyramid pyramid1(Quantise(texture.Render(320, 240, 1.0, Vector2d(3.0, -2.0))));
+  FeatureTracker tracker;
+  AlignmentResult at_reference;
+  at_reference.warp.position = Vector2d(200.0, 150.0);
+  at_reference.residual = 0.0;
+  at_reference.converged = true;
+  at_reference.status = TrackStatus::kTracked;
+  auto patch = std::make_shared<ReferencePatch>();
+  ASSERT_TRUE(patch->Create(pyramid0, at_reference.warp.position));
+  const ReferencePatch* const shared = patch.get();
+  EXPECT_EQ(tracker.AddFeature(std::shared_ptr<const ReferencePatch>(), at_reference), kInvalidFeatureId);
+  const feature_t copied = tracker.AddFeature(*patch, at_reference, 1);
+  const feature_t other = tracker.AddFeature(pyramid0, Vector2d(100.0, 100.0), 2);
+  const feature_t id = tracker.AddFeature(std::shared_ptr<const ReferencePatch>(std::move(patch)), at_reference, 3);
+  ASSERT_EQ(id, 3);
+  ASSERT_EQ(copied, 1);
+  EXPECT_EQ(tracker.Reference(id), shared);
+  EXPECT_NE(tracker.Reference(copied), shared);
+  EXPECT_TRUE(tracker.Remove(other));
+  tracker.Track(pyramid1);
+  ASSERT_NE(tracker.Find(id), nullptr);
+  ASSERT_NE(tracker.Find(copied), nullptr);
+  EXPECT_EQ(tracker.Reference(id), shared);
+  EXPECT_NEAR(tracker.Find(id)->warp.position.x(), 203.0, 0.1);
+  EXPECT_NEAR(tracker.Find(id)->warp.position.y(), 148.0, 0.1);
+  EXPECT_EQ(tracker.Find(id)->warp.position, tracker.Find(copied)->warp.position);
+}
 // Features tracked in the previous frame start the alignment at a finer level from their constant-velocity guess
 // (FeatureTrackerOptions::predicted_start_level); when the motion reverses abruptly, the guess is 15 px off,
 // outside the basin of the start level, and the fallback to the full coarse-to-fine alignment must keep the tracks.

@@ -304,15 +304,15 @@ std::shared_ptr<const VisualWords> Localizer::BuildMapVisualWords(const Map& map
   return words->vocabulary.size() > 1 ? words : nullptr;
 }
 
-const ReferencePatch* Localizer::Reference(node_t node_id, feature_t feature) {
+std::shared_ptr<const ReferencePatch> Localizer::Reference(node_t node_id, feature_t feature) {
   NodeData& node = Node(node_id);
   node.last_used = frame_counter_;
   auto it = node.references.find(feature);
   if (it == node.references.end()) {
-    std::unique_ptr<ReferencePatch> patch;
+    std::shared_ptr<ReferencePatch> patch;
     const auto position = node.positions.find(feature);
     if (position != node.positions.end()) {
-      patch = std::make_unique<ReferencePatch>();
+      patch = std::make_shared<ReferencePatch>();
       if (!patch->Create(NodePyramid(node_id), position->second, tracker_.Options().alignment.window_size,
                          tracker_.Options().num_levels)) {
         patch.reset();
@@ -322,7 +322,7 @@ const ReferencePatch* Localizer::Reference(node_t node_id, feature_t feature) {
     }
     it = node.references.emplace(feature, std::move(patch)).first;
   }
-  return it->second.get();
+  return it->second;
 }
 
 node_t Localizer::ReferenceNode(const ArcData& arc, feature_t feature, node_t preferred) const {

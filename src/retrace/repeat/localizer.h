@@ -548,7 +548,7 @@ class Localizer {
   const ImagePyramid& NodePyramid(node_t id);
   const WideBaselineFeatures& NodeWideBaseline(node_t id);
   // The reference appearance of `feature` cut from key-image `node` (cached), or null when it cannot be cut.
-  const ReferencePatch* Reference(node_t node, feature_t feature);
+  std::shared_ptr<const ReferencePatch> Reference(node_t node, feature_t feature);
   // The key-image of `arc` whose appearance serves as reference for `feature`: `preferred` (the arc's key-image
   // nearest to the camera) when the feature is seen there, else the other one; invalid when seen in neither.
   node_t ReferenceNode(const ArcData& arc, feature_t feature, node_t preferred) const;

@@ -20,7 +20,7 @@ struct Localizer::NodeData {
   std::unique_ptr<ImagePyramid> pyramid;
   // Relocalization key-points of the key-image (from its stored signature, or extracted).
   std::optional<WideBaselineFeatures> wide_baseline;
-  std::unordered_map<feature_t, std::unique_ptr<ReferencePatch>> references;  // null = cannot be cut
+  std::unordered_map<feature_t, std::shared_ptr<const ReferencePatch>> references;  // null = cannot be cut
   // Frame counter of the last use of the derived data above (pyramid, wide_baseline, references).
   size_t last_used = 0;
 

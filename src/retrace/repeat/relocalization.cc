@@ -275,11 +275,11 @@ int Localizer::LocateMappedFeatures(const MatchedKeyImage& key_image, const std:
       if (!enough) continue;
       const Vector2d predicted = position->second + Vector2d(Median(dx), Median(dy));
       if (!camera_->InImage(predicted, tracker_.Options().alignment.window_size / 2 + 2)) continue;
-      const ReferencePatch* reference = Reference(key_image.node, id);
+      const std::shared_ptr<const ReferencePatch> reference = Reference(key_image.node, id);
       if (reference == nullptr) continue;
       const AlignmentResult refined =
           RefinePrediction(prediction_pyramid_, *reference, predicted, Median(ratios), refine);
-      if (refined.ok() && tracker_.AddFeature(*reference, refined, id) != kInvalidFeatureId) {
+      if (refined.ok() && tracker_.AddFeature(reference, refined, id) != kInvalidFeatureId) {
         reference_node_[id] = key_image.node;
         ++located_features;
       }

@@ -43,12 +43,12 @@ void Localizer::ResumePredicted(const std::array<RolePredictor, 3>& roles, const
       const ArcImage reference_image = reference_node == r.arc->arc->to ? ArcImage::kB : ArcImage::kA;
       const TransferredPoint predicted = transfer.Transfer(point, *camera_, reference_image, margin);
       if (!predicted.in_image || !(predicted.distance_ratio > 0)) continue;
-      const ReferencePatch* reference = Reference(reference_node, id);
+      const std::shared_ptr<const ReferencePatch> reference = Reference(reference_node, id);
       if (reference == nullptr) continue;
       // Segvic 2009 §5.2.1: initial scale = |Q - C_ref| / |Q - C_t| (the feature looks larger when nearer).
       const AlignmentResult refined = RefinePrediction(prediction_pyramid_, *reference, predicted.pixel,
                                                        1.0 / predicted.distance_ratio, refine_options_);
-      if (refined.ok() && tracker_.AddFeature(*reference, refined, id) != kInvalidFeatureId) {
+      if (refined.ok() && tracker_.AddFeature(reference, refined, id) != kInvalidFeatureId) {
         reference_node_[id] = reference_node;
         retry_after_.erase(id);
         ++result->resumed;
@@ -74,7 +74,7 @@ void Localizer::RedefineReferences(const ArcData& arc, node_t node_id, FrameResu
         !node.positions.count(f.id)) {
       continue;
     }
-    const ReferencePatch* reference = Reference(node_id, f.id);
+    const std::shared_ptr<const ReferencePatch> reference = Reference(node_id, f.id);
     if (reference == nullptr) continue;
     // The apparent size relative to the new reference: the current scale times the ratio of the point's distances
     // to the old and the new reference viewpoints (1 when the old one is not on this arc).
@@ -89,7 +89,7 @@ void Localizer::RedefineReferences(const ArcData& arc, node_t node_id, FrameResu
         RefinePrediction(prediction_pyramid_, *reference, f.warp.position, f.warp.scale * ratio, refine_options_);
     if (!aligned.ok()) continue;  // keeps tracking against its old reference
     tracker_.Remove(f.id);
-    if (tracker_.AddFeature(*reference, aligned, f.id) != kInvalidFeatureId) {
+    if (tracker_.AddFeature(reference, aligned, f.id) != kInvalidFeatureId) {
       reference_node_[f.id] = node_id;
       ++result->redefined;
     } else {
@@ -145,7 +145,7 @@ void Localizer::ResumeByRotation(const ArcData& arc, node_t node_id, const Matri
   // radius — several independent features agreeing on one offset guard against wrong associations.
   struct Candidate {
     feature_t id;
-    const ReferencePatch* reference;
+    std::shared_ptr<const ReferencePatch> reference;
     Vector2d predicted;
     AlignmentResult aligned;
   };
@@ -159,7 +159,7 @@ void Localizer::ResumeByRotation(const ArcData& arc, node_t node_id, const Matri
     if (bearing == node.bearings.end()) continue;
     Vector2d predicted;
     if (!camera_->Project(rotation * bearing->second, &predicted) || !camera_->InImage(predicted, margin)) continue;
-    const ReferencePatch* reference = Reference(node_id, id);
+    const std::shared_ptr<const ReferencePatch> reference = Reference(node_id, id);
     if (reference == nullptr) continue;
     WarpState initial;
     initial.position = predicted;
@@ -181,7 +181,7 @@ void Localizer::ResumeByRotation(const ArcData& arc, node_t node_id, const Matri
                           (c.aligned.warp.position - predicted).norm() <= refine_options_.max_distance &&
                           scale_ratio <= refine_options_.max_scale_ratio &&
                           scale_ratio >= 1.0 / refine_options_.max_scale_ratio;
-    if (accepted && tracker_.AddFeature(*c.reference, c.aligned, c.id) != kInvalidFeatureId) {
+    if (accepted && tracker_.AddFeature(c.reference, c.aligned, c.id) != kInvalidFeatureId) {
       reference_node_[c.id] = node_id;
       retry_after_.erase(c.id);
       ++result->resumed;
