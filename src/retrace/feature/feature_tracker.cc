@@ -1043,10 +1043,7 @@ std::vector<feature_t> FeatureTracker::AddFeatures(const ImagePyramid& pyramid,
   return ids;
 }
 
-feature_t FeatureTracker::AddFeature(const ReferencePatch& reference, const AlignmentResult& alignment,
-                                     feature_t id) {
-  if (!reference.Valid() || reference.WindowSize() != options_.alignment.window_size)
-    return kInvalidFeatureId;
+feature_t FeatureTracker::AddFeature(const ReferencePatch& reference, const AlignmentResult& alignment, feature_t id) {
   return AddFeature(std::make_shared<const ReferencePatch>(reference), alignment, id);
 }
 

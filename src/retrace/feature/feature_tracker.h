@@ -408,7 +408,8 @@ class FeatureTracker {
   std::vector<double> scratch_dx_, scratch_dy_;
   std::vector<size_t> scratch_without_velocity_;
   std::vector<TrackedFeature> features_;
-  // Shared and never modified once stored: removing a feature or compacting the list moves pointers, not patches.
+  // Shared (const: only ReferencePatch's own lazily computed affine matrix may still be filled in), so removing a
+  // feature or compacting the list moves pointers, not patches.
   std::vector<std::shared_ptr<const ReferencePatch>> references_;
   std::vector<Vector2d> velocities_;
   std::vector<uint8_t> placed_;  // 1: reference cut from another image (see placed_features_start_fine)

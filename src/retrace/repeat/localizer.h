@@ -547,7 +547,8 @@ class Localizer {
   void CheckKeyImageSize(node_t id, const cv::Mat& image) const;
   const ImagePyramid& NodePyramid(node_t id);
   const WideBaselineFeatures& NodeWideBaseline(node_t id);
-  // The reference appearance of `feature` cut from key-image `node` (cached), or null when it cannot be cut.
+  // The reference appearance of `feature` cut from key-image `node` (cut once, cached, and shared with the tracks
+  // that use it), or null when it cannot be cut.
   std::shared_ptr<const ReferencePatch> Reference(node_t node, feature_t feature);
   // The key-image of `arc` whose appearance serves as reference for `feature`: `preferred` (the arc's key-image
   // nearest to the camera) when the feature is seen there, else the other one; invalid when seen in neither.
