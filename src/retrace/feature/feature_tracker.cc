@@ -558,6 +558,19 @@ struct AffineState {
   double x = 0.0, y = 0.0, lambda = 1.0, delta = 0.0;
 };
 
+#if defined(__SSE2__)
+// CubicWeights of four fractions at once, with the same operations in the same order (the same floats).
+inline void CubicWeights4(__m128 f, __m128* w0, __m128* w1, __m128* w2, __m128* w3) {
+  const __m128 f2 = _mm_mul_ps(f, f), f3 = _mm_mul_ps(f2, f);
+  const __m128 half = _mm_set1_ps(0.5f);
+  *w0 = _mm_sub_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(-0.5f), f3), f2), _mm_mul_ps(half, f));
+  *w1 = _mm_add_ps(_mm_sub_ps(_mm_mul_ps(_mm_set1_ps(1.5f), f3), _mm_mul_ps(_mm_set1_ps(2.5f), f2)), _mm_set1_ps(1.0f));
+  *w2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(-1.5f), f3), _mm_mul_ps(_mm_set1_ps(2.0f), f2)),
+                   _mm_mul_ps(half, f));
+  *w3 = _mm_sub_ps(_mm_mul_ps(half, f3), _mm_mul_ps(half, f2));
+}
+#endif
+
 // Samples the w x w window of `s` (u integer offsets in [-half, half]^2) with cubic interpolation, one pixel at a
 // time (the warp is not axis-aligned). False when a sample's 4x4 neighbourhood leaves the image.
 bool SampleAffineWindow(const cv::Mat& image, const AffineState& s, int w, float* out) {
@@ -573,31 +586,74 @@ bool SampleAffineWindow(const cv::Mat& image, const AffineState& s, int w, float
   for (int r = 0; r < w; ++r) {
     const double v = r - half;
     double x = s.x - s.a(0, 0) * half + s.a(0, 1) * v, y = s.y - s.a(1, 0) * half + s.a(1, 1) * v;
+#if defined(__SSE2__)
+    // Four samples at a time: their cubic weights in one go, the four taps of each of their four rows one unaligned
+    // load (weighted by wy, summed vertically, weighted by wx), and a 4x4 transpose turning the four dot products into
+    // one vertical sum. Lanes past the window's last column repeat its last sample and are not stored.
+    for (int c0 = 0; c0 < w; c0 += 4) {
+      const int lanes = std::min(4, w - c0);
+      int ix[4], iy[4];
+      alignas(16) float fx[4], fy[4];
+      for (int j = 0; j < 4; ++j) {
+        if (j < lanes) {
+          ix[j] = static_cast<int>(x);
+          iy[j] = static_cast<int>(y);
+          fx[j] = static_cast<float>(x - ix[j]);
+          fy[j] = static_cast<float>(y - iy[j]);
+          x += s.a(0, 0);
+          y += s.a(1, 0);
+        } else {
+          ix[j] = ix[j - 1];
+          iy[j] = iy[j - 1];
+          fx[j] = fx[j - 1];
+          fy[j] = fy[j - 1];
+        }
+      }
+      __m128 wx0, wx1, wx2, wx3;
+      CubicWeights4(_mm_load_ps(fx), &wx0, &wx1, &wx2, &wx3);
+      _MM_TRANSPOSE4_PS(wx0, wx1, wx2, wx3);  // now wxj: the four taps' weights of lane j
+      __m128 wy0, wy1, wy2, wy3;
+      CubicWeights4(_mm_load_ps(fy), &wy0, &wy1, &wy2, &wy3);
+      alignas(16) float wy[4][4];  // wy[k][j]: row k's weight of lane j
+      _mm_store_ps(wy[0], wy0);
+      _mm_store_ps(wy[1], wy1);
+      _mm_store_ps(wy[2], wy2);
+      _mm_store_ps(wy[3], wy3);
+      const __m128 wx[4] = {wx0, wx1, wx2, wx3};
+      __m128 products[4];
+      for (int j = 0; j < 4; ++j) {
+        const float* p = base + (iy[j] - 1) * stride + (ix[j] - 1);
+        __m128 sum = _mm_mul_ps(_mm_loadu_ps(p), _mm_set1_ps(wy[0][j]));
+        sum = _mm_add_ps(sum, _mm_mul_ps(_mm_loadu_ps(p + stride), _mm_set1_ps(wy[1][j])));
+        sum = _mm_add_ps(sum, _mm_mul_ps(_mm_loadu_ps(p + 2 * stride), _mm_set1_ps(wy[2][j])));
+        sum = _mm_add_ps(sum, _mm_mul_ps(_mm_loadu_ps(p + 3 * stride), _mm_set1_ps(wy[3][j])));
+        products[j] = _mm_mul_ps(sum, wx[j]);
+      }
+      _MM_TRANSPOSE4_PS(products[0], products[1], products[2], products[3]);
+      const __m128 samples = _mm_add_ps(_mm_add_ps(products[0], products[1]), _mm_add_ps(products[2], products[3]));
+      float* o = out + r * w + c0;
+      if (lanes == 4) {
+        _mm_storeu_ps(o, samples);
+      } else {
+        alignas(16) float tail[4];
+        _mm_store_ps(tail, samples);
+        for (int j = 0; j < lanes; ++j) o[j] = tail[j];
+      }
+    }
+#else
     for (int c = 0; c < w; ++c, x += s.a(0, 0), y += s.a(1, 0)) {
       const int fx = static_cast<int>(x), fy = static_cast<int>(y);
-      alignas(16) float wx[4];
-      float wy[4];
+      float wx[4], wy[4];
       CubicWeights(static_cast<float>(x - fx), wx);
       CubicWeights(static_cast<float>(y - fy), wy);
       const float* p = base + (fy - 1) * stride + (fx - 1);
-#if defined(__SSE2__)
-      // The four taps of each of the four rows are one unaligned load: weighted by wy, summed vertically, then the
-      // four lanes weighted by wx.
-      __m128 sum = _mm_mul_ps(_mm_loadu_ps(p), _mm_set1_ps(wy[0]));
-      sum = _mm_add_ps(sum, _mm_mul_ps(_mm_loadu_ps(p + stride), _mm_set1_ps(wy[1])));
-      sum = _mm_add_ps(sum, _mm_mul_ps(_mm_loadu_ps(p + 2 * stride), _mm_set1_ps(wy[2])));
-      sum = _mm_add_ps(sum, _mm_mul_ps(_mm_loadu_ps(p + 3 * stride), _mm_set1_ps(wy[3])));
-      alignas(16) float lanes[4];
-      _mm_store_ps(lanes, _mm_mul_ps(sum, _mm_load_ps(wx)));
-      out[r * w + c] = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
-#else
       float sum = 0.0f;
       for (int k = 0; k < 4; ++k, p += stride) {
         sum += wy[k] * (wx[0] * p[0] + wx[1] * p[1] + wx[2] * p[2] + wx[3] * p[3]);
       }
       out[r * w + c] = sum;
-#endif
     }
+#endif
   }
   return true;
 }
@@ -627,7 +683,43 @@ bool IterateAffine(const cv::Mat& image, const WindowView& window, const Referen
     double sse = 0.0;
     for (int r = 0; r < w; ++r) {
       float sx = 0.f, sxu = 0.f, sy = 0.f, syu = 0.f, st = 0.f, se = 0.f, see = 0.f;
-      for (int c = 0; c < w; ++c) {
+      int c = 0;
+#if defined(__SSE2__)
+      // Four pixels at a time, the rest of the row below.
+      {
+        const __m128 vlam = _mm_set1_ps(lam), vdel = _mm_set1_ps(del);
+        __m128 vsx = _mm_setzero_ps(), vsxu = vsx, vsy = vsx, vsyu = vsx, vst = vsx, vse = vsx, vsee = vsx;
+        for (; c + 4 <= w; c += 4) {
+          const int k = r * w + c;
+          const float u0 = static_cast<float>(c - half);
+          const __m128 u = _mm_add_ps(_mm_set1_ps(u0), _mm_set_ps(3.f, 2.f, 1.f, 0.f));
+          const __m128 tk = _mm_loadu_ps(t + k);
+          const __m128 e = _mm_sub_ps(_mm_sub_ps(_mm_loadu_ps(values + k), _mm_mul_ps(vlam, tk)), vdel);
+          _mm_storeu_ps(values + k, e);
+          const __m128 gxe = _mm_mul_ps(_mm_loadu_ps(gx + k), e), gye = _mm_mul_ps(_mm_loadu_ps(gy + k), e);
+          vsx = _mm_add_ps(vsx, gxe);
+          vsxu = _mm_add_ps(vsxu, _mm_mul_ps(gxe, u));
+          vsy = _mm_add_ps(vsy, gye);
+          vsyu = _mm_add_ps(vsyu, _mm_mul_ps(gye, u));
+          vst = _mm_add_ps(vst, _mm_mul_ps(tk, e));
+          vse = _mm_add_ps(vse, e);
+          vsee = _mm_add_ps(vsee, _mm_mul_ps(e, e));
+        }
+        const auto total = [](__m128 a) {
+          alignas(16) float l[4];
+          _mm_store_ps(l, a);
+          return (l[0] + l[1]) + (l[2] + l[3]);
+        };
+        sx = total(vsx);
+        sxu = total(vsxu);
+        sy = total(vsy);
+        syu = total(vsyu);
+        st = total(vst);
+        se = total(vse);
+        see = total(vsee);
+      }
+#endif
+      for (; c < w; ++c) {
         const int k = r * w + c;
         const float u = static_cast<float>(c - half);
         const float e = values[k] - lam * t[k] - del;
@@ -756,24 +848,29 @@ const ReferencePatch::AffineMatrix* ReferencePatch::AffineInverseHessian() const
   if (affine_state_ == 0) {
     affine_state_ = -1;
     if (num_levels_ == 0) return nullptr;
-    // H0 = sum J0^T J0 over the level-0 window, J0(u) = [Tx u, Tx v, Ty u, Ty v, Tx, Ty, T, 1] (IterateAffine); its
-    // upper triangle in float partial sums (a per-pixel 8x8 rank update through Eigen costs more).
+    // H0 = sum J0^T J0 over the level-0 window, J0(u) = [Tx u, Tx v, Ty u, Ty v, Tx, Ty, T, 1] (IterateAffine): the
+    // rows J0(u) stacked in one n x 8 matrix and multiplied by Eigen's vectorised product (a per-pixel loop over the
+    // upper triangle cost twice as many instructions at 320 px, most of them scalar).
     const int w = window_size_, n = w * w, half = w / 2;
     const float* t = Centered(0);
     const float* gx = Gx(0);
     const float* gy = Gy(0);
-    float h[8][8] = {};
+    thread_local Eigen::Matrix<float, Eigen::Dynamic, 8> j;
+    j.resize(n, 8);
     for (int k = 0; k < n; ++k) {
       const float u = static_cast<float>(k % w - half), v = static_cast<float>(k / w - half);
-      const float j[8] = {gx[k] * u, gx[k] * v, gy[k] * u, gy[k] * v, gx[k], gy[k], t[k], 1.0f};
-      for (int a = 0; a < 8; ++a) {
-        for (int b = a; b < 8; ++b) h[a][b] += j[a] * j[b];
-      }
+      j(k, 0) = gx[k] * u;
+      j(k, 1) = gx[k] * v;
+      j(k, 2) = gy[k] * u;
+      j(k, 3) = gy[k] * v;
+      j(k, 4) = gx[k];
+      j(k, 5) = gy[k];
+      j(k, 6) = t[k];
+      j(k, 7) = 1.0f;
     }
-    Eigen::Matrix<double, 8, 8> h0;
-    for (int a = 0; a < 8; ++a) {
-      for (int b = a; b < 8; ++b) h0(a, b) = h0(b, a) = h[a][b];
-    }
+    Eigen::Matrix<float, 8, 8> h = Eigen::Matrix<float, 8, 8>::Zero();
+    h.selfadjointView<Eigen::Upper>().rankUpdate(j.transpose());
+    const Eigen::Matrix<double, 8, 8> h0 = h.selfadjointView<Eigen::Upper>().toDenseMatrix().cast<double>();
     const Eigen::LDLT<Eigen::Matrix<double, 8, 8>> solver(h0);
     if (solver.info() != Eigen::Success || !(solver.vectorD().minCoeff() > 1e-9 * solver.vectorD().maxCoeff())) {
       return nullptr;
@@ -844,21 +941,8 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
     settings.epsilon = fine ? options.convergence_epsilon : options.convergence_epsilon_coarse;
     // At level 0, a window whose residual stays far above R after a few iterations will not match
     // (occlusion, wrong basin): stop early instead of spending the remaining iterations.
-    settings.give_up_rms = fine ? kGiveUpResidualFactor * options.max_residual
-                                : std::numeric_limits<double>::infinity();
-    const LevelOutcome outcome = IterateLevel(image, window, estimate_scale, settings, &state, &result.iterations,
-                                              &result.residual, &result.block_residual);
-    settings.init_contrast = false;
-    if (!fine) {
-      // kOutOfImage: the window does not fit on this coarse level; continue on the finer one.
-      if (outcome == LevelOutcome::kBadStep) {
-        return finish(TrackStatus::kNotConverged, state, to_level);
-      } else if (outcome == LevelOutcome::kScaleOutOfRange) {
-        return finish(TrackStatus::kScaleOutOfRange, state, to_level);
-      }
-      position = Vector2d(state.x, state.y) / to_level;
-      continue;
-    }
+    settings.give_up_rms =
+        fine ? kGiveUpResidualFactor * options.max_residual : std::numeric_limits<double>::infinity();
     // The affine warp from `from` (AlignmentOptions::affine_fallback and affine_refinement): true when adopted, with
     // `result` filled in as tracked.
     const auto align_affine = [&](const GaussNewtonState& from) {
@@ -899,6 +983,19 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
       finish(TrackStatus::kTracked, adopted, 1.0);
       return true;
     };
+    const LevelOutcome outcome = IterateLevel(image, window, estimate_scale, settings, &state, &result.iterations,
+                                              &result.residual, &result.block_residual);
+    settings.init_contrast = false;
+    if (!fine) {
+      // kOutOfImage: the window does not fit on this coarse level; continue on the finer one.
+      if (outcome == LevelOutcome::kBadStep) {
+        return finish(TrackStatus::kNotConverged, state, to_level);
+      } else if (outcome == LevelOutcome::kScaleOutOfRange) {
+        return finish(TrackStatus::kScaleOutOfRange, state, to_level);
+      }
+      position = Vector2d(state.x, state.y) / to_level;
+      continue;
+    }
     switch (outcome) {
       case LevelOutcome::kConverged:
         break;
@@ -922,6 +1019,17 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
     }
     result.converged = true;
     if (!WindowFits(image, state, w / 2, settings.cubic)) return finish(TrackStatus::kOutOfImage, state, 1.0);
+    // The affine refinement starts only from an alignment the checks below accept (residuals, scale, gain), before
+    // the wider window's: adopted, it settles position and shape on the 15x15 window itself, and the wider window
+    // would only have moved its start (what the paper's warp reaches without it stands as before).
+    if (options.affine_refinement && result.residual <= options.max_residual &&
+        result.block_residual <= options.max_block_residual && state.scale >= options.min_scale &&
+        state.scale <= options.max_scale && 1.0 / state.lambda >= options.min_gain &&
+        1.0 / state.lambda <= options.max_gain) {
+      const AlignmentResult isotropic = result;
+      if (align_affine(state)) return result;
+      result = isotropic;
+    }
     // Final refinement of scale, position and contrast on the larger level-0 window (see the header), for
     // windows that match. It is adopted only when it converges and the larger window is consistent with the
     // model (its RMS within R, its worst 3x3 block within the block limit: an occluder or a depth
@@ -962,15 +1070,6 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
         }
       }
       result.iterations += iterations;
-    }
-    // The refinement starts only from an alignment the checks below accept (residuals, scale, gain).
-    if (options.affine_refinement && result.residual <= options.max_residual &&
-        result.block_residual <= options.max_block_residual && state.scale >= options.min_scale &&
-        state.scale <= options.max_scale && 1.0 / state.lambda >= options.min_gain &&
-        1.0 / state.lambda <= options.max_gain) {
-      const AlignmentResult isotropic = result;
-      if (align_affine(state)) return result;
-      result = isotropic;
     }
     finish(TrackStatus::kTracked, state, 1.0);
     if (state.scale < options.min_scale || state.scale > options.max_scale) {

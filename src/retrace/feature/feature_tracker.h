@@ -248,7 +248,7 @@ class ReferencePatch {
   // The inverse 8x8 Gauss-Newton matrix of the affine warp at level 0 (parameters of A, d, lambda, delta; the affine
   // fallback and refinement), computed at its first use and kept with the patch (and its copies); null when it is
   // singular or badly conditioned. The first call writes the cache: make it before the patch is shared between
-  // threads (Localizer::Reference does).
+  // threads (a Localizer's patches are used by its own thread only).
   using AffineMatrix = Eigen::Matrix<double, 8, 8, Eigen::DontAlign>;
   const AffineMatrix* AffineInverseHessian() const;
 

@@ -313,11 +313,11 @@ std::shared_ptr<const ReferencePatch> Localizer::Reference(node_t node_id, featu
     const auto position = node.positions.find(feature);
     if (position != node.positions.end()) {
       patch = std::make_shared<ReferencePatch>();
+      // The affine warp's matrix (ReferencePatch::AffineInverseHessian) is computed at its first use, once per
+      // patch: most references cut here only ever check a prediction, with the paper's warp.
       if (!patch->Create(NodePyramid(node_id), position->second, tracker_.Options().alignment.window_size,
                          tracker_.Options().num_levels)) {
         patch.reset();
-      } else if (options_.affine_refinement || options_.affine_fallback || options_.relocalization_affine_fallback) {
-        patch->AffineInverseHessian();  // computed once here, carried by every copy the tracker takes
       }
     }
     it = node.references.emplace(feature, std::move(patch)).first;
