@@ -941,8 +941,21 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
     settings.epsilon = fine ? options.convergence_epsilon : options.convergence_epsilon_coarse;
     // At level 0, a window whose residual stays far above R after a few iterations will not match
     // (occlusion, wrong basin): stop early instead of spending the remaining iterations.
-    settings.give_up_rms =
-        fine ? kGiveUpResidualFactor * options.max_residual : std::numeric_limits<double>::infinity();
+    settings.give_up_rms = fine ? kGiveUpResidualFactor * options.max_residual
+                                : std::numeric_limits<double>::infinity();
+    const LevelOutcome outcome = IterateLevel(image, window, estimate_scale, settings, &state, &result.iterations,
+                                              &result.residual, &result.block_residual);
+    settings.init_contrast = false;
+    if (!fine) {
+      // kOutOfImage: the window does not fit on this coarse level; continue on the finer one.
+      if (outcome == LevelOutcome::kBadStep) {
+        return finish(TrackStatus::kNotConverged, state, to_level);
+      } else if (outcome == LevelOutcome::kScaleOutOfRange) {
+        return finish(TrackStatus::kScaleOutOfRange, state, to_level);
+      }
+      position = Vector2d(state.x, state.y) / to_level;
+      continue;
+    }
     // The affine warp from `from` (AlignmentOptions::affine_fallback and affine_refinement): true when adopted, with
     // `result` filled in as tracked.
     const auto align_affine = [&](const GaussNewtonState& from) {
@@ -983,19 +996,6 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
       finish(TrackStatus::kTracked, adopted, 1.0);
       return true;
     };
-    const LevelOutcome outcome = IterateLevel(image, window, estimate_scale, settings, &state, &result.iterations,
-                                              &result.residual, &result.block_residual);
-    settings.init_contrast = false;
-    if (!fine) {
-      // kOutOfImage: the window does not fit on this coarse level; continue on the finer one.
-      if (outcome == LevelOutcome::kBadStep) {
-        return finish(TrackStatus::kNotConverged, state, to_level);
-      } else if (outcome == LevelOutcome::kScaleOutOfRange) {
-        return finish(TrackStatus::kScaleOutOfRange, state, to_level);
-      }
-      position = Vector2d(state.x, state.y) / to_level;
-      continue;
-    }
     switch (outcome) {
       case LevelOutcome::kConverged:
         break;
