@@ -174,7 +174,8 @@ bool AlignmentOptions::Check() const {
          min_gain < 1.0 && max_gain > 1.0 && scale_prior_sigma >= 0.0 && max_block_residual > 0.0 &&
          convergence_epsilon_coarse > 0.0 && max_scale_window_shift > 0.0 && scale_window_stride >= 0 &&
          scale_window_stride <= kMaxScaleWindowStride && max_iterations_scale_window >= 1 &&
-         max_affine_anisotropy >= 1.0 && max_affine_shift > 0.0 && max_iterations_affine >= 1;
+         max_affine_anisotropy >= 1.0 && max_affine_shift > 0.0 && max_iterations_affine >= 1 &&
+         convergence_epsilon_affine > 0.0;
 }
 
 std::string TrackStatusName(TrackStatus status) {
@@ -328,6 +329,13 @@ struct GaussNewtonState {
 
 enum class LevelOutcome { kConverged, kMaxIterations, kOutOfImage, kBadStep, kScaleOutOfRange, kGiveUp };
 
+// A window sampled at a state (IterateLevel's last samples, from which the affine warp can start without sampling
+// the window again).
+struct LastSample {
+  GaussNewtonState state;
+  float values[kMaxWindowSize * kMaxWindowSize];
+};
+
 struct LevelSettings {
   bool cubic = false;
   bool fine = false;  // level 0: out of image and give-up are final
@@ -422,14 +430,16 @@ void ErrorImageResiduals(const float* e, const float* t, int w, double d_lambda,
 }
 
 // Gauss-Newton iterations of (1) on one level (inverse compositional, see the header). On kConverged the
-// state is the converged one (the window has not been re-sampled there). If `converged_rms` is given, on
+// state is the converged one (the window has not been re-sampled there). If `last_sample` is given, on kConverged
+// it receives the state before the last step and the window sampled there. If `converged_rms` is given, on
 // kConverged it receives the RMS residual of the window and `converged_block_rms` that of its worst 3x3 block
 // (as Residuals() below), computed from the error image of the last iteration with the last contrast step
 // applied: the geometry is then the one before the last step, which moved no window corner by more than
 // `epsilon`, and no extra sampling of the window is needed.
 LevelOutcome IterateLevel(const cv::Mat& image, const WindowView& window, bool estimate_scale,
                           const LevelSettings& settings, GaussNewtonState* state, int* iterations,
-                          double* converged_rms = nullptr, double* converged_block_rms = nullptr) {
+                          double* converged_rms = nullptr, double* converged_block_rms = nullptr,
+                          LastSample* last_sample = nullptr) {
   const int w = window.size, n = w * w;
   const double half = 0.5 * (w - 1) * window.stride;  // half extent in reference pixels
   const float* t = window.t;
@@ -445,6 +455,7 @@ LevelOutcome IterateLevel(const cv::Mat& image, const WindowView& window, bool e
   for (int iteration = 0; iteration < settings.max_iterations; ++iteration) {
     if (!WindowFits(image, s, half, settings.cubic)) return LevelOutcome::kOutOfImage;
     SampleWindow(image, s, window, settings.cubic, values);
+    const GaussNewtonState sampled_at = s;
     if (init_contrast) {
       // Start the contrast from the first two moments of the window: lambda = std(I) / std(T),
       // delta = mean(I) - lambda mean(T); robust to large gain and bias changes and cheap.
@@ -541,6 +552,13 @@ LevelOutcome IterateLevel(const cv::Mat& image, const WindowView& window, bool e
       s.lambda = new_lambda;
     }
     if (corner_shift < settings.epsilon) {
+      if (last_sample != nullptr) {
+        // The samples from the error image (the contrast it was computed with is the sampled state's).
+        last_sample->state = sampled_at;
+        const float lam_at = static_cast<float>(sampled_at.lambda);
+        const float del_at = static_cast<float>(sampled_at.delta + sampled_at.lambda * mean);
+        for (int q = 0; q < n; ++q) last_sample->values[q] = values[q] + lam_at * t[q] + del_at;
+      }
       if (converged_rms != nullptr) {
         // The offset lambda * mean + delta of the centred template changes by step(4) in a contrast step.
         ErrorImageResiduals(values, t, w, contrast_step ? step(3) : 0.0, contrast_step ? step(4) : 0.0, s.lambda,
@@ -668,7 +686,8 @@ bool SampleAffineWindow(const cv::Mat& image, const AffineState& s, int w, float
 // is the converged warp and `rms` / `block_rms` its residuals (from the last error image, as IterateLevel).
 bool IterateAffine(const cv::Mat& image, const WindowView& window, const ReferencePatch::AffineMatrix& inverse_hessian,
                    int max_iterations, double epsilon, double give_up_rms, double min_gain, double max_gain,
-                   AffineState* state, int* iterations, double* rms, double* block_rms) {
+                   AffineState* state, int* iterations, double* rms, double* block_rms,
+                   const float* first_values = nullptr) {
   const int w = window.size, n = w * w, half = w / 2;
   const float* t = window.t;
   const float* gx = t + n;
@@ -676,7 +695,11 @@ bool IterateAffine(const cv::Mat& image, const WindowView& window, const Referen
   float values[kMaxWindowSize * kMaxWindowSize];
   AffineState& s = *state;
   for (int iteration = 0; iteration < max_iterations; ++iteration) {
-    if (!SampleAffineWindow(image, s, w, values)) return false;
+    if (iteration == 0 && first_values != nullptr) {
+      std::copy(first_values, first_values + n, values);
+    } else if (!SampleAffineWindow(image, s, w, values)) {
+      return false;
+    }
     const float lam = static_cast<float>(s.lambda), del = static_cast<float>(s.delta + s.lambda * window.mean);
     // J0^T e row by row: within a row v is constant, so the v columns are v times the row's sums.
     Eigen::Matrix<double, 8, 1> b = Eigen::Matrix<double, 8, 1>::Zero();
@@ -943,8 +966,15 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
     // (occlusion, wrong basin): stop early instead of spending the remaining iterations.
     settings.give_up_rms = fine ? kGiveUpResidualFactor * options.max_residual
                                 : std::numeric_limits<double>::infinity();
+    // At level 0 with an affine warp on, the last samples start it (they are the window at the state before the
+    // converged step, which moved no corner by more than epsilon: one sampling fewer); the affine warp samples
+    // cubically, so only cubic samples are kept.
+    LastSample last_sample;
+    const bool keep_sample = fine && settings.cubic && (options.affine_refinement || options.affine_fallback);
     const LevelOutcome outcome = IterateLevel(image, window, estimate_scale, settings, &state, &result.iterations,
-                                              &result.residual, &result.block_residual);
+                                              &result.residual, &result.block_residual,
+                                              keep_sample ? &last_sample : nullptr);
+    bool last_sample_current = keep_sample;  // false once `state` is no longer IterateLevel's
     settings.init_contrast = false;
     if (!fine) {
       // kOutOfImage: the window does not fit on this coarse level; continue on the finer one.
@@ -957,20 +987,23 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
       continue;
     }
     // The affine warp from `from` (AlignmentOptions::affine_fallback and affine_refinement): true when adopted, with
-    // `result` filled in as tracked.
+    // `result` filled in as tracked. `from` is IterateLevel's converged state while `last_sample_current`: the warp
+    // then starts where that was last sampled, from those samples.
     const auto align_affine = [&](const GaussNewtonState& from) {
+      const GaussNewtonState& start = last_sample_current ? last_sample.state : from;
       AffineState affine;
-      affine.a = Eigen::Matrix2d::Identity() * from.scale;
-      affine.x = from.x;
-      affine.y = from.y;
-      affine.lambda = from.lambda;
-      affine.delta = from.delta;
+      affine.a = Eigen::Matrix2d::Identity() * start.scale;
+      affine.x = start.x;
+      affine.y = start.y;
+      affine.lambda = start.lambda;
+      affine.delta = start.delta;
       double rms = 0.0, block_rms = 0.0;
       const ReferencePatch::AffineMatrix* inverse_hessian = reference.AffineInverseHessian();
       if (inverse_hessian == nullptr ||
-          !IterateAffine(image, window, *inverse_hessian, options.max_iterations_affine, options.convergence_epsilon,
-                         kAffineResidualFactor * options.max_residual, options.min_gain, options.max_gain, &affine,
-                         &result.iterations, &rms, &block_rms)) {
+          !IterateAffine(image, window, *inverse_hessian, options.max_iterations_affine,
+                         options.convergence_epsilon_affine, kAffineResidualFactor * options.max_residual,
+                         options.min_gain, options.max_gain, &affine, &result.iterations, &rms, &block_rms,
+                         last_sample_current ? last_sample.values : nullptr)) {
         return false;
       }
       const Eigen::JacobiSVD<Eigen::Matrix2d> svd(affine.a);
@@ -1064,6 +1097,7 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
         Residuals(image, window, settings.cubic, refined, &core_rms, &core_block);
         if (wide_rms <= options.max_residual && wide_block <= options.max_residual) {
           state = refined;
+          last_sample_current = false;
           result.residual = core_rms;
           result.block_residual = core_block;
           result.scale_window_used = true;
