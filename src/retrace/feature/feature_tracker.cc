@@ -684,6 +684,8 @@ bool SampleAffineWindow(const cv::Mat& image, const AffineState& s, int w, float
 // A <- A (I + P)^-1, d <- d - A (I + P)^-1 q. Stops with false when the window leaves the image, a step is
 // singular, the residual stays above `give_up_rms` after 2 iterations or the iterations run out; on true `state`
 // is the converged warp and `rms` / `block_rms` its residuals (from the last error image, as IterateLevel).
+// `first_values`, when given, are the window already sampled at the starting state (LastSample::values): the first
+// iteration uses them instead of sampling.
 bool IterateAffine(const cv::Mat& image, const WindowView& window, const ReferencePatch::AffineMatrix& inverse_hessian,
                    int max_iterations, double epsilon, double give_up_rms, double min_gain, double max_gain,
                    AffineState* state, int* iterations, double* rms, double* block_rms,
