@@ -455,7 +455,7 @@ LevelOutcome IterateLevel(const cv::Mat& image, const WindowView& window, bool e
   for (int iteration = 0; iteration < settings.max_iterations; ++iteration) {
     if (!WindowFits(image, s, half, settings.cubic)) return LevelOutcome::kOutOfImage;
     SampleWindow(image, s, window, settings.cubic, values);
-    const GaussNewtonState sampled_at = s;
+    if (last_sample != nullptr) last_sample->state = s;  // where `values` were sampled
     if (init_contrast) {
       // Start the contrast from the first two moments of the window: lambda = std(I) / std(T),
       // delta = mean(I) - lambda mean(T); robust to large gain and bias changes and cheap.
@@ -553,8 +553,8 @@ LevelOutcome IterateLevel(const cv::Mat& image, const WindowView& window, bool e
     }
     if (corner_shift < settings.epsilon) {
       if (last_sample != nullptr) {
-        // The samples from the error image (the contrast it was computed with is the sampled state's).
-        last_sample->state = sampled_at;
+        // The samples from the error image (computed with the contrast of the state they were sampled at).
+        const GaussNewtonState& sampled_at = last_sample->state;
         const float lam_at = static_cast<float>(sampled_at.lambda);
         const float del_at = static_cast<float>(sampled_at.delta + sampled_at.lambda * mean);
         for (int q = 0; q < n; ++q) last_sample->values[q] = values[q] + lam_at * t[q] + del_at;
