@@ -528,8 +528,8 @@ void RegisterRepeatCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--affine-refine", args->options.affine_refinement,
                 "Refine every tracked feature accepted under the paper's warp with an affine warp (less bias where the "
-                "view is sheared, 2-3 m beside the taught path; use with --placed-start-fine; a third slower at 320 "
-                "px: README, \"Tracks refined with an affine warp\")");
+                "view is sheared, 2-3 m beside the taught path; use with --placed-start-fine; about 16 % more "
+                "instructions at 320 px: README, \"Cheaper for the default too\")");
   cmd->add_flag("--affine", args->options.affine_fallback,
                 "Align tracks whose residual under the paper's warp is above R (within 1.5 R) again with an affine "
                 "warp: more features 2-3 m beside the taught path, at a cost in speed and a few more frames on a "

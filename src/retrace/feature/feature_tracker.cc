@@ -100,6 +100,20 @@ void SampleWindowBilinear(const cv::Mat& image, double dx, double dy, double sca
     const float* h1 = h0 + w4;
     const float f = fy[r];
     float* o = out + r * w;
+#if defined(__SSE2__)
+    // Four columns at a time, with the scalar loop's operations in its order (the same floats); the last four end at
+    // the window's last column, overlapping the group before when w is not a multiple of 4 (stored twice, the same).
+    if (w >= 4) {
+      const __m128 vf = _mm_set1_ps(f);
+      for (int c = 0;; c += 4) {
+        c = std::min(c, w - 4);
+        const __m128 a = _mm_loadu_ps(h0 + c);
+        _mm_storeu_ps(o + c, _mm_add_ps(a, _mm_mul_ps(vf, _mm_sub_ps(_mm_loadu_ps(h1 + c), a))));
+        if (c == w - 4) break;
+      }
+      continue;
+    }
+#endif
     for (int c = 0; c < w; ++c) o[c] = h0[c] + f * (h1[c] - h0[c]);
   }
 }
@@ -161,6 +175,20 @@ void SampleWindowCubic(const cv::Mat& image, double dx, double dy, double scale,
     const float* h3 = h2 + w4;
     const float w0 = wy[r][0], w1 = wy[r][1], w2 = wy[r][2], w3 = wy[r][3];
     float* o = out + r * w;
+#if defined(__SSE2__)
+    // Four columns at a time as in SampleWindowBilinear (the same floats as the scalar loop).
+    if (w >= 4) {
+      const __m128 v0 = _mm_set1_ps(w0), v1 = _mm_set1_ps(w1), v2 = _mm_set1_ps(w2), v3 = _mm_set1_ps(w3);
+      for (int c = 0;; c += 4) {
+        c = std::min(c, w - 4);
+        __m128 sum = _mm_add_ps(_mm_mul_ps(v0, _mm_loadu_ps(h0 + c)), _mm_mul_ps(v1, _mm_loadu_ps(h1 + c)));
+        sum = _mm_add_ps(sum, _mm_mul_ps(v2, _mm_loadu_ps(h2 + c)));
+        _mm_storeu_ps(o + c, _mm_add_ps(sum, _mm_mul_ps(v3, _mm_loadu_ps(h3 + c))));
+        if (c == w - 4) break;
+      }
+      continue;
+    }
+#endif
     for (int c = 0; c < w; ++c) o[c] = w0 * h0[c] + w1 * h1[c] + w2 * h2[c] + w3 * h3[c];
   }
 }
@@ -587,6 +615,15 @@ inline void CubicWeights4(__m128 f, __m128* w0, __m128* w1, __m128* w2, __m128* 
                    _mm_mul_ps(half, f));
   *w3 = _mm_sub_ps(_mm_mul_ps(half, f3), _mm_mul_ps(half, f2));
 }
+
+// Splits four positions (x0, x1 in `lo`, x2, x3 in `hi`) into their integer parts, truncated as static_cast<int>, and
+// their fractions as floats: the same values as the scalar static_cast<int>(x) and static_cast<float>(x - ix).
+inline __m128 SplitPositions4(__m128d lo, __m128d hi, __m128i* integer) {
+  const __m128i i_lo = _mm_cvttpd_epi32(lo), i_hi = _mm_cvttpd_epi32(hi);
+  *integer = _mm_unpacklo_epi64(i_lo, i_hi);
+  return _mm_movelh_ps(_mm_cvtpd_ps(_mm_sub_pd(lo, _mm_cvtepi32_pd(i_lo))),
+                       _mm_cvtpd_ps(_mm_sub_pd(hi, _mm_cvtepi32_pd(i_hi))));
+}
 #endif
 
 // Samples the w x w window of `s` (u integer offsets in [-half, half]^2) with cubic interpolation, one pixel at a
@@ -610,28 +647,29 @@ bool SampleAffineWindow(const cv::Mat& image, const AffineState& s, int w, float
     // one vertical sum. Lanes past the window's last column repeat its last sample and are not stored.
     for (int c0 = 0; c0 < w; c0 += 4) {
       const int lanes = std::min(4, w - c0);
-      int ix[4], iy[4];
-      alignas(16) float fx[4], fy[4];
+      double xs[4], ys[4];
       for (int j = 0; j < 4; ++j) {
         if (j < lanes) {
-          ix[j] = static_cast<int>(x);
-          iy[j] = static_cast<int>(y);
-          fx[j] = static_cast<float>(x - ix[j]);
-          fy[j] = static_cast<float>(y - iy[j]);
+          xs[j] = x;
+          ys[j] = y;
           x += s.a(0, 0);
           y += s.a(1, 0);
         } else {
-          ix[j] = ix[j - 1];
-          iy[j] = iy[j - 1];
-          fx[j] = fx[j - 1];
-          fy[j] = fy[j - 1];
+          xs[j] = xs[j - 1];
+          ys[j] = ys[j - 1];
         }
       }
+      alignas(16) int ix[4], iy[4];
+      __m128i integer;
+      const __m128 fx = SplitPositions4(_mm_loadu_pd(xs), _mm_loadu_pd(xs + 2), &integer);
+      _mm_store_si128(reinterpret_cast<__m128i*>(ix), integer);
+      const __m128 fy = SplitPositions4(_mm_loadu_pd(ys), _mm_loadu_pd(ys + 2), &integer);
+      _mm_store_si128(reinterpret_cast<__m128i*>(iy), integer);
       __m128 wx0, wx1, wx2, wx3;
-      CubicWeights4(_mm_load_ps(fx), &wx0, &wx1, &wx2, &wx3);
+      CubicWeights4(fx, &wx0, &wx1, &wx2, &wx3);
       _MM_TRANSPOSE4_PS(wx0, wx1, wx2, wx3);  // now wxj: the four taps' weights of lane j
       __m128 wy0, wy1, wy2, wy3;
-      CubicWeights4(_mm_load_ps(fy), &wy0, &wy1, &wy2, &wy3);
+      CubicWeights4(fy, &wy0, &wy1, &wy2, &wy3);
       alignas(16) float wy[4][4];  // wy[k][j]: row k's weight of lane j
       _mm_store_ps(wy[0], wy0);
       _mm_store_ps(wy[1], wy1);
