@@ -45,6 +45,14 @@ inline void CubicWeights(float f, float* w) {
   w[3] = 0.5f * f3 - 0.5f * f2;
 }
 
+// Calls group(c) for groups of four columns c .. c + 3 covering [0, w), w >= 4: the last group ends at column w - 1 and
+// overlaps the one before when w is not a multiple of 4 (those columns are written twice, with the same values).
+template <typename Group>
+inline void ForGroupsOfFour(int w, Group&& group) {
+  for (int c = 0; c < w - 4; c += 4) group(c);
+  group(w - 4);
+}
+
 // Samples the window x = (dx, dy) + scale * u (u integer offsets in [-half, half]^2) of a CV_32FC1 image into
 // `out` (row-major w*w), bilinearly. The caller checks that the samples are inside the image. Separable: the
 // warp is axis-aligned, so every image row touched is interpolated once at the w sample columns, then the rows
@@ -101,16 +109,13 @@ void SampleWindowBilinear(const cv::Mat& image, double dx, double dy, double sca
     const float f = fy[r];
     float* o = out + r * w;
 #if defined(__SSE2__)
-    // Four columns at a time, with the scalar loop's operations in its order (the same floats); the last four end at
-    // the window's last column, overlapping the group before when w is not a multiple of 4 (stored twice, the same).
+    // Four columns at a time, with the scalar loop's operations in its order (the same floats).
     if (w >= 4) {
       const __m128 vf = _mm_set1_ps(f);
-      for (int c = 0;; c += 4) {
-        c = std::min(c, w - 4);
+      ForGroupsOfFour(w, [&](int c) {
         const __m128 a = _mm_loadu_ps(h0 + c);
         _mm_storeu_ps(o + c, _mm_add_ps(a, _mm_mul_ps(vf, _mm_sub_ps(_mm_loadu_ps(h1 + c), a))));
-        if (c == w - 4) break;
-      }
+      });
       continue;
     }
 #endif
@@ -176,16 +181,14 @@ void SampleWindowCubic(const cv::Mat& image, double dx, double dy, double scale,
     const float w0 = wy[r][0], w1 = wy[r][1], w2 = wy[r][2], w3 = wy[r][3];
     float* o = out + r * w;
 #if defined(__SSE2__)
-    // Four columns at a time as in SampleWindowBilinear (the same floats as the scalar loop).
+    // Four columns at a time (the same floats as the scalar loop).
     if (w >= 4) {
       const __m128 v0 = _mm_set1_ps(w0), v1 = _mm_set1_ps(w1), v2 = _mm_set1_ps(w2), v3 = _mm_set1_ps(w3);
-      for (int c = 0;; c += 4) {
-        c = std::min(c, w - 4);
+      ForGroupsOfFour(w, [&](int c) {
         __m128 sum = _mm_add_ps(_mm_mul_ps(v0, _mm_loadu_ps(h0 + c)), _mm_mul_ps(v1, _mm_loadu_ps(h1 + c)));
         sum = _mm_add_ps(sum, _mm_mul_ps(v2, _mm_loadu_ps(h2 + c)));
         _mm_storeu_ps(o + c, _mm_add_ps(sum, _mm_mul_ps(v3, _mm_loadu_ps(h3 + c))));
-        if (c == w - 4) break;
-      }
+      });
       continue;
     }
 #endif
