@@ -526,10 +526,11 @@ void RegisterRepeatCommand(CLI::App& app) {
   cmd->add_flag("--no-progress", args->no_progress, "Do not show the progress bar");
   cmd->add_option("--max-residual", args->options.max_residual, "R: largest tracking residual, grey levels")
       ->capture_default_str();
-  cmd->add_flag("--affine-refine", args->options.affine_refinement,
+  cmd->add_flag("--affine-refine,!--no-affine-refine", args->options.affine_refinement,
                 "Refine every tracked feature accepted under the paper's warp with an affine warp (less bias where the "
-                "view is sheared, 2-3 m beside the taught path; use with --placed-start-fine; about 16 % more "
-                "instructions at 320 px: README, \"Cheaper for the default too\")");
+                "view is sheared, 2-3 m beside the taught path). On by default, with --placed-start-fine and "
+                "--guided-matching 20 (README \"The three as the default\"); off: the paper's warp alone, about 14 % "
+                "fewer instructions at 320 px");
   cmd->add_flag("--affine", args->options.affine_fallback,
                 "Align tracks whose residual under the paper's warp is above R (within 1.5 R) again with an affine "
                 "warp: more features 2-3 m beside the taught path, at a cost in speed and a few more frames on a "
@@ -537,10 +538,12 @@ void RegisterRepeatCommand(CLI::App& app) {
   cmd->add_flag("--relocalization-affine", args->options.relocalization_affine_fallback,
                 "Align the mapped features a relocalization locates with the affine fallback too (a start beside the "
                 "taught path; README, \"Relocalization with the affine fallback\")");
-  cmd->add_flag("--placed-start-fine", args->options.tracker.placed_features_start_fine,
-                "Track the mapped features a relocalization or a prediction placed from a fine pyramid level in every "
-                "frame, as they were placed (fewer tracks lost after a relocalization; more frames tracked 2-3 m "
-                "beside the taught path and a few more one arc behind: README, \"Features placed from a key-image\")");
+  cmd->add_flag(
+      "--placed-start-fine,!--no-placed-start-fine", args->options.tracker.placed_features_start_fine,
+      "Track the mapped features a relocalization or a prediction placed from a fine pyramid level in every "
+      "frame, as they were placed (fewer tracks lost after a relocalization; alone, more frames tracked 2-3 m "
+      "beside the taught path and a few more one arc behind: README, \"Features placed from a key-image\"; "
+      "on by default, with --affine-refine)");
   cmd->add_flag(
       "--pose-point-uncertainty", args->options.pose_point_uncertainty,
       "Weigh each mapped point of the absolute pose by how well its arc's two key-images triangulated it "

@@ -204,9 +204,11 @@ struct DriveArguments {
   // found by retrieval over the whole map (no_start_arc, a robot that does not know where it was put down).
   arc_t start_arc = kInvalidArcId;
   bool no_start_arc = false;
-  bool placed_start_fine = false;  // FeatureTrackerOptions::placed_features_start_fine of the localizer
-  bool affine_refine = false;      // LocalizerOptions::affine_refinement
+  // The localizer's options (LocalizerOptions): its defaults unless given.
+  bool placed_start_fine = LocalizerOptions().tracker.placed_features_start_fine;
+  bool affine_refine = LocalizerOptions().affine_refinement;
   bool relocalization_affine = false;  // LocalizerOptions::relocalization_affine_fallback
+  int guided_matching = LocalizerOptions().guided_matching_min_inliers;
   ClosedLoopOptions drive;
 };
 
@@ -228,6 +230,7 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   base.tracker.placed_features_start_fine = args.placed_start_fine;
   base.affine_refinement = args.affine_refine;
   base.relocalization_affine_fallback = args.relocalization_affine;
+  base.guided_matching_min_inliers = args.guided_matching;
   MapForLocalizer loaded = LoadMapForLocalizer(args.map, base);
   Simulator simulator(ApplyVariant(scenario, ScenarioVariant::kRepeat));
   const CameraModel& camera = simulator.camera();
@@ -688,14 +691,21 @@ void RegisterSimCommand(CLI::App& app) {
   drive->add_option("--approach-distance", args->drive.tracking.approach_distance,
                     "Distance over which the path law closes a lateral offset (m)")
       ->capture_default_str();
-  drive->add_flag("--affine-refine", args->affine_refine,
-                  "Localizer: refine every tracked feature with an affine warp (`repeat --affine-refine`)");
+  drive->add_flag(
+      "--affine-refine,!--no-affine-refine", args->affine_refine,
+      "Localizer: refine every tracked feature with an affine warp (`repeat --affine-refine`; on by default)");
   drive->add_flag("--relocalization-affine", args->relocalization_affine,
                   "Localizer: align the mapped features a relocalization locates with the affine fallback (`repeat "
                   "--relocalization-affine`)");
-  drive->add_flag("--placed-start-fine", args->placed_start_fine,
+  drive->add_flag("--placed-start-fine,!--no-placed-start-fine", args->placed_start_fine,
                   "Localizer: track the mapped features it placed from a fine pyramid level in every frame (`repeat "
-                  "--placed-start-fine`)");
+                  "--placed-start-fine`; on by default)");
+  drive
+      ->add_option("--guided-matching", args->guided_matching,
+                   "Localizer: near a loss or the start, verify a key-image by matching it again along the epipolar "
+                   "planes of a relative pose with at least this many inliers (`repeat --guided-matching`; 0: off)")
+      ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
   drive->add_flag("--heading-from-offset", args->drive.tracking.heading_from_offset,
                   "Path law: steer by the heading that goes with the recent frames' combined offset (the pose's "
                   "heading-offset covariance) instead of the frame's own");

@@ -66,11 +66,12 @@
 // (median): a window sheared that much still matches an isotropic warp within R at a shifted centre, which the fallback
 // does not revisit.
 //
-// AFFINE REFINEMENT (off by default; `repeat --affine-refine`). The fallback revisits only rejected windows; a window
-// sheared or foreshortened a little still matches the isotropic warp within R, at a centre pulled towards where the
-// distortion is balanced (above: 0.36 px median under a shear of 0.25). With `affine_refinement` every alignment
-// accepted at level 0 is refined by the same affine Gauss-Newton from the accepted warp and the refined one adopted
-// when it passes the fallback's checks — the affine model of a small planar patch's appearance, which Shi & Tomasi
+// AFFINE REFINEMENT (off by default here; on in the localizer, LocalizerOptions::affine_refinement). The fallback
+// revisits only rejected windows; a window sheared or foreshortened a little still matches the isotropic warp within R,
+// at a centre pulled towards where the distortion is balanced (above: 0.36 px median under a shear of 0.25). With
+// `affine_refinement` every alignment accepted at level 0 is refined by the same affine Gauss-Newton from the accepted
+// warp and the refined one adopted when it passes the fallback's checks — the affine model of a small planar patch's
+// appearance, which Shi & Tomasi
 // ("Good features to track", CVPR 1994) use to check a feature against its first view. The inverse 8x8
 // Gauss-Newton matrix is computed once per reference (ReferencePatch::AffineInverseHessian), and the affine warp (of
 // the fallback too) starts where the paper's warp last sampled the window, from those samples (one sampling fewer).
@@ -158,16 +159,17 @@ struct AlignmentOptions {
   // with the affine warp, adopted under the same conditions as the fallback's (converged within `max_affine_shift`
   // of where it started, residuals within the limits, A's singular values in the scale range and their ratio at most
   // `max_affine_anisotropy`): the paper's isotropic warp fitted to a foreshortened or sheared window converges at a
-  // shifted centre, within R. Off by default; `repeat --affine-refine` turns it on for the localizer's tracked
-  // features (LocalizerOptions::affine_refinement).
+  // shifted centre, within R. Off by default here; the localizer turns it on for its tracked features
+  // (LocalizerOptions::affine_refinement; `repeat --no-affine-refine` turns it off).
   bool affine_refinement = false;
   double max_affine_anisotropy = 1.6;
   double max_affine_shift = 2.0;
   int max_iterations_affine = 15;
   // Convergence of the affine warp (largest corner displacement of the last step, level-0 pixels), as
   // `convergence_epsilon`. Looser is cheaper but not free: at 0.05 px the synthetic shear of feature_tracker_test is
-  // aligned as closely (median error 0.027 against 0.026 px) and BM_RepeatKittiRefined/320 counts 3.82 G instructions
-  // against 4.04 G, but over the validation matrix with `repeat --guided-matching 20 --affine-refine
+  // aligned as closely (median error 0.027 against 0.026 px) and kitti07's refined repeat at 320 px counted 3.82 G
+  // instructions against 4.04 G (bench_repeat_repeat), but over the validation matrix with `repeat --guided-matching 20
+  // --affine-refine
   // --placed-start-fine` 34 tracking frames were one arc off against 23 (calibration 99.86 % against 99.91 %; README,
   // "The three together", 2026-12-02).
   double convergence_epsilon_affine = 0.01;
@@ -342,10 +344,11 @@ struct FeatureTrackerOptions {
   // frame, with a velocity of their own or not: only their finer windows were checked against the current view, and
   // their coarsest ones may see surroundings at other depths, onto which they slide (standing still after a
   // relocalization in the simulated town, 16 of 19 such features were lost in the next frame; feature_tracker_test
-  // FeaturePlacedFromAnotherViewKeepsItsFineAlignment). Off by default: on the 42 closed-loop drives it keeps seed6
-  // on its map (RMS 0.194 -> 0.079 m) and seed3's start from 1.5 m converges, but over the validation matrix it
-  // tracks more frames 2-3 m beside the path and more of them one arc behind (README, "Features placed from a
-  // key-image").
+  // FeaturePlacedFromAnotherViewKeepsItsFineAlignment). Off by default here (teach places no feature from another
+  // image); the localizer turns it on with the affine refinement (LocalizerOptions::tracker, affine_refinement):
+  // alone, on the 42 closed-loop drives it keeps seed6 on its map (RMS 0.194 -> 0.079 m) and seed3's start from
+  // 1.5 m converges, but over the validation matrix it tracks more frames 2-3 m beside the path and more of them one
+  // arc behind (README, "Features placed from a key-image").
   bool placed_features_start_fine = false;
 
   bool Check() const { return alignment.Check() && num_levels >= 1; }

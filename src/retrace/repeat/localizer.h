@@ -145,14 +145,13 @@ struct LocalizerOptions {
   // Every tracked feature's alignment accepted under the paper's warp is refined with an affine warp
   // (AlignmentOptions::affine_refinement): beside the taught path a reference window cut in a key-image is sheared
   // in the current view, and the isotropic warp fits it within R at a shifted centre, which biases the absolute pose
-  // the features give. Off by default. Over the validation matrix (85 drives, README "The three together") it and
-  // `tracker.placed_features_start_fine` and `guided_matching_min_inliers` 20 together give 97.07 % correct against
-  // 95.74 %, 22 frames one arc off against 23 (none two), calibration 99.91 % against 99.905 %, 2.5 m beside 89.85 %
-  // against 83.58 %, and every drive <= 1 m beside >= 99 %; each alone costs calibration (guided matching 99.86 %).
-  // Not the default yet: +18.6 % instructions per repeat frame at 320 px (kitti07, callgrind; over the 10 % issue 13
-  // allows) after the refinement was made cheaper, and with the three on repeat_sim_test AnotherTownAndRoute's
-  // combined lateral offset has a longer tail than the frames' own (95th percentile 0.212 against 0.192 m).
-  bool affine_refinement = false;
+  // the features give. On by default, with `tracker.placed_features_start_fine` and `guided_matching_min_inliers` 20
+  // (the three together; README "The three as the default"): over the validation matrix (85 drives) 97.07 % correct
+  // against 95.74 % with all three off, 23 frames one arc off as with them off (none two), calibration 99.91 %
+  // against 99.905 %, 2.5 m beside 89.83 % against 83.58 %, and every drive <= 1 m beside >= 99 %; each alone costs
+  // calibration (guided matching 99.86 %). Instructions per timed repeat frame (kitti07, callgrind): +16.8 % against
+  // the paper's warp alone at 320 px, +6.3 % at 320 px and +4.2 % native against repeat before issue 13.
+  bool affine_refinement = true;
   // The mapped features a relocalization (a start, or after a loss) locates through its verified key-images are
   // aligned with the affine fallback (AlignmentOptions::affine_fallback) even when `affine_fallback` is off: those
   // windows are cut in key-images seen from where the teach drive was, and a robot set down 1.5 m beside the path
@@ -239,8 +238,8 @@ struct LocalizerOptions {
   // beside the path, now tracked instead of lost): calibration 99.91 -> 99.86 %, below the issue's 99.9 %, alone. With
   // the tracks refined by an affine warp and the placed features started fine
   // (`affine_refinement` above) those lagging poses are rarer, and the three together keep the calibration (README,
-  // "The three together"). 0: off.
-  int guided_matching_min_inliers = 0;
+  // "The three together"); the default. 0: off.
+  int guided_matching_min_inliers = 20;
   // Without a start arc, a verification is ambiguous, and the frame is not localized, when a key-image more than
   // two arcs from the best one verified with at least this fraction of its inliers (a look-alike street: the
   // ratio test of Segvic 2009 §4.1 at the level of places). 0 disables the test. Over the whole map the same ratio
@@ -399,7 +398,13 @@ struct LocalizerOptions {
   // The absolute pose: P3P samples, MSAC with the inlier threshold `inlier_threshold_px` (set by the Localizer).
   AbsolutePoseOptions pose;
 
-  FeatureTrackerOptions tracker;
+  // The tracker, with the mapped features it places started at a fine level in every frame
+  // (FeatureTrackerOptions::placed_features_start_fine, off for teach): one of the three above.
+  FeatureTrackerOptions tracker = [] {
+    FeatureTrackerOptions options;
+    options.placed_features_start_fine = true;
+    return options;
+  }();
   // The current geometries W_t:a, W_t:b are estimated every frame from tracked features (inlier ratios ~90 %), so
   // the adaptive sampler's floor is lowered from 100 to 30 samples (at 90 % inliers the adaptive bound is ~12).
   TwoViewOptions geometry = CurrentGeometryOptions();

@@ -152,19 +152,20 @@ BENCHMARK(BM_RepeatKittiAffine)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)
 void BM_RepeatSimAffine(benchmark::State& state) { RunRepeat(*GetSimSetup(), state, WithAffineFallback()); }
 BENCHMARK(BM_RepeatSimAffine)->Unit(benchmark::kMillisecond)->Iterations(1);
 
-// The same drives with the tracks refined by an affine warp and the placed features started at a fine level
-// (`repeat --affine-refine --placed-start-fine`; README, "Tracks refined with an affine warp"): what they cost,
-// measured in the same process.
-LocalizerOptions WithAffineRefinement() {
+// The same drives with the three that are on by default off (`repeat --no-affine-refine --no-placed-start-fine
+// --guided-matching 0`: the paper's warp alone; README, "The three as the default"): what the default's affine
+// refinement costs, measured in the same process.
+LocalizerOptions WithoutAffineRefinement() {
   LocalizerOptions options;
-  options.affine_refinement = true;
-  options.tracker.placed_features_start_fine = true;
+  options.affine_refinement = false;
+  options.tracker.placed_features_start_fine = false;
+  options.guided_matching_min_inliers = 0;
   return options;
 }
-void BM_RepeatKittiRefined(benchmark::State& state) { RunRepeatKitti(state, WithAffineRefinement()); }
-BENCHMARK(BM_RepeatKittiRefined)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)->Iterations(1);
-void BM_RepeatSimRefined(benchmark::State& state) { RunRepeat(*GetSimSetup(), state, WithAffineRefinement()); }
-BENCHMARK(BM_RepeatSimRefined)->Unit(benchmark::kMillisecond)->Iterations(1);
+void BM_RepeatKittiUnrefined(benchmark::State& state) { RunRepeatKitti(state, WithoutAffineRefinement()); }
+BENCHMARK(BM_RepeatKittiUnrefined)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)->Iterations(1);
+void BM_RepeatSimUnrefined(benchmark::State& state) { RunRepeat(*GetSimSetup(), state, WithoutAffineRefinement()); }
+BENCHMARK(BM_RepeatSimUnrefined)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 // One frame localized from scratch (a fresh Localizer, no key-image features cached), `frame` of the repeat drive.
 void RunFindStart(const Setup& setup, size_t frame, benchmark::State& state) {
