@@ -71,10 +71,10 @@
 // at a centre pulled towards where the distortion is balanced (above: 0.36 px median under a shear of 0.25). With
 // `affine_refinement` every alignment accepted at level 0 is refined by the same affine Gauss-Newton from the accepted
 // warp and the refined one adopted when it passes the fallback's checks — the affine model of a small planar patch's
-// appearance, which Shi & Tomasi
-// ("Good features to track", CVPR 1994) use to check a feature against its first view. The inverse 8x8
-// Gauss-Newton matrix is computed once per reference (ReferencePatch::AffineInverseHessian), and the affine warp (of
-// the fallback too) starts where the paper's warp last sampled the window, from those samples (one sampling fewer).
+// appearance, which Shi & Tomasi ("Good features to track", CVPR 1994) use to check a feature against its first
+// view. The inverse 8x8 Gauss-Newton matrix is computed once per reference (ReferencePatch::AffineInverseHessian), and
+// the affine warp (of the fallback too) starts where the paper's warp last sampled the window, from those samples (one
+// sampling fewer).
 // Measured in feature_tracker_test.cc (AffineRefinementRemovesTheShearBias).
 //
 // RESIDUAL. The reported residual is the RMS over the window of the compensated error in (1),
@@ -168,10 +168,9 @@ struct AlignmentOptions {
   // Convergence of the affine warp (largest corner displacement of the last step, level-0 pixels), as
   // `convergence_epsilon`. Looser is cheaper but not free: at 0.05 px the synthetic shear of feature_tracker_test is
   // aligned as closely (median error 0.027 against 0.026 px) and kitti07's refined repeat at 320 px counted 3.82 G
-  // instructions against 4.04 G (bench_repeat_repeat), but over the validation matrix with `repeat --guided-matching 20
-  // --affine-refine
-  // --placed-start-fine` 34 tracking frames were one arc off against 23 (calibration 99.86 % against 99.91 %; README,
-  // "The three together", 2026-12-02).
+  // instructions against 4.04 G (bench_repeat_repeat), but over the validation matrix with `repeat
+  // --guided-matching 20 --affine-refine --placed-start-fine` 34 tracking frames were one arc off against 23
+  // (calibration 99.86 % against 99.91 %; README, "The three together", 2026-12-02).
   double convergence_epsilon_affine = 0.01;
 
   bool Check() const;

@@ -426,6 +426,17 @@ struct LocalizerOptions {
   }
 
   bool Check(std::string* error = nullptr) const;
+
+  // These options with the three that are on by default off (affine_refinement, tracker.placed_features_start_fine,
+  // guided_matching_min_inliers): the paper's warp alone, as `repeat --no-affine-refine --no-placed-start-fine
+  // --guided-matching 0` (README, "The three as the default").
+  LocalizerOptions WithPaperWarp() const {
+    LocalizerOptions options = *this;
+    options.affine_refinement = false;
+    options.tracker.placed_features_start_fine = false;
+    options.guided_matching_min_inliers = 0;
+    return options;
+  }
 };
 
 // Fewest mapped features a relocalization among `candidates` key-images of the whole map must locate:

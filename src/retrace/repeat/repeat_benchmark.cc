@@ -152,19 +152,14 @@ BENCHMARK(BM_RepeatKittiAffine)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)
 void BM_RepeatSimAffine(benchmark::State& state) { RunRepeat(*GetSimSetup(), state, WithAffineFallback()); }
 BENCHMARK(BM_RepeatSimAffine)->Unit(benchmark::kMillisecond)->Iterations(1);
 
-// The same drives with the three that are on by default off (`repeat --no-affine-refine --no-placed-start-fine
-// --guided-matching 0`: the paper's warp alone; README, "The three as the default"): what the default's affine
-// refinement costs, measured in the same process.
-LocalizerOptions WithoutAffineRefinement() {
-  LocalizerOptions options;
-  options.affine_refinement = false;
-  options.tracker.placed_features_start_fine = false;
-  options.guided_matching_min_inliers = 0;
-  return options;
-}
-void BM_RepeatKittiUnrefined(benchmark::State& state) { RunRepeatKitti(state, WithoutAffineRefinement()); }
+// The same drives with the three that are on by default off (LocalizerOptions::WithPaperWarp: the paper's warp
+// alone; README, "The three as the default"): what the default's affine refinement costs, measured in the same
+// process.
+void BM_RepeatKittiUnrefined(benchmark::State& state) { RunRepeatKitti(state, LocalizerOptions().WithPaperWarp()); }
 BENCHMARK(BM_RepeatKittiUnrefined)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)->Iterations(1);
-void BM_RepeatSimUnrefined(benchmark::State& state) { RunRepeat(*GetSimSetup(), state, WithoutAffineRefinement()); }
+void BM_RepeatSimUnrefined(benchmark::State& state) {
+  RunRepeat(*GetSimSetup(), state, LocalizerOptions().WithPaperWarp());
+}
 BENCHMARK(BM_RepeatSimUnrefined)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 // One frame localized from scratch (a fresh Localizer, no key-image features cached), `frame` of the repeat drive.

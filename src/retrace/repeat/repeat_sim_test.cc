@@ -276,10 +276,7 @@ TEST(RepeatSim, TwoAndAHalfMetresBesideNoFrameOnAWrongArc) {
   scenario.repeat.lateral_offset = 2.5;
   // Without the camera's height (the ground's normal, which the check needs, comes from the map alone); first with
   // the paper's warp alone, the three the localizer has on by default off (README, "The three as the default").
-  LocalizerOptions paper;
-  paper.affine_refinement = false;
-  paper.tracker.placed_features_start_fine = false;
-  paper.guided_matching_min_inliers = 0;
+  const LocalizerOptions paper = LocalizerOptions().WithPaperWarp();
   RepeatRun run = TeachAndRepeat(scenario, paper);
   const TopologicalEvaluation evaluation = run.evaluation;
   std::cout << "default town and drive 2.5 m aside, " << run.map.nodes().size()
@@ -310,12 +307,15 @@ TEST(RepeatSim, TwoAndAHalfMetresBesideNoFrameOnAWrongArc) {
   std::cout << "  with the tracks refined by an affine warp: " << run.evaluation.Summary() << "\n";
   EXPECT_EQ(run.evaluation.wrong_by_two, 0);
   EXPECT_GT(run.evaluation.correct, evaluation.correct + 10);
+  const int refined_correct = run.evaluation.correct;
 
-  // The three together, the default.
+  // The three together, the default: at least as many frames correct as the refinement alone (91.5 % against 89.0 %
+  // when written).
   Repeat(LocalizerOptions(), &run);
-  std::cout << "  with the defaults (both): " << run.evaluation.Summary() << "\n";
+  std::cout << "  with the defaults (the three): " << run.evaluation.Summary() << "\n";
   EXPECT_EQ(run.evaluation.wrong_by_two, 0);
   EXPECT_GT(run.evaluation.correct, evaluation.correct + 10);
+  EXPECT_GE(run.evaluation.correct, refined_correct);
 
   // Robots set down 2.5 m beside the path (a fresh localizer at every 5th frame, no start arc): the mapped features
   // a start locates through its verified key-images are seen sheared, and more of them align with the affine
