@@ -127,7 +127,10 @@ void SampleWindowBilinear(const cv::Mat& image, double dx, double dy, double sca
 // filtered horizontally once at the w sample columns, then the rows are combined vertically. Bilinear
 // interpolation blurs by an amount that depends on the sub-pixel phase, which biases the scale and the
 // position by several hundredths of a pixel; cubic interpolation removes most of it.
-void SampleWindowCubic(const cv::Mat& image, double dx, double dy, double scale, int w, float* out) {
+// `image` may be a copied part of the image sampled: its pixel (0, 0) is then the image's (origin_x, origin_y), and
+// (dx, dy) are still the whole image's coordinates (the positions and weights are those of the whole image).
+void SampleWindowCubic(const cv::Mat& image, double dx, double dy, double scale, int w, float* out, int origin_x = 0,
+                       int origin_y = 0) {
   const int half = w / 2;
   // Columns padded to a multiple of 4 (the padding columns repeat the last one with zero weights).
   const int w4 = (w + 3) & ~3;
@@ -137,8 +140,8 @@ void SampleWindowCubic(const cv::Mat& image, double dx, double dy, double scale,
   for (int k = 0; k < w; ++k) {
     const double x = dx + scale * (k - half), y = dy + scale * (k - half);
     const int fx = static_cast<int>(x), fy = static_cast<int>(y);
-    ix[k] = fx - 1;
-    iy[k] = fy - 1;
+    ix[k] = fx - 1 - origin_x;
+    iy[k] = fy - 1 - origin_y;
     CubicWeights(static_cast<float>(x - fx), wx[k]);
     CubicWeights(static_cast<float>(y - fy), wy[k]);
   }
@@ -237,23 +240,34 @@ namespace {
 // Ty, u.grad T; w^2 floats each). Sampling is cubic when `cubic` (level 0: a reference cut at a sub-pixel
 // position is then not blurred by a phase-dependent amount, which would bias the scale), bilinear otherwise.
 // Returns false when the window does not fit or is too flat; otherwise sets the mean, standard deviation and
-// the inverse Gauss-Newton matrices (full and without the scale).
-bool CutWindow(const cv::Mat& image, double px, double py, int w, int stride, bool cubic, float* data,
-               double* mean_out, double* std_dev_out, Eigen::Matrix<float, 5, 5>* inverse_hessian,
-               Eigen::Matrix<float, 5, 5>* inverse_hessian_translation) {
+// the inverse Gauss-Newton matrices (full and without the scale). With `part` (cubic only), `image` is the part of
+// an image of that size starting at `part->origin` (WindowPart): the same window as from the whole image.
+struct WindowPart {
+  cv::Point origin;
+  cv::Size image_size;
+};
+
+// Whether the window of CutWindow fits in an image of `size`.
+bool WindowFitsImage(cv::Size size, double px, double py, int w, int stride, bool cubic) {
+  const int ext_half = ((w - 1) * stride + 3) / 2;
+  const double margin = cubic ? 1.0 : 0.0;
+  return px - ext_half - margin >= 0.0 && py - ext_half - margin >= 0.0 && px + ext_half + margin < size.width - 1 &&
+         py + ext_half + margin < size.height - 1;
+}
+
+bool CutWindow(const cv::Mat& image, double px, double py, int w, int stride, bool cubic, float* data, double* mean_out,
+               double* std_dev_out, Eigen::Matrix<float, 5, 5>* inverse_hessian,
+               Eigen::Matrix<float, 5, 5>* inverse_hessian_translation, const WindowPart* part = nullptr) {
   const int half = w / 2;
   const int n = w * w;
   // The dense grid covered by the window plus a one-pixel border for the central-difference gradients.
   const int ext = (w - 1) * stride + 3;
-  const int ext_half = ext / 2;
-  const double margin = cubic ? 1.0 : 0.0;
-  if (!(px - ext_half - margin >= 0.0 && py - ext_half - margin >= 0.0 &&
-        px + ext_half + margin < image.cols - 1 && py + ext_half + margin < image.rows - 1)) {
-    return false;
-  }
+  if (!WindowFitsImage(part != nullptr ? part->image_size : image.size(), px, py, w, stride, cubic)) return false;
   thread_local std::vector<float> sampled;
   sampled.resize(static_cast<size_t>(ext) * ext);
-  if (cubic) {
+  if (part != nullptr) {
+    SampleWindowCubic(image, px, py, 1.0, ext, sampled.data(), part->origin.x, part->origin.y);
+  } else if (cubic) {
     SampleWindowCubic(image, px, py, 1.0, ext, sampled.data());
   } else {
     SampleWindowBilinear(image, px, py, 1.0, ext, sampled.data());
@@ -859,10 +873,11 @@ void Residuals(const cv::Mat& image, const WindowView& window, bool cubic, const
 
 }  // namespace
 
-bool ReferencePatch::Create(const ImagePyramid& pyramid, const Vector2d& position, int window_size,
-                            int max_levels, int scale_window_stride) {
+bool ReferencePatch::Create(const ImagePyramid& pyramid, const Vector2d& position, int window_size, int max_levels,
+                            int scale_window_stride, PatchImage image) {
   num_levels_ = 0;
   scale_window_stride_ = 0;
+  scale_state_ = -1;
   if (window_size < 3 || window_size > kMaxWindowSize || window_size % 2 == 0 || pyramid.Empty())
     return false;
   window_size_ = window_size;
@@ -894,20 +909,49 @@ bool ReferencePatch::Create(const ImagePyramid& pyramid, const Vector2d& positio
   inverse_hessian_.resize(num_levels_);
   inverse_hessian_translation_.resize(num_levels_);
   mean_.resize(num_levels_);
-  // The wider level-0 window of the final refinement, when it fits and is well conditioned.
+  // The wider level-0 window of the final refinement, when it fits: cut at its first use (ScaleWindowStride), from
+  // level 0 as it is now. Most references never reach it (the affine refinement, when adopted, replaces it; a
+  // rejected alignment does not refine), and its 45 x 45 cubic samples at stride 3 cost twice the rest of the patch.
   scale_data_.clear();
-  if (scale_window_stride > 1 && scale_window_stride <= kMaxScaleWindowStride) {
-    scale_data_.resize(static_cast<size_t>(4) * n);
-    double std_dev = 0.0;
-    if (CutWindow(pyramid.Level(0), position.x(), position.y(), window_size, scale_window_stride, true,
-                  scale_data_.data(), &scale_mean_, &std_dev, &scale_inverse_hessian_,
-                  &scale_inverse_hessian_translation_)) {
-      scale_window_stride_ = scale_window_stride;
+  scale_source_ = cv::Mat();
+  scale_state_ = -1;
+  const cv::Mat& level0 = pyramid.Level(0);
+  if (scale_window_stride > 1 && scale_window_stride <= kMaxScaleWindowStride && level0.type() == CV_32FC1 &&
+      WindowFitsImage(level0.size(), position.x(), position.y(), window_size, scale_window_stride, true)) {
+    scale_image_size_ = level0.size();
+    if (image == PatchImage::kKept) {
+      scale_source_origin_ = cv::Point(0, 0);
+      scale_source_ = level0;  // a handle: the pyramid's level 0 is not written again
     } else {
-      scale_data_.clear();
+      // The pixels SampleWindowCubic reads (the window's extent, its 4x4 cubic taps), with a pixel to spare.
+      const int ext_half = ((window_size - 1) * scale_window_stride + 3) / 2;
+      const int x0 = std::max(0, static_cast<int>(position.x() - ext_half) - 2);
+      const int y0 = std::max(0, static_cast<int>(position.y() - ext_half) - 2);
+      const int x1 = std::min(level0.cols, static_cast<int>(position.x() + ext_half) + 4);
+      const int y1 = std::min(level0.rows, static_cast<int>(position.y() + ext_half) + 4);
+      scale_source_origin_ = cv::Point(x0, y0);
+      scale_source_ = level0(cv::Rect(x0, y0, x1 - x0, y1 - y0)).clone();
     }
+    scale_requested_stride_ = scale_window_stride;
+    scale_state_ = 0;
   }
   return true;
+}
+
+void ReferencePatch::CutScaleWindow() const {
+  scale_state_ = -1;
+  scale_data_.resize(static_cast<size_t>(4) * window_size_ * window_size_);
+  const WindowPart where{scale_source_origin_, scale_image_size_};
+  double std_dev = 0.0;
+  if (CutWindow(scale_source_, position_.x(), position_.y(), window_size_, scale_requested_stride_, true,
+                scale_data_.data(), &scale_mean_, &std_dev, &scale_inverse_hessian_,
+                &scale_inverse_hessian_translation_, &where)) {
+    scale_window_stride_ = scale_requested_stride_;
+    scale_state_ = 1;
+  } else {
+    scale_data_.clear();
+  }
+  scale_source_ = cv::Mat();
 }
 
 const ReferencePatch::AffineMatrix* ReferencePatch::AffineInverseHessian() const {
@@ -1111,8 +1155,9 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
     // model (its RMS within R, its worst 3x3 block within the block limit: an occluder or a depth
     // discontinuity in the outer ring rejects it) and it moves the position by less than
     // `max_scale_window_shift`; otherwise the 15x15 result stands.
-    if (reference.ScaleWindowStride() > 1 && options.scale_window_stride > 1 &&
-        result.residual <= options.max_residual && result.block_residual <= options.max_block_residual) {
+    // (ScaleWindowStride last: it cuts the window at its first call.)
+    if (options.scale_window_stride > 1 && result.residual <= options.max_residual &&
+        result.block_residual <= options.max_block_residual && reference.ScaleWindowStride() > 1) {
       WindowView wide;
       wide.size = w;
       wide.stride = reference.ScaleWindowStride();

@@ -218,10 +218,16 @@ class ReferencePatch {
 
   // Cuts the reference around `position` (level-0 pixels; cubic interpolation at level 0, bilinear on the
   // coarse levels) from `pyramid`, on up to `max_levels` levels, plus the wide level-0 window of the final
-  // refinement with `scale_window_stride` (0 or 1: none; also none when it does not fit in the image). Coarse levels where the window (plus a one-pixel gradient border) does not fit or is flat are
-  // dropped. Returns false (and leaves the patch empty) when even level 0 is unusable.
-  bool Create(const ImagePyramid& pyramid, const Vector2d& position, int window_size = 15,
-              int max_levels = 3, int scale_window_stride = AlignmentOptions().scale_window_stride);
+  // refinement with `scale_window_stride` (0 or 1: none; also none when it does not fit in the image). Coarse levels
+  // where the window (plus a one-pixel gradient border) does not fit or is flat are dropped. Returns false (and leaves
+  // the patch empty) when even level 0 is unusable. The wide window is cut at its first use (ScaleWindowStride) from
+  // level 0 as it is at Create: `image` kKept when the pyramid's level 0 is never written again (a key-image's pyramid,
+  // built once: the patch keeps a handle to it), kTransient otherwise (a frame's pyramid, rebuilt in place for the next
+  // frame: the patch copies the 49 x 49 pixels it needs).
+  enum class PatchImage { kTransient, kKept };
+  bool Create(const ImagePyramid& pyramid, const Vector2d& position, int window_size = 15, int max_levels = 3,
+              int scale_window_stride = AlignmentOptions().scale_window_stride,
+              PatchImage image = PatchImage::kTransient);
 
   bool Valid() const { return num_levels_ > 0; }
   int NumLevels() const { return num_levels_; }
@@ -247,7 +253,12 @@ class ReferencePatch {
   }
   // The larger level-0 window of the final refinement (0 when it was not requested, does not fit in the image
   // or is badly conditioned): values minus their mean, Tx, Ty, u.grad T, and its inverse Gauss-Newton matrix.
-  int ScaleWindowStride() const { return scale_window_stride_; }
+  // Cut at the first call of ScaleWindowStride(); the other three hold it only after that call (the same thread rule as
+  // AffineInverseHessian).
+  int ScaleWindowStride() const {
+    if (scale_state_ == 0) CutScaleWindow();
+    return scale_window_stride_;
+  }
   const float* ScaleWindow() const { return scale_data_.data(); }
   double ScaleWindowMean() const { return scale_mean_; }
   const Eigen::Matrix<float, 5, 5>& ScaleWindowInverseHessian() const { return scale_inverse_hessian_; }
@@ -277,12 +288,21 @@ class ReferencePatch {
       inverse_hessian_;
   std::vector<Eigen::Matrix<float, 5, 5>, Eigen::aligned_allocator<Eigen::Matrix<float, 5, 5>>>
       inverse_hessian_translation_;
-  // The level-0 window of the final refinement.
-  int scale_window_stride_ = 0;
-  std::vector<float> scale_data_;
-  double scale_mean_ = 0.0;
-  Eigen::Matrix<float, 5, 5> scale_inverse_hessian_ = Eigen::Matrix<float, 5, 5>::Zero();
-  Eigen::Matrix<float, 5, 5> scale_inverse_hessian_translation_ = Eigen::Matrix<float, 5, 5>::Zero();
+  // Cuts the level-0 window of the final refinement from scale_source_ (ScaleWindowStride's first call).
+  void CutScaleWindow() const;
+
+  // The level-0 window of the final refinement, cut at its first use: 0 pending (scale_source_ holds level 0 or
+  // the part of it the window samples, at scale_source_origin_ of an image of scale_image_size_), 1 cut, -1 none.
+  mutable int scale_state_ = -1;
+  int scale_requested_stride_ = 0;
+  mutable cv::Mat scale_source_;
+  cv::Point scale_source_origin_;
+  cv::Size scale_image_size_;
+  mutable int scale_window_stride_ = 0;
+  mutable std::vector<float> scale_data_;
+  mutable double scale_mean_ = 0.0;
+  mutable Eigen::Matrix<float, 5, 5> scale_inverse_hessian_ = Eigen::Matrix<float, 5, 5>::Zero();
+  mutable Eigen::Matrix<float, 5, 5> scale_inverse_hessian_translation_ = Eigen::Matrix<float, 5, 5>::Zero();
   // AffineInverseHessian's cache: 0 not computed yet, 1 valid, -1 singular.
   mutable int affine_state_ = 0;
   mutable AffineMatrix affine_inverse_hessian_;

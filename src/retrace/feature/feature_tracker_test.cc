@@ -587,6 +587,66 @@ TEST(FeatureTracker, SharedReferenceIsTrackedWithoutACopy) {
   EXPECT_NEAR(tracker.Find(id)->warp.position.y(), 148.0, 0.1);
   EXPECT_EQ(tracker.Find(id)->warp.position, tracker.Find(copied)->warp.position);
 }
+// The wide level-0 window of the final refinement is cut at its first use, from the part of the image the patch
+// copied when it was created: the values are the image's cubic samples at stride 3 around the position (Keys
+// kernel in double here), also where the window reaches the image's border, whatever becomes of the pyramid
+// after Create (a copied part, or a handle to a key-image's level 0); a window that does not fit is none, the patch
+// still valid.
+TEST(FeatureTracker, ScaleWindowIsCutLaterFromTheImageAsCreated) {
+  const SyntheticTexture texture = SmallTexture(4);
+  const cv::Mat image0 = Quantise(texture.Render(320, 240));
+  ImagePyramid pyramid(image0);
+  const cv::Mat level0 = pyramid.Level(0).clone();
+  const int w = 15, stride = 3, half = w / 2, n = w * w;
+  // The wide window with its gradient border reaches (w - 1) * stride / 2 + 2 = 23 px and its cubic taps 2 more.
+  const std::vector<Vector2d> positions = {{160.3, 120.7}, {24.5, 30.2}, {295.2, 215.9}, {200.0, 150.0}};
+  std::vector<ReferencePatch> patches(positions.size());
+  for (size_t i = 0; i < positions.size(); ++i) ASSERT_TRUE(patches[i].Create(pyramid, positions[i], w, 3, stride));
+  ReferencePatch kept;  // keeps a handle to level 0 of a key-image's pyramid, which is gone before the cut
+  {
+    const ImagePyramid key_image_pyramid(image0);
+    ASSERT_TRUE(kept.Create(key_image_pyramid, positions[0], w, 3, stride, ReferencePatch::PatchImage::kKept));
+  }
+  const ReferencePatch copy = patches[0];  // copied before its window is cut
+  ReferencePatch beyond;                   // its wide window leaves the image by half a pixel
+  ASSERT_TRUE(beyond.Create(pyramid, Vector2d(22.5, 120.0), w, 3, stride));
+  const int first_cut_early = patches[3].ScaleWindowStride();
+  // The pyramid object now holds another image (its buffers reused or not).
+  pyramid.Build(Quantise(texture.Render(320, 240, 1.1, Vector2d(-7.0, 4.0))));
+  EXPECT_EQ(first_cut_early, stride);
+  EXPECT_EQ(beyond.ScaleWindowStride(), 0);
+  EXPECT_TRUE(beyond.Valid());
+  const auto sample = [&](double x, double y) {
+    const int fx = static_cast<int>(std::floor(x)), fy = static_cast<int>(std::floor(y));
+    double value = 0.0;
+    for (int j = -1; j <= 2; ++j) {
+      for (int i = -1; i <= 2; ++i)
+        value += Cubic(x - (fx + i)) * Cubic(y - (fy + j)) * level0.at<float>(fy + j, fx + i);
+    }
+    return value;
+  };
+  for (size_t i = 0; i < positions.size(); ++i) {
+    const ReferencePatch& patch = patches[i];
+    ASSERT_EQ(patch.ScaleWindowStride(), stride) << "position " << i;
+    double worst = 0.0;
+    for (int r = 0; r < w; ++r) {
+      for (int c = 0; c < w; ++c) {
+        const double expected = sample(positions[i].x() + (c - half) * stride, positions[i].y() + (r - half) * stride);
+        worst = std::max(worst, std::abs(patch.ScaleWindow()[r * w + c] + patch.ScaleWindowMean() - expected));
+      }
+    }
+    EXPECT_LT(worst, 1e-3) << "position " << i;
+  }
+  // The copy cuts the same window, to the bit.
+  ASSERT_EQ(copy.ScaleWindowStride(), stride);
+  EXPECT_EQ(std::vector<float>(copy.ScaleWindow(), copy.ScaleWindow() + 4 * n),
+            std::vector<float>(patches[0].ScaleWindow(), patches[0].ScaleWindow() + 4 * n));
+  EXPECT_EQ(copy.ScaleWindowMean(), patches[0].ScaleWindowMean());
+  ASSERT_EQ(kept.ScaleWindowStride(), stride);
+  EXPECT_EQ(std::vector<float>(kept.ScaleWindow(), kept.ScaleWindow() + 4 * n),
+            std::vector<float>(patches[0].ScaleWindow(), patches[0].ScaleWindow() + 4 * n));
+}
+
 // Features tracked in the previous frame start the alignment at a finer level from their constant-velocity guess
 // (FeatureTrackerOptions::predicted_start_level); when the motion reverses abruptly, the guess is 15 px off,
 // outside the basin of the start level, and the fallback to the full coarse-to-fine alignment must keep the tracks.

@@ -315,8 +315,10 @@ std::shared_ptr<const ReferencePatch> Localizer::Reference(node_t node_id, featu
       patch = std::make_shared<ReferencePatch>();
       // The affine warp's matrix (ReferencePatch::AffineInverseHessian) is computed at its first use, once per
       // patch: most references cut here only ever check a prediction, with the paper's warp.
+      // A key-image's pyramid is built once (NodePyramid): the patch may keep a handle to its level 0.
       if (!patch->Create(NodePyramid(node_id), position->second, tracker_.Options().alignment.window_size,
-                         tracker_.Options().num_levels)) {
+                         tracker_.Options().num_levels, AlignmentOptions().scale_window_stride,
+                         ReferencePatch::PatchImage::kKept)) {
         patch.reset();
       }
     }

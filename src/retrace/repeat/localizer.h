@@ -150,8 +150,8 @@ struct LocalizerOptions {
   // against 95.74 % with all three off, 23 frames one arc off as with them off (none two), calibration 99.91 %
   // against 99.905 %, 2.5 m beside 89.83 % against 83.58 %, and every drive <= 1 m beside >= 99 %; each alone costs
   // calibration (guided matching 99.86 %). Instructions per timed repeat frame (kitti07, callgrind): +16.8 % against
-  // the paper's warp alone at 320 px; against repeat before issue 13 +6.3 % at 320 px, +4.2 % native and +10.7 % on
-  // the simulator's benchmark (over the issue's 10 %).
+  // the paper's warp alone at 320 px; against repeat before issue 13 +6.3 % at 320 px, +4.2 % native and +7.7 % on
+  // the simulator's benchmark (+10.7 % before the wide window was cut at its first use, ReferencePatch).
   bool affine_refinement = true;
   // The mapped features a relocalization (a start, or after a loss) locates through its verified key-images are
   // aligned with the affine fallback (AlignmentOptions::affine_fallback) even when `affine_fallback` is off: those
