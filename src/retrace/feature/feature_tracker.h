@@ -256,7 +256,7 @@ class ReferencePatch {
   // Cut at the first call of ScaleWindowStride(); the other three hold it only after that call (the same thread rule as
   // AffineInverseHessian).
   int ScaleWindowStride() const {
-    if (scale_state_ == 0) CutScaleWindow();
+    if (!scale_source_.empty()) CutScaleWindow();
     return scale_window_stride_;
   }
   const float* ScaleWindow() const { return scale_data_.data(); }
@@ -291,10 +291,9 @@ class ReferencePatch {
   // Cuts the level-0 window of the final refinement from scale_source_ (ScaleWindowStride's first call).
   void CutScaleWindow() const;
 
-  // The level-0 window of the final refinement, cut at its first use: 0 pending (scale_source_ holds level 0 or
-  // the part of it the window samples, at scale_source_origin_ of an image of scale_image_size_), 1 cut, -1 none.
-  mutable int scale_state_ = -1;
-  int scale_requested_stride_ = 0;
+  // The level-0 window of the final refinement, cut at its first use: pending while scale_source_ holds level 0 or
+  // the part of it the window samples (at scale_source_origin_ of an image of scale_image_size_; the stride is then
+  // the one requested), emptied by the cut.
   mutable cv::Mat scale_source_;
   cv::Point scale_source_origin_;
   cv::Size scale_image_size_;
