@@ -382,6 +382,11 @@ void RegisterBenchCommand(CLI::App& app) {
   cmd->add_flag("--relocalization-affine", args->options.relocalization_affine_fallback,
                 "Align the mapped features a relocalization locates with the affine fallback too (`repeat "
                 "--relocalization-affine`)");
+  cmd->add_option("--start-alternative-starts", args->options.start_alternative_starts,
+                  "Align a mapped feature that fails from the median of the matches around it from each of this many "
+                  "nearest matches (`repeat --start-alternative-starts`; 0: the median alone)")
+      ->check(CLI::Range(0, 100))
+      ->capture_default_str();
   cmd->callback([args]() {
     std::string error;
     if (!args->options.Check(&error)) throw InputError("bench options", error);

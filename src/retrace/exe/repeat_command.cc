@@ -588,6 +588,17 @@ void RegisterRepeatCommand(CLI::App& app) {
   cmd->add_flag("!--no-absolute-pose", args->options.place_by_absolute_pose,
                 "Place the camera on the arc by the current geometries alone (the paper), not by its absolute pose in "
                 "the arc's reconstruction");
+  cmd->add_option("--start-alternative-starts", args->options.start_alternative_starts,
+                  "Before the first localization, a mapped feature that does not align from the median displacement "
+                  "of the matches around it is aligned from each of the nearest matches in turn, at most this many, "
+                  "and kept only as an inlier of the verified pose (0: the median alone; README \"Mapped features "
+                  "located from the nearest matches\")")
+      ->check(CLI::Range(0, 100))
+      ->capture_default_str();
+  cmd->add_option("--alternative-starts", args->options.bootstrap_alternative_starts,
+                  "The same after a loss (more frames tracked beside the path, a few more one arc off)")
+      ->check(CLI::Range(0, 100))
+      ->capture_default_str();
   cmd->add_option("--guided-matching", args->options.guided_matching_min_inliers,
                   "Near a loss or the start, match a key-image again along the epipolar planes of a relative pose "
                   "with at least this many inliers, to verify it (0: off; README \"Guided matching near a loss\")")

@@ -209,6 +209,7 @@ struct DriveArguments {
   bool affine_refine = LocalizerOptions().affine_refinement;
   bool relocalization_affine = false;  // LocalizerOptions::relocalization_affine_fallback
   int guided_matching = LocalizerOptions().guided_matching_min_inliers;
+  int start_alternative_starts = LocalizerOptions().start_alternative_starts;
   ClosedLoopOptions drive;
 };
 
@@ -231,6 +232,7 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   base.affine_refinement = args.affine_refine;
   base.relocalization_affine_fallback = args.relocalization_affine;
   base.guided_matching_min_inliers = args.guided_matching;
+  base.start_alternative_starts = args.start_alternative_starts;
   MapForLocalizer loaded = LoadMapForLocalizer(args.map, base);
   Simulator simulator(ApplyVariant(scenario, ScenarioVariant::kRepeat));
   const CameraModel& camera = simulator.camera();
@@ -697,6 +699,13 @@ void RegisterSimCommand(CLI::App& app) {
   drive->add_flag("--relocalization-affine", args->relocalization_affine,
                   "Localizer: align the mapped features a relocalization locates with the affine fallback (`repeat "
                   "--relocalization-affine`)");
+  drive
+      ->add_option("--start-alternative-starts", args->start_alternative_starts,
+                   "Localizer: before its first localization, align a mapped feature that fails from the median of the "
+                   "matches around it from each of this many nearest matches (`repeat --start-alternative-starts`; "
+                   "0: the median alone)")
+      ->check(CLI::Range(0, 100))
+      ->capture_default_str();
   drive->add_flag("--placed-start-fine,!--no-placed-start-fine", args->placed_start_fine,
                   "Localizer: track the mapped features it placed from a fine pyramid level in every frame (`repeat "
                   "--placed-start-fine`; on by default)");

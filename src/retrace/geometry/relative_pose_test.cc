@@ -1,6 +1,7 @@
 #include "retrace/geometry/relative_pose.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -340,6 +341,55 @@ TEST(RelativePose, TheGuessDecidesBetweenTheTwoMotionsOfAPlanarScene) {
   }
   std::printf("  without the guess, %d of 20 seeds chose a motion more than 5 degrees off\n", mirrored_without_guess);
   EXPECT_GT(mirrored_without_guess, 0) << "the scene should be ambiguous";
+}
+
+// IsInlierOfPose applies the estimators' inlier test to one correspondence: it agrees with the masks that
+// EvaluateTwoViewGeometry gives for the estimate and for the true pose with matches moved across their epipolar lines
+// by twice the threshold, keeps true matches moved along their epipolar line and rejects them moved across it by ten
+// times the threshold.
+TEST(RelativePose, OneCorrespondenceIsTestedAsTheEstimatorTestsItsInliers) {
+  const PerspectiveCamera camera(640, 480, 500.0, 500.0, 319.5, 239.5);
+  SyntheticTwoViewOptions options;  // 100 points, 0.5 px noise, 30 % outliers
+  const SyntheticTwoView scene = GenerateTwoView(camera, kPerspectivePoses[1], options);
+  const double threshold_px = TwoViewOptions().ransac.max_error_px;
+  const double focal = camera.FocalLength();
+  const TwoViewGeometry g = EstimateRelativePose(scene.bearings_a, scene.bearings_b, focal);
+  ASSERT_TRUE(g.success) << g.failure_message;
+  const Rigid3d truth(scene.b_from_a.rotation, scene.b_from_a.translation.normalized());
+  std::vector<Vector3d> inliers_a, along_b, across_b, far_b;
+  for (size_t i = 0; i < scene.bearings_a.size(); ++i) {
+    EXPECT_EQ(IsInlierOfPose(g.b_from_a, scene.bearings_a[i], scene.bearings_b[i], focal, threshold_px),
+              g.inlier_mask[i])
+        << i;
+    if (scene.is_outlier[i]) continue;
+    // The noiseless match in B, and the directions along and across its epipolar line there.
+    Vector2d exact, farther;
+    ASSERT_TRUE(camera.Project(truth * scene.points_in_a[i], &exact));
+    ASSERT_TRUE(camera.Project(truth * (1.05 * scene.points_in_a[i]), &farther));
+    const Vector2d along = (farther - exact).normalized();
+    const Vector2d across(-along.y(), along.x());
+    inliers_a.push_back(scene.bearings_a[i]);
+    const std::array<std::pair<std::vector<Vector3d>*, Vector2d>, 3> shifts{{{&along_b, 0.5 * threshold_px * along},
+                                                                             {&across_b, 2.0 * threshold_px * across},
+                                                                             {&far_b, 10.0 * threshold_px * across}}};
+    for (const auto& [moved, shift] : shifts) {
+      moved->emplace_back();
+      ASSERT_TRUE(camera.Unproject(exact + shift, &moved->back()));
+    }
+  }
+  TwoViewGeometry across = g;
+  across.b_from_a = truth;
+  EvaluateTwoViewGeometry(inliers_a, across_b, focal, threshold_px, TwoViewOptions().sigma_p_probability, &across);
+  int kept = 0, rejected_across = 0;
+  for (size_t i = 0; i < inliers_a.size(); ++i) {
+    kept += IsInlierOfPose(truth, inliers_a[i], along_b[i], focal, threshold_px);
+    const bool inlier_across = IsInlierOfPose(truth, inliers_a[i], across_b[i], focal, threshold_px);
+    EXPECT_EQ(inlier_across, across.inlier_mask[i]) << i;
+    rejected_across += !inlier_across;
+    EXPECT_FALSE(IsInlierOfPose(truth, inliers_a[i], far_b[i], focal, threshold_px)) << i;
+  }
+  EXPECT_GE(kept, 0.95 * inliers_a.size());
+  EXPECT_GT(rejected_across, inliers_a.size() / 2);  // not a test that accepts everything moved by 2 thresholds
 }
 
 }  // namespace

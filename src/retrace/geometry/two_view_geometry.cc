@@ -105,6 +105,14 @@ std::vector<int> InlierIndices(const Rigid3d& pose, const std::vector<Vector3d>&
 
 }  // namespace
 
+bool IsInlierOfPose(const Rigid3d& b_from_a, const Vector3d& bearing_a, const Vector3d& bearing_b,
+                    double focal_length_px, double max_error_px) {
+  const double tau = max_error_px / focal_length_px;
+  TriangulatedPoint point;
+  return InlierError(b_from_a, EssentialFromPose(b_from_a), bearing_a.normalized(), bearing_b.normalized(), tau * tau,
+                     &point) >= 0.0;
+}
+
 void EvaluateTwoViewGeometry(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
                              double focal_length_px, double max_error_px, double sigma_p_probability,
                              TwoViewGeometry* geometry) {

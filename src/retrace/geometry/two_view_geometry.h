@@ -160,4 +160,9 @@ void EvaluateTwoViewGeometry(const std::vector<Vector3d>& bearings_a, const std:
                              double focal_length_px, double max_error_px, double sigma_p_probability,
                              TwoViewGeometry* geometry);
 
+// Whether the correspondence of bearings (a, b) is an inlier of the pose `b_from_a` by the same test (threshold
+// max_error_px): a match found otherwise, checked against a geometry verified on other matches.
+bool IsInlierOfPose(const Rigid3d& b_from_a, const Vector3d& bearing_a, const Vector3d& bearing_b,
+                    double focal_length_px, double max_error_px);
+
 }  // namespace retrace

@@ -68,6 +68,9 @@ bool LocalizerOptions::Check(std::string* error) const {
     return fail("bootstrap minima must be >= 8");
   }
   if (guided_matching_min_inliers < 0) return fail("guided_matching_min_inliers must be >= 0 (0: off)");
+  if (bootstrap_alternative_starts < 0 || start_alternative_starts < 0) {
+    return fail("bootstrap_alternative_starts and start_alternative_starts must be >= 0 (0: off)");
+  }
   if (prediction_skipped_levels < 0) return fail("prediction_skipped_levels must be >= 0");
   if (relocalization_neighbourhood < 0 || relocalization_widening < 0) {
     return fail("relocalization_neighbourhood and relocalization_widening must be >= 0");

@@ -31,6 +31,14 @@ TEST(LocalizerOptions, CheckRejectsBadValues) {
   EXPECT_FALSE(options.Check(&error));
   EXPECT_NE(error.find("guided_matching_min_inliers"), std::string::npos) << error;
   options = LocalizerOptions();
+  options.bootstrap_alternative_starts = -1;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("bootstrap_alternative_starts"), std::string::npos) << error;
+  options = LocalizerOptions();
+  options.start_alternative_starts = -1;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("start_alternative_starts"), std::string::npos) << error;
+  options = LocalizerOptions();
   options.belief.min_confidence = 1.5;
   EXPECT_FALSE(options.Check(&error));
   EXPECT_NE(error.find("belief"), std::string::npos) << error;

@@ -239,6 +239,48 @@ std::vector<node_t> Localizer::NodesNear(arc_t arc_id, int arcs) const {
   return nodes;
 }
 
+int Localizer::AlternativeStarts() const {
+  return last_arc_ == kInvalidArcId ? options_.start_alternative_starts : options_.bootstrap_alternative_starts;
+}
+
+AlignmentResult Localizer::AlignFromNearestMatches(const MatchedKeyImage& key_image, const Vector2d& key_position,
+                                                   const Vector2d& median_start, const ReferencePatch& reference,
+                                                   const RefinePredictionOptions& refine, int margin) {
+  // The matched key-points within the widest neighbourhood LocateMappedFeatures uses, nearest first.
+  const double radius = 3.0 * options_.bootstrap_neighbour_radius_px * pixel_scale_;
+  std::vector<std::pair<double, size_t>> nearest;
+  for (size_t i = 0; i < key_image.key_points.size(); ++i) {
+    const double distance = (key_image.key_points[i] - key_position).norm();
+    if (distance <= radius) nearest.emplace_back(distance, i);
+  }
+  std::sort(nearest.begin(), nearest.end());
+  // A start within half the accepted distance of one tried converges as that one did.
+  const double separation = 0.5 * refine.max_distance;
+  std::vector<Vector2d> starts{median_start};
+  AlignmentResult failed;
+  for (const auto& [distance, i] : nearest) {
+    if (static_cast<int>(starts.size()) > AlternativeStarts()) break;
+    const Vector2d start = key_position + key_image.current_points[i] - key_image.key_points[i];
+    if (std::any_of(starts.begin(), starts.end(),
+                    [&](const Vector2d& tried) { return (tried - start).norm() < separation; })) {
+      continue;
+    }
+    starts.push_back(start);
+    if (!camera_->InImage(start, margin)) continue;
+    const AlignmentResult aligned =
+        RefinePrediction(prediction_pyramid_, reference, start, key_image.size_ratios[i], refine);
+    if (!aligned.ok()) continue;
+    // Found from one match: it must be an inlier of the pose the key-image was verified with.
+    Vector3d key_bearing, current_bearing;
+    if (camera_->Unproject(key_position, &key_bearing) && camera_->Unproject(aligned.warp.position, &current_bearing) &&
+        IsInlierOfPose(key_image.geometry.b_from_a, key_bearing, current_bearing, camera_->FocalLength(),
+                       relocalization_geometry_.ransac.max_error_px)) {
+      return aligned;
+    }
+  }
+  return failed;
+}
+
 int Localizer::LocateMappedFeatures(const MatchedKeyImage& key_image, const std::array<const ArcData*, 3>& arcs,
                                     std::unordered_set<feature_t>* seen) {
   const double neighbour_radius = options_.bootstrap_neighbour_radius_px * pixel_scale_;
@@ -274,11 +316,14 @@ int Localizer::LocateMappedFeatures(const MatchedKeyImage& key_image, const std:
       }
       if (!enough) continue;
       const Vector2d predicted = position->second + Vector2d(Median(dx), Median(dy));
-      if (!camera_->InImage(predicted, tracker_.Options().alignment.window_size / 2 + 2)) continue;
+      const int margin = tracker_.Options().alignment.window_size / 2 + 2;
+      if (!camera_->InImage(predicted, margin)) continue;
       const std::shared_ptr<const ReferencePatch> reference = Reference(key_image.node, id);
       if (reference == nullptr) continue;
-      const AlignmentResult refined =
-          RefinePrediction(prediction_pyramid_, *reference, predicted, Median(ratios), refine);
+      AlignmentResult refined = RefinePrediction(prediction_pyramid_, *reference, predicted, Median(ratios), refine);
+      if (!refined.ok() && AlternativeStarts() > 0) {
+        refined = AlignFromNearestMatches(key_image, position->second, predicted, *reference, refine, margin);
+      }
       if (refined.ok() && tracker_.AddFeature(reference, refined, id) != kInvalidFeatureId) {
         reference_node_[id] = key_image.node;
         ++located_features;
