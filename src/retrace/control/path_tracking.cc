@@ -79,7 +79,7 @@ double PathTracker::FilteredOffset(const PathTrackingInput& input, double dt) {
     distance_ += travelled;
     drift_ += travelled * std::sin(direction);
   }
-  offsets_.Add(distance_, input.lateral_m - drift_, input.lateral_sigma_m);
+  offsets_.Add(distance_, input.lateral_m - drift_, input.lateral_sigma_m, input.arc);
   const CombinedObservation offset = offsets_.Combine();
   return offset.valid ? offset.value + drift_ : input.lateral_m;
 }

@@ -31,12 +31,24 @@
 // gave no metric offset; zero at once when the localizer is not tracking (a robot must not drive blind), and ramped
 // up at `max_acceleration` when it tracks again.
 
+#include <cstdint>
 #include <limits>
 #include <string>
 
 #include "retrace/util/robust_random_walk.h"
 
 namespace retrace {
+
+// The path law's window of recent offsets: ObservationWindowOptions' defaults, the frames on one arc sharing a part
+// 0.6 of their errors — measured: the frames' own offsets from the taught path (frame_lateral_m) against the truth
+// over 23 simulated drives of the validation matrix at 0-3 m beside, each error over its σ (clipped at 3), correlate
+// by 0.62 between two frames on one arc (0.72 one frame apart, 0.66 two). README, "Frames of one arc share their
+// offset's error".
+inline ObservationWindowOptions PathOffsetWindowOptions() {
+  ObservationWindowOptions options;
+  options.shared_correlation = 0.6;
+  return options;
+}
 
 struct PathTrackingOptions {
   // Distance of the camera ahead of the point the vehicle turns about (a car's rear axle), metres. The simulator's
@@ -64,11 +76,13 @@ struct PathTrackingOptions {
   // φ = ψ − atan(d κ) with the commanded κ, de/ds = sin φ, over the commanded speed·dt — plus a random walk of
   // `offset.process_sigma` m/√m for what that misses; each right with its own σ (at least `offset.min_sigma`) or wrong
   // with probability `offset.outlier_probability` (uniform over `offset.outlier_range` m), combined robustly
-  // (util/robust_random_walk.h; the defaults there: 20 m, 64 frames, 0.05 m/√m, 2 cm, 0.1, 10 m). Why: a frame whose
+  // (util/robust_random_walk.h; the defaults there: 20 m, 64 frames, 0.05 m/√m, 2 cm, 0.1, 10 m), the frames on one
+  // arc (PathTrackingInput::arc) sharing a part `offset.shared_correlation` = 0.6 of their errors. Why: a frame whose
   // pose rests on features at one depth (a far facade) may put the camera a metre off with a σ of centimetres, several
   // frames in a row (seed3 of the validation matrix: 7 frames, 5.6 m; seed6: 14); the window must hold more right
-  // frames than such a run. offset.process_sigma 0: each frame's own offset.
-  ObservationWindowOptions offset;
+  // frames than such a run, and a run on one arc counts for less than its number. offset.process_sigma 0: each
+  // frame's own offset.
+  ObservationWindowOptions offset = PathOffsetWindowOptions();
   // Steer by the heading the frame's pose gives with the combined offset instead of its own: ψ + b · (e_c − e),
   // b = PathTrackingInput::heading_per_lateral. A pose resting on points at one depth Z puts the camera δe aside
   // and turned by about −δe / Z together (the bas-relief ambiguity); where the combined offset e_c corrects δe, this
@@ -84,6 +98,9 @@ struct PathTrackingInput {
   bool metric = false;           // lateral_m and heading_error_rad are valid
   double lateral_m = 0.0;        // positive right of the path
   double lateral_sigma_m = 0.0;  // its standard deviation
+  // The arc whose reconstruction the frame's pose is in: the offsets of frames on one arc share a part of their
+  // errors (PathTrackingOptions::offset.shared_correlation); -1 unknown.
+  int64_t arc = -1;
   double heading_error_rad = 0.0;  // positive looking right of the path
   double heading_per_lateral = 0.0;  // rad/m, the pose's regression of its heading on its offset (0 unknown)
   double curvature_ahead = 0.0;  // 1/m, the sharpest of the taught path ahead (0 when unknown)

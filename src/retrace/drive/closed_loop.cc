@@ -119,6 +119,7 @@ ClosedLoopSummary DriveClosedLoop(Simulator* simulator, Localizer* localizer, co
     // The frame's own offset: the path tracker combines the recent frames itself, carried by the motion it commanded.
     input.lateral_m = result.path.frame_lateral_m;
     input.lateral_sigma_m = result.path.frame_lateral_sigma_m;
+    input.arc = result.arc;  // kInvalidArcId (-1) when not tracking
     input.heading_error_rad = result.path.heading_error_rad;
     input.heading_per_lateral = result.path.heading_per_lateral;
     input.curvature_ahead = result.path.curvature_ahead;  // 0 when the frame has no metric path

@@ -564,6 +564,11 @@ void RegisterRepeatCommand(CLI::App& app) {
          "(robustly, as a random walk; 0: each frame's own, which frame_lateral_m always holds)")
       ->check(CLI::Range(0.0, 1000.0))
       ->capture_default_str();
+  cmd->add_option("--lateral-shared-correlation", args->options.lateral_filter.shared_correlation,
+                  "Correlation in [0, 1) of the offset errors of two frames whose poses are in one arc's "
+                  "reconstruction, when the recent frames' offsets are combined into lateral_m (0: independent)")
+      ->check(CLI::Range(0.0, 0.999))
+      ->capture_default_str();
   cmd->add_option("--min-confidence", args->options.belief.min_confidence,
                   "Belief confidence needed to report tracking (probability that the arc is right)")
       ->capture_default_str();

@@ -715,6 +715,12 @@ void RegisterSimCommand(CLI::App& app) {
                    "planes of a relative pose with at least this many inliers (`repeat --guided-matching`; 0: off)")
       ->check(CLI::Range(0, 1000))
       ->capture_default_str();
+  drive
+      ->add_option("--offset-shared-correlation", args->drive.tracking.offset.shared_correlation,
+                   "Path law: correlation in [0, 1) of the offset errors of two frames whose poses are in one arc's "
+                   "reconstruction, when the recent frames' offsets are combined (0: independent)")
+      ->check(CLI::Range(0.0, 0.999))
+      ->capture_default_str();
   drive->add_flag("--heading-from-offset", args->drive.tracking.heading_from_offset,
                   "Path law: steer by the heading that goes with the recent frames' combined offset (the pose's "
                   "heading-offset covariance) instead of the frame's own");

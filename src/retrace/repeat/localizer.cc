@@ -470,7 +470,8 @@ void Localizer::FilterLateralOffset(arc_t arc, PathPose* path) {
   const double scale_part = path->lateral_m * path->scale_sigma;
   const double pose_part = std::max(0.0, path->lateral_sigma_m * path->lateral_sigma_m - scale_part * scale_part);
   const double factor = last_pose_ ? last_pose_->noise_floor_factor : 1.0;
-  lateral_window_.Add(travelled_m_, path->lateral_m, std::sqrt(scale_part * scale_part + factor * pose_part));
+  lateral_window_.Add(travelled_m_, path->lateral_m, std::sqrt(scale_part * scale_part + factor * pose_part),
+                      arc);
   const CombinedObservation combined = lateral_window_.Combine();
   if (!combined.valid) return;
   path->lateral_m = combined.value;

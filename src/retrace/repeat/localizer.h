@@ -398,7 +398,9 @@ struct LocalizerOptions {
   // metre off with a σ of centimetres, several frames in a row (README, "Where the car is, in metres"). The offsets
   // of the recent tracked frames, at the distance driven along the taught path (along_m and to_next_m from frame to
   // frame), are combined robustly as a random walk (util/robust_random_walk.h) — the path tracker's model and
-  // values (control/path_tracking.h: 20 m, 0.05 m/√m, σ at least 2 cm, 10 % wrong over 10 m) without its carrying
+  // values (control/path_tracking.h: 20 m, 0.05 m/√m, σ at least 2 cm, 10 % wrong over 10 m; but the frames
+  // independent, shared_correlation 0: with the path law's 0.6 the open-loop offsets were a trade, README "Frames of
+  // one arc share their offset's error") without its carrying
   // by the commanded motion, which repeat does not know: so the path tracker steers by the frame's own offset and
   // its own window. The window starts again after a frame that is not tracking or a jump between arcs that do not
   // follow each other. window or process_sigma 0: the frame's own offset (and σ).

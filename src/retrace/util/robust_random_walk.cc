@@ -10,10 +10,11 @@
 namespace retrace {
 
 CombinedObservation CombineCarriedObservations(const std::vector<CarriedObservation>& observations,
-                                               double outlier_probability, double outlier_range) {
+                                               double outlier_probability, double outlier_range,
+                                               double shared_correlation) {
   CombinedObservation combined;
   const int n = static_cast<int>(observations.size());
-  if (n == 0 || !(outlier_range > 0)) return combined;
+  if (n == 0 || !(outlier_range > 0) || !(shared_correlation >= 0 && shared_correlation < 1)) return combined;
   const double p = outlier_probability;
   const double outlier_density = p / outlier_range;  // p · U(L)
   Eigen::VectorXd y(n), own_variance(n);
@@ -23,8 +24,7 @@ CombinedObservation CombineCarriedObservations(const std::vector<CarriedObservat
     own_variance(i) = observations[i].sigma * observations[i].sigma;
     for (int j = 0; j < n; ++j) {
       const bool same_side = observations[i].side != 0 && observations[i].side == observations[j].side;
-      shared(i, j) =
-          same_side ? std::min(observations[i].carried_variance, observations[j].carried_variance) : 0.0;
+      shared(i, j) = same_side ? std::min(observations[i].carried_variance, observations[j].carried_variance) : 0.0;
     }
   }
   // Responsibilities of the Gaussian component (E step) and the mixture's log-likelihood at x.
@@ -53,8 +53,18 @@ CombinedObservation CombineCarriedObservations(const std::vector<CarriedObservat
   constexpr int kMaxIterations = 30;
   for (int iteration = 0; iteration < kMaxIterations; ++iteration) {
     responsibilities(x, &w);
+    // Each observation's σ_j / √w_j on the diagonal and, within a group, ρ times their product off it.
+    const Eigen::VectorXd scaled = (own_variance.array() / w.array().max(1e-9)).sqrt();
     Eigen::MatrixXd covariance = shared;
-    for (int i = 0; i < n; ++i) covariance(i, i) += own_variance(i) / std::max(w(i), 1e-9);
+    for (int i = 0; i < n; ++i) {
+      covariance(i, i) += scaled(i) * scaled(i);
+      if (observations[i].group < 0 || shared_correlation == 0) continue;
+      for (int j = 0; j < n; ++j) {
+        if (j != i && observations[j].group == observations[i].group) {
+          covariance(i, j) += shared_correlation * scaled(i) * scaled(j);
+        }
+      }
+    }
     const Eigen::LDLT<Eigen::MatrixXd> ldlt(covariance);
     const Eigen::VectorXd gain = ldlt.solve(Eigen::VectorXd::Ones(n));  // C_w⁻¹ 1
     information = gain.sum();
@@ -82,11 +92,12 @@ bool ObservationWindowOptions::Check(std::string* error) const {
   if (!(outlier_probability >= 0) || !(outlier_probability < 1) || !(outlier_range > 0)) {
     return fail("outlier_probability must be in [0, 1) and outlier_range positive");
   }
+  if (!(shared_correlation >= 0) || !(shared_correlation < 1)) return fail("shared_correlation must be in [0, 1)");
   return true;
 }
 
-void ObservationWindow::Add(double distance, double value, double sigma) {
-  observations_.push_back({distance, value, std::max(options_.min_sigma, sigma)});
+void ObservationWindow::Add(double distance, double value, double sigma, int64_t group) {
+  observations_.push_back({distance, value, std::max(options_.min_sigma, sigma), group});
   while (distance - observations_.front().distance > options_.window ||
          observations_.size() > options_.max_observations) {
     observations_.pop_front();
@@ -101,9 +112,10 @@ CombinedObservation ObservationWindow::Combine() const {
   carried.reserve(observations_.size());
   for (const Observation& o : observations_) {
     const double behind = latest - o.distance;
-    carried.push_back({o.value, o.sigma, q2 * behind, behind > 0 ? -1 : 0});
+    carried.push_back({o.value, o.sigma, q2 * behind, behind > 0 ? -1 : 0, o.group});
   }
-  return CombineCarriedObservations(carried, options_.outlier_probability, options_.outlier_range);
+  return CombineCarriedObservations(carried, options_.outlier_probability, options_.outlier_range,
+                                    options_.shared_correlation);
 }
 
 }  // namespace retrace

@@ -77,6 +77,47 @@ TEST(ObservationWindow, KeepsAtMostMaxObservationsAndRaisesSmallSigmas) {
   EXPECT_NEAR(combined.sigma, 0.01, 1e-3);
 }
 
+TEST(CombineCarriedObservations, AGroupSharingItsErrorsCountsForLessThanItsNumber) {
+  // n observations of one group, each with σ, pairwise correlated by ρ: their mean has the variance
+  // σ² (1 + (n - 1) ρ) / n, and against independent ones they weigh as that one mean does.
+  const int n = 16;
+  const double sigma = 0.1, rho = 0.6;
+  std::vector<CarriedObservation> group;
+  for (int k = 0; k < n; ++k) group.push_back({0.5, sigma, 0.0, 0, /*group=*/7});
+  const CombinedObservation alone = CombineCarriedObservations(group, 0.0, 10.0, rho);
+  ASSERT_TRUE(alone.valid);
+  EXPECT_NEAR(alone.value, 0.5, 1e-9);
+  EXPECT_NEAR(alone.sigma, sigma * std::sqrt((1 + (n - 1) * rho) / n), 1e-9);
+  // Four independent observations at 0 (each its own group) and the sixteen at 0.5: information 4 / σ² against
+  // n / (σ² (1 + (n - 1) ρ)) = 160 / 400 of it, so the estimate is 0.5 · 160 / 560 — not the 0.4 of twenty
+  // independent observations, which ρ = 0 gives.
+  std::vector<CarriedObservation> mixed = group;
+  for (int k = 0; k < 4; ++k) mixed.push_back({0.0, sigma, 0.0, 0, /*group=*/k});
+  EXPECT_NEAR(CombineCarriedObservations(mixed, 0.0, 10.0, rho).value, 0.5 * 160.0 / 560.0, 1e-9);
+  EXPECT_NEAR(CombineCarriedObservations(mixed, 0.0, 10.0, 0.0).value, 0.4, 1e-9);
+  EXPECT_FALSE(CombineCarriedObservations(mixed, 0.0, 10.0, 1.0).valid);  // ρ = 1 is singular: refused
+}
+
+TEST(ObservationWindow, ARunOfFramesOnOneArcDoesNotOutweighTheFramesBefore) {
+  // The closed loop's seed111 (README, "Frames of one arc share their offset's error"): twelve frames on one arc
+  // a metre off with σ 0.3 m after frames on other arcs right to a few centimetres.
+  ObservationWindowOptions options;
+  options.shared_correlation = 0.6;
+  ObservationWindow correlated(options);
+  options.shared_correlation = 0.0;
+  ObservationWindow independent(options);
+  for (int k = 0; k < 12; ++k) {
+    correlated.Add(0.8 * k, 0.0, 0.05, k / 4);
+    independent.Add(0.8 * k, 0.0, 0.05, k / 4);
+  }
+  for (int k = 12; k < 24; ++k) {
+    correlated.Add(0.8 * k, -0.7, 0.3, 10);
+    independent.Add(0.8 * k, -0.7, 0.3, 10);
+  }
+  EXPECT_GT(correlated.Combine().value, -0.25);
+  EXPECT_LT(independent.Combine().value, -0.35);
+}
+
 TEST(ObservationWindowOptions, RefusesWhatCannotBeCombined) {
   ObservationWindowOptions options;
   EXPECT_TRUE(options.Check());
@@ -90,6 +131,10 @@ TEST(ObservationWindowOptions, RefusesWhatCannotBeCombined) {
   options = ObservationWindowOptions();
   options.window = -1.0;
   EXPECT_FALSE(options.Check());
+  options = ObservationWindowOptions();
+  options.shared_correlation = 1.0;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("shared_correlation"), std::string::npos);
 }
 
 }  // namespace
