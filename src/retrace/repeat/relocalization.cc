@@ -256,10 +256,12 @@ AlignmentResult Localizer::AlignFromNearestMatches(const MatchedKeyImage& key_im
   std::sort(nearest.begin(), nearest.end());
   // A start within half the accepted distance of one tried converges as that one did.
   const double separation = 0.5 * refine.max_distance;
+  const size_t max_starts = 1 + static_cast<size_t>(AlternativeStarts());  // the median's and the alternatives
+  Vector3d key_bearing;
+  if (!camera_->Unproject(key_position, &key_bearing)) return {};
   std::vector<Vector2d> starts{median_start};
-  AlignmentResult failed;
   for (const auto& [distance, i] : nearest) {
-    if (static_cast<int>(starts.size()) > AlternativeStarts()) break;
+    if (starts.size() >= max_starts) break;
     const Vector2d start = key_position + key_image.current_points[i] - key_image.key_points[i];
     if (std::any_of(starts.begin(), starts.end(),
                     [&](const Vector2d& tried) { return (tried - start).norm() < separation; })) {
@@ -271,14 +273,14 @@ AlignmentResult Localizer::AlignFromNearestMatches(const MatchedKeyImage& key_im
         RefinePrediction(prediction_pyramid_, reference, start, key_image.size_ratios[i], refine);
     if (!aligned.ok()) continue;
     // Found from one match: it must be an inlier of the pose the key-image was verified with.
-    Vector3d key_bearing, current_bearing;
-    if (camera_->Unproject(key_position, &key_bearing) && camera_->Unproject(aligned.warp.position, &current_bearing) &&
+    Vector3d current_bearing;
+    if (camera_->Unproject(aligned.warp.position, &current_bearing) &&
         IsInlierOfPose(key_image.geometry.b_from_a, key_bearing, current_bearing, camera_->FocalLength(),
                        relocalization_geometry_.ransac.max_error_px)) {
       return aligned;
     }
   }
-  return failed;
+  return {};
 }
 
 int Localizer::LocateMappedFeatures(const MatchedKeyImage& key_image, const std::array<const ArcData*, 3>& arcs,

@@ -19,12 +19,16 @@ CombinedObservation CombineCarriedObservations(const std::vector<CarriedObservat
   const double outlier_density = p / outlier_range;  // p · U(L)
   Eigen::VectorXd y(n), own_variance(n);
   Eigen::MatrixXd shared(n, n);  // the walk shared with the other observations on the same side
+  Eigen::MatrixXd correlation = Eigen::MatrixXd::Identity(n, n);  // of the errors: ρ within a group
   for (int i = 0; i < n; ++i) {
     y(i) = observations[i].value;
     own_variance(i) = observations[i].sigma * observations[i].sigma;
     for (int j = 0; j < n; ++j) {
       const bool same_side = observations[i].side != 0 && observations[i].side == observations[j].side;
-      shared(i, j) = same_side ? std::min(observations[i].carried_variance, observations[j].carried_variance) : 0.0;
+      shared(i, j) =
+          same_side ? std::min(observations[i].carried_variance, observations[j].carried_variance) : 0.0;
+      const bool same_group = observations[i].group >= 0 && observations[i].group == observations[j].group;
+      if (j != i && same_group) correlation(i, j) = shared_correlation;
     }
   }
   // Responsibilities of the Gaussian component (E step) and the mixture's log-likelihood at x.
@@ -53,18 +57,10 @@ CombinedObservation CombineCarriedObservations(const std::vector<CarriedObservat
   constexpr int kMaxIterations = 30;
   for (int iteration = 0; iteration < kMaxIterations; ++iteration) {
     responsibilities(x, &w);
-    // Each observation's σ_j / √w_j on the diagonal and, within a group, ρ times their product off it.
+    // Each observation's σ_j / √w_j in the errors' covariance: its square on the diagonal, ρ times the product
+    // within a group.
     const Eigen::VectorXd scaled = (own_variance.array() / w.array().max(1e-9)).sqrt();
-    Eigen::MatrixXd covariance = shared;
-    for (int i = 0; i < n; ++i) {
-      covariance(i, i) += scaled(i) * scaled(i);
-      if (observations[i].group < 0 || shared_correlation == 0) continue;
-      for (int j = 0; j < n; ++j) {
-        if (j != i && observations[j].group == observations[i].group) {
-          covariance(i, j) += shared_correlation * scaled(i) * scaled(j);
-        }
-      }
-    }
+    const Eigen::MatrixXd covariance = shared + correlation.cwiseProduct(scaled * scaled.transpose());
     const Eigen::LDLT<Eigen::MatrixXd> ldlt(covariance);
     const Eigen::VectorXd gain = ldlt.solve(Eigen::VectorXd::Ones(n));  // C_w⁻¹ 1
     information = gain.sum();
