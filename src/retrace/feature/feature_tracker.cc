@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <stdexcept>
 
@@ -202,14 +203,15 @@ void SampleWindowCubic(const cv::Mat& image, double dx, double dy, double scale,
 }  // namespace
 
 bool AlignmentOptions::Check() const {
-  return window_size >= 3 && window_size <= kMaxWindowSize && window_size % 2 == 1 &&
-         max_iterations_coarse >= 0 && max_iterations_fine >= 1 && convergence_epsilon > 0.0 &&
-         max_residual > 0.0 && min_scale > 0.0 && min_scale < 1.0 && max_scale > 1.0 && min_gain > 0.0 &&
-         min_gain < 1.0 && max_gain > 1.0 && scale_prior_sigma >= 0.0 && max_block_residual > 0.0 &&
-         convergence_epsilon_coarse > 0.0 && max_scale_window_shift > 0.0 && scale_window_stride >= 0 &&
-         scale_window_stride <= kMaxScaleWindowStride && max_iterations_scale_window >= 1 &&
-         max_affine_anisotropy >= 1.0 && max_affine_shift > 0.0 && max_iterations_affine >= 1 &&
-         convergence_epsilon_affine > 0.0;
+  return window_size >= 3 && window_size <= kMaxWindowSize && window_size % 2 == 1 && max_iterations_coarse >= 0 &&
+         max_iterations_fine >= 1 && convergence_epsilon > 0.0 && max_residual > 0.0 && min_scale > 0.0 &&
+         min_scale < 1.0 && max_scale > 1.0 && min_gain > 0.0 && min_gain < 1.0 && max_gain > 1.0 &&
+         scale_prior_sigma >= 0.0 && max_block_residual > 0.0 && convergence_epsilon_coarse > 0.0 &&
+         max_scale_window_shift > 0.0 && scale_window_stride >= 0 && scale_window_stride <= kMaxScaleWindowStride &&
+         max_iterations_scale_window >= 1 && max_affine_anisotropy >= 1.0 && max_affine_shift > 0.0 &&
+         max_iterations_affine >= 1 && convergence_epsilon_affine > 0.0 && robust_min_inlier_fraction > 0.0 &&
+         robust_min_inlier_fraction <= 1.0 && robust_min_information_share >= 0.0 &&
+         robust_min_information_share <= 1.0 && robust_threshold_factor >= 1.0;
 }
 
 std::string TrackStatusName(TrackStatus status) {
@@ -860,6 +862,132 @@ bool IterateAffine(const cv::Mat& image, const WindowView& window, const Referen
   return false;
 }
 
+// The smallest eigenvalue of the geometric block (dx, dy, ds) of a Gauss-Newton matrix of (1) with the contrast
+// parameters projected out (Schur complement), the scale column as a corner displacement (ds times the half extent):
+// how well the window determines position and scale in its weakest direction.
+double SmallestGeometricEigenvalue(const Eigen::Matrix<double, 5, 5>& normal, double half) {
+  const Eigen::Matrix2d contrast = normal.bottomRightCorner<2, 2>();
+  if (!(std::abs(contrast.determinant()) > 0.0)) return 0.0;
+  const Eigen::Matrix3d schur = normal.topLeftCorner<3, 3>() -
+                                normal.topRightCorner<3, 2>() * contrast.inverse() * normal.bottomLeftCorner<2, 3>();
+  const Eigen::Vector3d unit(1.0, 1.0, 1.0 / half);
+  const Eigen::Matrix3d normalised = unit.asDiagonal() * schur * unit.asDiagonal();
+  return Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>()
+      .computeDirect(normalised, Eigen::EigenvaluesOnly)
+      .eigenvalues()(0);
+}
+
+// The robust fallback's Gauss-Newton iterations of (1) on one level (the header's ROBUST FALLBACK): inverse
+// compositional with iteratively re-weighted least squares, the template's Jacobian J0 with Tukey's biweight of each
+// pixel's error at `threshold_ref` (reference grey levels), so the 5x5 normal equations are formed anew each iteration.
+// Returns true when it converged; then `trimmed_rms` is the RMS (reference grey levels) of the `keep` smallest errors
+// at the converged state and `information_share` the smallest eigenvalue of the geometric block of sum J0^T J0 with
+// the contrast projected out over those pixels, divided by the same over the whole window. False when it left the
+// image, the scale its range, the normal equations were singular, it gave up or did not converge.
+bool IterateLevelRobust(const cv::Mat& image, const WindowView& window, const LevelSettings& settings,
+                        double max_residual, double threshold_ref, int keep, GaussNewtonState* state, int* iterations,
+                        double* trimmed_rms, double* information_share) {
+  const int w = window.size, n = w * w;
+  const double half = 0.5 * (w - 1) * window.stride;
+  const float* t = window.t;
+  const float* gx = t + n;
+  const float* gy = t + 2 * n;
+  const float* gs = t + 3 * n;
+  const double mean = window.mean;
+  float values[kMaxWindowSize * kMaxWindowSize];
+  GaussNewtonState& s = *state;
+  Eigen::Matrix<double, 5, 5> h;
+  for (int iteration = 0; iteration < settings.max_iterations; ++iteration) {
+    if (!WindowFits(image, s, half, settings.cubic)) return false;
+    SampleWindow(image, s, window, settings.cubic, values);
+    const float lam = static_cast<float>(s.lambda), del = static_cast<float>(s.delta + s.lambda * mean);
+    const float inverse_c2 = static_cast<float>(1.0 / (threshold_ref * threshold_ref * s.lambda * s.lambda));
+    const float within_r = static_cast<float>((max_residual * max_residual) / (threshold_ref * threshold_ref));
+    // Weighted normal equations: the 15 distinct sums of w J J^T and the 5 of w e J, J = [Tx, Ty, u.grad T, T, 1].
+    double xx = 0, xy = 0, xs = 0, xt = 0, x1 = 0, yy = 0, ys = 0, yt = 0, y1 = 0, ss = 0, st = 0, s1 = 0, tt = 0,
+           t1 = 0, ww = 0, bx = 0, by = 0, bs = 0, bt = 0, b1 = 0;
+    int near = 0;  // pixels whose error is within R
+    for (int k = 0; k < n; ++k) {
+      const float e = values[k] - lam * t[k] - del;
+      const float u2 = e * e * inverse_c2;
+      near += u2 < within_r;
+      if (u2 >= 1.0f) continue;
+      const float one_minus = 1.0f - u2;
+      const double wk = one_minus * one_minus;
+      const double jx = gx[k], jy = gy[k], js = gs[k], jt = t[k], we = wk * e;
+      const double wx = wk * jx, wy = wk * jy, ws = wk * js, wt = wk * jt;
+      xx += wx * jx, xy += wx * jy, xs += wx * js, xt += wx * jt, x1 += wx;
+      yy += wy * jy, ys += wy * js, yt += wy * jt, y1 += wy;
+      ss += ws * js, st += ws * jt, s1 += ws;
+      tt += wt * jt, t1 += wt, ww += wk;
+      bx += we * jx, by += we * jy, bs += we * js, bt += we * jt, b1 += we;
+    }
+    ++*iterations;
+    // Give up when, after a few iterations, too few pixels match for the trimmed test to pass.
+    if (iteration >= settings.give_up_iteration && near < keep / 2) return false;
+    h << xx, xy, xs, xt, x1,  //
+        xy, yy, ys, yt, y1,   //
+        xs, ys, ss, st, s1,   //
+        xt, yt, st, tt, t1,   //
+        x1, y1, s1, t1, ww;
+    Eigen::Matrix<double, 5, 1> b;
+    b << bx, by, bs, bt, b1;
+    const Eigen::LDLT<Eigen::Matrix<double, 5, 5>> ldlt(h);
+    if (ldlt.info() != Eigen::Success) return false;
+    const Eigen::Matrix<double, 5, 1> h0_step = ldlt.solve(b);
+    const double lambda = s.lambda;
+    const double step_x = h0_step(0) / lambda, step_y = h0_step(1) / lambda, step_s = h0_step(2) / lambda;
+    if (!(1.0 + step_s > 0.5) || !std::isfinite(step_x) || !std::isfinite(step_y) || !h0_step.allFinite()) return false;
+    const double new_scale = s.scale / (1.0 + step_s);
+    const double new_x = s.x - s.scale * step_x / (1.0 + step_s);
+    const double new_y = s.y - s.scale * step_y / (1.0 + step_s);
+    const double corner_shift =
+        std::hypot(new_x - s.x, new_y - s.y) + std::abs(new_scale - s.scale) * half * 1.4142135623730951;
+    s.x = new_x;
+    s.y = new_y;
+    s.scale = new_scale;
+    if (!(s.scale > settings.min_scale && s.scale < settings.max_scale)) return false;
+    const double new_lambda = s.lambda + h0_step(3);
+    if (new_lambda > 1.0 / settings.max_gain && new_lambda < 1.0 / settings.min_gain) {
+      s.delta += h0_step(4) - h0_step(3) * mean;
+      s.lambda = new_lambda;
+    }
+    if (corner_shift < settings.epsilon) {
+      // The errors at the converged state, trimmed to the `keep` smallest; how well those pixels alone determine
+      // position and scale against the whole window (the smallest eigenvalue of the geometric block of sum J0^T J0,
+      // contrast projected out, over the kept pixels and over all).
+      if (!WindowFits(image, s, half, settings.cubic)) return false;
+      SampleWindow(image, s, window, settings.cubic, values);
+      const float lam2 = static_cast<float>(s.lambda), del2 = static_cast<float>(s.delta + s.lambda * mean);
+      int order[kMaxWindowSize * kMaxWindowSize];
+      for (int k = 0; k < n; ++k) {
+        const float e = values[k] - lam2 * t[k] - del2;
+        values[k] = e * e;
+        order[k] = k;
+      }
+      std::nth_element(order, order + (keep - 1), order + n, [&values](int a, int b) { return values[a] < values[b]; });
+      double sum = 0.0;
+      for (int k = 0; k < keep; ++k) sum += values[order[k]];
+      *trimmed_rms = std::sqrt(sum / keep) / s.lambda;
+      const auto weakest = [&](const int* pixels, int count) {
+        Eigen::Matrix<double, 5, 5> normal = Eigen::Matrix<double, 5, 5>::Zero();
+        for (int i = 0; i < count; ++i) {
+          const int k = pixels[i];
+          Eigen::Matrix<double, 5, 1> j;
+          j << gx[k], gy[k], gs[k], t[k], 1.0;
+          normal.selfadjointView<Eigen::Lower>().rankUpdate(j);
+        }
+        normal.triangularView<Eigen::Upper>() = normal.transpose();
+        return SmallestGeometricEigenvalue(normal, half);
+      };
+      const double all = weakest(order, n);
+      *information_share = all > 0.0 ? weakest(order, keep) / all : 0.0;
+      return true;
+    }
+  }
+  return false;
+}
+
 // RMS residual of (1) over the window sampled at `state`, and the RMS of the worst of its 3x3 blocks
 // (reference grey levels).
 void Residuals(const cv::Mat& image, const WindowView& window, bool cubic, const GaussNewtonState& state,
@@ -1052,6 +1180,7 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
     // At level 0 with an affine warp on, the last samples start it (they are the window at the state before the
     // converged step, which moved no corner by more than epsilon: one sampling fewer); the affine warp samples
     // cubically, so only cubic samples are kept.
+    const GaussNewtonState level_start = state;
     LastSample last_sample;
     const bool keep_sample = fine && settings.cubic && (options.affine_refinement || options.affine_fallback);
     const LevelOutcome outcome = IterateLevel(image, window, estimate_scale, settings, &state, &result.iterations,
@@ -1112,6 +1241,32 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
       finish(TrackStatus::kTracked, adopted, 1.0);
       return true;
     };
+    // The robust fallback (AlignmentOptions::robust_fallback, the header's ROBUST FALLBACK) from where level 0 started,
+    // on the 15x15 window (not the wider one, whose outer ring more often reaches another surface): true when
+    // adopted, with `result` filled in as tracked.
+    const auto align_robust = [&]() {
+      if (!options.robust_fallback) return false;
+      GaussNewtonState robust = level_start;
+      const int keep = std::max(1, static_cast<int>(std::ceil(options.robust_min_inlier_fraction * w * w)));
+      double trimmed = 0.0, information_share = 0.0;
+      if (!IterateLevelRobust(image, window, settings, options.max_residual,
+                              options.robust_threshold_factor * options.max_residual, keep, &robust, &result.iterations,
+                              &trimmed, &information_share)) {
+        return false;
+      }
+      const double gain = 1.0 / robust.lambda;
+      if (!(trimmed <= options.max_residual) || !(information_share >= options.robust_min_information_share) ||
+          !(gain >= options.min_gain) || !(gain <= options.max_gain) || robust.scale < options.min_scale ||
+          robust.scale > options.max_scale) {
+        return false;
+      }
+      result.residual = trimmed;
+      result.block_residual = 0.0;
+      result.converged = true;
+      result.robust_used = true;
+      finish(TrackStatus::kTracked, robust, 1.0);
+      return true;
+    };
     switch (outcome) {
       case LevelOutcome::kConverged:
         break;
@@ -1124,10 +1279,20 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
         if (WindowFits(image, state, w / 2, settings.cubic)) {
           Residuals(image, window, settings.cubic, state, &result.residual, &result.block_residual);
         }
+        if (options.robust_fallback) {
+          const AlignmentResult given_up = result;
+          if (align_robust()) return result;
+          result = given_up;
+        }
         return finish(TrackStatus::kResidualTooLarge, state, 1.0);
       }
       case LevelOutcome::kBadStep:
       case LevelOutcome::kMaxIterations:
+        if (options.robust_fallback) {
+          const AlignmentResult failed = result;
+          if (align_robust()) return result;
+          result = failed;
+        }
         if (WindowFits(image, state, w / 2, settings.cubic)) {
           Residuals(image, window, settings.cubic, state, &result.residual, &result.block_residual);
         }
@@ -1201,7 +1366,10 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
       if (!options.affine_fallback || !(result.residual <= kAffineResidualFactor * options.max_residual) ||
           !align_affine(state)) {
         result = isotropic;
-        result.status = TrackStatus::kResidualTooLarge;
+        if (!align_robust()) {
+          result = isotropic;
+          result.status = TrackStatus::kResidualTooLarge;
+        }
       }
     }
     return result;
@@ -1278,6 +1446,7 @@ feature_t FeatureTracker::AddFeature(std::shared_ptr<const ReferencePatch> refer
   feature.converged = alignment.converged;
   feature.status = TrackStatus::kTracked;
   feature.num_frames = 1;
+  feature.robust_acquired = alignment.robust_used;
   features_.push_back(feature);
   references_.push_back(std::move(reference));
   velocities_.push_back(Vector2d::Zero());
@@ -1291,6 +1460,13 @@ const std::vector<TrackedFeature>& FeatureTracker::Track(const ImagePyramid& pyr
   results.assign(features_.size(), AlignmentResult());
   const auto align = [&](size_t i, const Vector2d& velocity, bool own_velocity) {
     const TrackedFeature& feature = features_[i];
+    AlignmentOptions robust_alignment;
+    const bool robust = options_.robust_acquired_tracking && feature.robust_acquired;
+    if (robust) {
+      robust_alignment = options_.alignment;
+      robust_alignment.robust_fallback = true;
+    }
+    const AlignmentOptions& alignment = robust ? robust_alignment : options_.alignment;
     WarpState initial = feature.warp;
     const bool predicted = velocity.squaredNorm() > 0.25;
     if (predicted) initial.position += velocity;
@@ -1300,16 +1476,15 @@ const std::vector<TrackedFeature>& FeatureTracker::Track(const ImagePyramid& pyr
     bool done = false;
     if (options_.predicted_start_level >= 0 &&
         ((own_velocity && feature.num_frames >= 2) || (options_.placed_features_start_fine && placed_[i]))) {
-      results[i] =
-          AlignFromLevel(pyramid, *references_[i], initial, options_.alignment, options_.predicted_start_level);
+      results[i] = AlignFromLevel(pyramid, *references_[i], initial, alignment, options_.predicted_start_level);
       done = results[i].ok() || (results[i].converged && results[i].status == TrackStatus::kResidualTooLarge);
     }
-    if (!done) results[i] = AlignToReference(pyramid, *references_[i], initial, options_.alignment);
+    if (!done) results[i] = AlignToReference(pyramid, *references_[i], initial, alignment);
     // The guess may be wrong after an abrupt change of motion: retry from the last position, unless the
     // alignment converged onto a window that does not match (residual above R): on KITTI 07 at 320x240 those
     // retries succeeded for 0.3 % of the features and cost a quarter of the tracking time.
     if (!results[i].ok() && predicted && results[i].status != TrackStatus::kResidualTooLarge) {
-      AlignmentResult retry = AlignToReference(pyramid, *references_[i], feature.warp, options_.alignment);
+      AlignmentResult retry = AlignToReference(pyramid, *references_[i], feature.warp, alignment);
       if (retry.ok()) results[i] = retry;
     }
   };

@@ -77,6 +77,24 @@
 // sampling fewer).
 // Measured in feature_tracker_test.cc (AffineRefinementRemovesTheShearBias).
 //
+// ROBUST FALLBACK (off by default; on for the mapped features a relocalization after a loss locates,
+// LocalizerOptions::relocalization_robust_alignment). Under another sun a window often straddles two surfaces whose
+// brightness changed differently — a facade and the sky, a wall and its windows, a cast shadow's edge — and no single
+// gain and bias brings all of it within R. When the alignment at level 0 ends with its residual above R (converged or
+// given up) or does not converge, it is run again at level 0 from where that level started, with every pixel weighted
+// by Tukey's biweight of its error, w = (1 - (e / c)^2)^2 for |e| < c = `robust_threshold_factor` R, 0 beyond
+// (iteratively re-weighted Gauss-Newton on the same template Jacobian J0: the 5x5 normal equations sum w J0^T J0 are
+// formed anew each iteration; Hager & Belhumeur, "Efficient region tracking with parametric models of geometry and
+// illumination", PAMI 1998, robust estimation for illumination and partial occlusion; Baker, Gross, Matthews,
+// "Lucas-Kanade 20 years on, part 2", 2003, robust error functions with the inverse compositional algorithm). It is
+// adopted when the `robust_min_inlier_fraction` of the window's pixels with the smallest errors have an RMS within R
+// (a trimmed residual, as least trimmed squares, Rousseeuw 1984) and those pixels alone still determine position and
+// scale: the smallest eigenvalue of their Gauss-Newton matrix's geometric block (contrast projected out) is at least
+// `robust_min_information_share` of the whole window's.
+// It gives up when, from its fourth iteration on, fewer than half as many pixels as that fraction asks lie within R
+// (the window would not pass). AlignmentResult::robust_used says when it was adopted; the reported residual is then
+// the trimmed one.
+//
 // RESIDUAL. The reported residual is the RMS over the window of the compensated error in (1),
 //     r = sqrt( (1/N) sum_u [alpha I(s u + d) + beta - T(u)]^2 ),
 // measured at level 0 after convergence, in grey levels of the pre-smoothed REFERENCE (input images are
@@ -92,6 +110,7 @@
 // model is involved, so any camera works.
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -172,6 +191,18 @@ struct AlignmentOptions {
   // --guided-matching 20 --affine-refine --placed-start-fine` 34 tracking frames were one arc off against 23
   // (calibration 99.86 % against 99.91 %; README, "The three together", 2026-12-02).
   double convergence_epsilon_affine = 0.01;
+  // ROBUST FALLBACK (see the header): an alignment that ends above R at level 0 is run again there with Tukey's
+  // biweight at `robust_threshold_factor` R per pixel, and adopted when the `robust_min_inlier_fraction` of its pixels
+  // with the smallest errors have an RMS within R and hold at least `robust_min_information_share` of the window's
+  // information on position and scale in its weakest direction. c = 3 R is Tukey's 95 %-efficient 4.685 sigma for a
+  // pixel noise of 0.64 R; 0.7: up to 30 % of the window may lie on another surface; 0.3: those pixels must not be
+  // all that positions the window (an edge's aperture). Chosen over the validation matrix (README, "Robust
+  // relocalization"): 0.7 / 0.7 and 0.8 / 0.5 localized fewer frames, and starting from the initial position instead of
+  // where the coarse levels ended did not help.
+  bool robust_fallback = false;
+  double robust_min_inlier_fraction = 0.7;
+  double robust_min_information_share = 0.3;
+  double robust_threshold_factor = 3.0;
 
   bool Check() const;
 };
@@ -205,6 +236,7 @@ struct AlignmentResult {
   bool converged = false;
   bool scale_window_used = false;  // the final refinement on the larger window was adopted
   bool affine_used = false;        // adopted from the affine fallback (warp.scale is then sqrt(det A))
+  bool robust_used = false;        // adopted from the robust fallback (residual: the trimmed RMS)
   int iterations = 0;              // total over all levels
   TrackStatus status = TrackStatus::kDegenerate;
   bool ok() const { return status == TrackStatus::kTracked; }
@@ -368,6 +400,10 @@ struct FeatureTrackerOptions {
   // 1.5 m converges, but over the validation matrix it tracks more frames 2-3 m beside the path and more of them one
   // arc behind (README, "Features placed from a key-image").
   bool placed_features_start_fine = false;
+  // Features added from a robust alignment (AlignmentResult::robust_used: a window straddling two surfaces lit
+  // differently) are tracked with the robust fallback on (the same window keeps straddling them); the others with
+  // `alignment` as given.
+  bool robust_acquired_tracking = false;
 
   bool Check() const { return alignment.Check() && num_levels >= 1; }
 };
@@ -381,6 +417,9 @@ struct TrackedFeature {
   bool converged = false;
   TrackStatus status = TrackStatus::kTracked;
   int num_frames = 0;  // images in which the feature has been tracked since it was added (1 when added)
+  // Added from an alignment the robust fallback adopted (AlignmentResult::robust_used): its window matched its
+  // reference only in part, and its position may be off by a few tenths of a pixel.
+  bool robust_acquired = false;
 };
 
 // Owns the features and their references and advances all of them on each new frame.
@@ -425,6 +464,11 @@ class FeatureTracker {
   const TrackedFeature* Find(feature_t id) const;
   const ReferencePatch* Reference(feature_t id) const;
   int NumFeatures() const { return static_cast<int>(features_.size()); }
+  // Features added from a robust alignment (AlignmentResult::robust_used), tracked since.
+  int NumRobustFeatures() const {
+    return static_cast<int>(
+        std::count_if(features_.begin(), features_.end(), [](const TrackedFeature& f) { return f.robust_acquired; }));
+  }
   const FeatureTrackerOptions& Options() const { return options_; }
 
  private:
