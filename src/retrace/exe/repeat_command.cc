@@ -538,6 +538,12 @@ void RegisterRepeatCommand(CLI::App& app) {
   cmd->add_flag("--relocalization-affine", args->options.relocalization_affine_fallback,
                 "Align the mapped features a relocalization locates with the affine fallback too (a start beside the "
                 "taught path; README, \"Relocalization with the affine fallback\")");
+  cmd->add_flag("--robust-relocalization", args->options.relocalization_robust_alignment,
+                "After a loss, a mapped feature a relocalization cannot locate with the paper's warp is aligned again "
+                "with the robust fallback (Tukey-weighted, accepted when 70 % of its window matches within R) and "
+                "tracked with it; the place is still taken on the others, and a start does not use it. More frames "
+                "tracked under another sun beside the path, but a pose on them may swerve a closed loop (README, "
+                "\"Robust relocalization\")");
   cmd->add_flag(
       "--placed-start-fine,!--no-placed-start-fine", args->options.tracker.placed_features_start_fine,
       "Track the mapped features a relocalization or a prediction placed from a fine pyramid level in every "

@@ -208,6 +208,7 @@ struct DriveArguments {
   bool placed_start_fine = LocalizerOptions().tracker.placed_features_start_fine;
   bool affine_refine = LocalizerOptions().affine_refinement;
   bool relocalization_affine = false;  // LocalizerOptions::relocalization_affine_fallback
+  bool robust_relocalization = LocalizerOptions().relocalization_robust_alignment;
   int guided_matching = LocalizerOptions().guided_matching_min_inliers;
   int start_alternative_starts = LocalizerOptions().start_alternative_starts;
   ClosedLoopOptions drive;
@@ -231,6 +232,7 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   base.tracker.placed_features_start_fine = args.placed_start_fine;
   base.affine_refinement = args.affine_refine;
   base.relocalization_affine_fallback = args.relocalization_affine;
+  base.relocalization_robust_alignment = args.robust_relocalization;
   base.guided_matching_min_inliers = args.guided_matching;
   base.start_alternative_starts = args.start_alternative_starts;
   MapForLocalizer loaded = LoadMapForLocalizer(args.map, base);
@@ -699,6 +701,9 @@ void RegisterSimCommand(CLI::App& app) {
   drive->add_flag("--relocalization-affine", args->relocalization_affine,
                   "Localizer: align the mapped features a relocalization locates with the affine fallback (`repeat "
                   "--relocalization-affine`)");
+  drive->add_flag("--robust-relocalization", args->robust_relocalization,
+                  "Localizer: after a loss, align the mapped features a relocalization cannot locate otherwise with "
+                  "the robust fallback (`repeat --robust-relocalization`)");
   drive
       ->add_option("--start-alternative-starts", args->start_alternative_starts,
                    "Localizer: before its first localization, align a mapped feature that fails from the median of the "

@@ -130,6 +130,7 @@ Localizer::Localizer(Map map, const CameraModel& camera, const LocalizerOptions&
   tracker_options.alignment.affine_fallback = options_.affine_fallback;
   tracker_options.alignment.affine_refinement = options_.affine_refinement;
   tracker_options.num_levels = pyramid_options_.num_levels;
+  tracker_options.robust_acquired_tracking = options_.relocalization_robust_alignment;
   tracker_ = FeatureTracker(tracker_options);
   refine_options_.alignment = options_.tracker.alignment;
   refine_options_.alignment.max_residual = options_.max_residual;
@@ -573,6 +574,9 @@ Localizer::CurrentGeometry Localizer::EstimateCurrentGeometry(node_t node_id) {
   const NodeData& node = Node(node_id);
   std::vector<Vector3d> bearings_key, bearings_current;
   for (const TrackedFeature& f : tracker_.Features()) {
+    // Not the features the robust fallback located (LocalizerOptions::relocalization_robust_alignment): their windows
+    // matched their references only in part, and a few such tracks bias a five-point geometry on a few more.
+    if (f.robust_acquired) continue;
     const auto key = node.bearings.find(f.id);
     const auto now = bearings_.find(f.id);
     if (key == node.bearings.end() || now == bearings_.end()) continue;
@@ -596,11 +600,12 @@ Localizer::CurrentGeometry Localizer::EstimateCurrentGeometry(node_t node_id) {
   return current;
 }
 
-AbsolutePose Localizer::EstimatePoseInArc(const ArcData& arc, PoseSpread* spread) const {
+AbsolutePose Localizer::EstimatePoseInArc(const ArcData& arc, PoseSpread* spread, bool without_robust) const {
   std::vector<Vector3d> points, bearings;
   std::vector<Matrix3d> covariances;
   const Vector3d centre_b = CameraCentre(arc.arc->to_from_from);
   for (const TrackedFeature& f : tracker_.Features()) {
+    if (without_robust && f.robust_acquired) continue;
     const auto point = arc.points.find(f.id);
     const auto bearing = bearings_.find(f.id);
     if (point == arc.points.end() || bearing == bearings_.end()) continue;
@@ -792,18 +797,25 @@ void Localizer::Localize(FrameResult* result) {
   if (options_.place_by_absolute_pose) {
     PoseSpread spread;
     const AbsolutePose pose = EstimatePoseInArc(*arc, &spread);
+    // The camera's place in metres (LastPose: the offset the path law steers by, the next frame's guess) rests on the
+    // features the paper's warp located only: the robust fallback's are off by a few tenths of a pixel and, taken by
+    // the pose, swerved a closed loop (LocalizerOptions::relocalization_robust_alignment).
+    const AbsolutePose metric_pose =
+        tracker_.NumRobustFeatures() > 0 ? EstimatePoseInArc(*arc, nullptr, /*without_robust=*/true) : pose;
     last_pose_.reset();
+    if (metric_pose.success) {
+      last_pose_ = LastPose{arc_,
+                            metric_pose.cam_from_world,
+                            frame_counter_,
+                            metric_pose.sigma_p < max_sigma_p_px_,
+                            metric_pose.covariance_valid
+                                ? std::optional<PoseCovariance>(PoseCovariance{metric_pose.centre_covariance,
+                                                                               metric_pose.rotation_covariance,
+                                                                               metric_pose.rotation_centre_covariance})
+                                : std::nullopt,
+                            NoiseFloorFactor(metric_pose, options_.lateral_noise_floor_px * pixel_scale_)};
+    }
     if (pose.success) {
-      last_pose_ =
-          LastPose{arc_,
-                   pose.cam_from_world,
-                   frame_counter_,
-                   pose.sigma_p < max_sigma_p_px_,
-                   pose.covariance_valid
-                       ? std::optional<PoseCovariance>(PoseCovariance{pose.centre_covariance, pose.rotation_covariance,
-                                                                      pose.rotation_centre_covariance})
-                       : std::nullopt,
-                   NoiseFloorFactor(pose, options_.lateral_noise_floor_px * pixel_scale_)};
       result->sigma_p_pose = pose.sigma_p;
       result->pose_inliers = pose.num_inliers;
       const ArcPosition position_pose = LocateOnArc(pose.cam_from_world, arc->arc->to_from_from, arc->bounds);

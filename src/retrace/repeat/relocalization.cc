@@ -290,6 +290,12 @@ int Localizer::LocateMappedFeatures(const MatchedKeyImage& key_image, const std:
   refine.max_distance = options_.bootstrap_radius_px * pixel_scale_;
   refine.max_scale_ratio = 1.5;
   refine.alignment.affine_fallback = options_.affine_fallback || options_.relocalization_affine_fallback;
+  // The robust fallback (LocalizerOptions::relocalization_robust_alignment) is the last resort: a feature is located
+  // by the paper's warp from the median displacement, else from the nearest matches, else robustly from the median.
+  // Only after a loss: at a start nothing but this frame says where the camera is, and features matched in part
+  // must not pull its first placement (a start 2.5 m beside the path was placed two arcs ahead with them).
+  RefinePredictionOptions robust = refine;
+  robust.alignment.robust_fallback = options_.relocalization_robust_alignment && last_arc_ != kInvalidArcId;
   const NodeData& node = Node(key_image.node);
   int located_features = 0;
   for (const ArcData* located : arcs) {
@@ -322,8 +328,12 @@ int Localizer::LocateMappedFeatures(const MatchedKeyImage& key_image, const std:
       if (!camera_->InImage(predicted, margin)) continue;
       const std::shared_ptr<const ReferencePatch> reference = Reference(key_image.node, id);
       if (reference == nullptr) continue;
-      AlignmentResult refined = RefinePrediction(prediction_pyramid_, *reference, predicted, Median(ratios), refine);
-      if (!refined.ok() && AlternativeStarts() > 0) {
+      AlignmentResult refined = RefinePrediction(prediction_pyramid_, *reference, predicted, Median(ratios), robust);
+      if (refined.robust_used && AlternativeStarts() > 0) {
+        AlignmentResult paper =
+            AlignFromNearestMatches(key_image, position->second, predicted, *reference, refine, margin);
+        if (paper.ok()) refined = paper;
+      } else if (!refined.ok() && AlternativeStarts() > 0) {
         refined = AlignFromNearestMatches(key_image, position->second, predicted, *reference, refine, margin);
       }
       if (refined.ok() && tracker_.AddFeature(reference, refined, id) != kInvalidFeatureId) {
@@ -409,7 +419,8 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
         std::array<const ArcData*, 3> arcs{};
         std::copy_n(at.begin(), std::min(at.size(), arcs.size()), arcs.begin());
         std::unordered_set<feature_t> seen;
-        const int located = LocateMappedFeatures(key_image, arcs, &seen);
+        LocateMappedFeatures(key_image, arcs, &seen);
+        const int located = tracker_.NumFeatures() - tracker_.NumRobustFeatures();  // by the paper's warp
         ClearTracks();
         return located;
       };
@@ -511,7 +522,10 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   verify(untried_arc);
   if (agreeing() >= min_agreeing) locate();
   int needed_features = min_features;
-  if (agreeing() < min_agreeing || tracker_.NumFeatures() < min_features) {
+  // The gates count the features the paper's warp located: those the robust fallback added are tracked, but a place
+  // is not taken on them (LocalizerOptions::relocalization_robust_alignment).
+  const auto located_by_paper = [this]() { return tracker_.NumFeatures() - tracker_.NumRobustFeatures(); };
+  if (agreeing() < min_agreeing || located_by_paper() < min_features) {
     verify(untried_neighbours);
     if (agreeing() < min_agreeing) {
       // Verified by one key-image only: test (3) of LocalizerOptions, more located features instead.
@@ -528,11 +542,12 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
     }
     locate();
   }
-  if (tracker_.NumFeatures() < needed_features) {
+  if (located_by_paper() < needed_features) {
     spdlog::debug(
-        "repeat: bootstrap at frame {} failed: {} of {} features located around arc {} ({} needed; "
-        "key-image {}, {} inliers, {} key-images of the place verified)",
-        frame.index, tracker_.NumFeatures(), seen.size(), chosen, needed_features, best_node, best_inliers, agreeing());
+        "repeat: bootstrap at frame {} failed: {} of {} features located around arc {} ({} needed; {} more by the "
+        "robust fallback; key-image {}, {} inliers, {} key-images of the place verified)",
+        frame.index, located_by_paper(), seen.size(), chosen, needed_features, tracker_.NumRobustFeatures(), best_node,
+        best_inliers, agreeing());
     ClearTracks();
     return false;
   }
