@@ -1243,7 +1243,7 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
     };
     // The robust fallback (AlignmentOptions::robust_fallback, the header's ROBUST FALLBACK) from where level 0 started,
     // on the 15x15 window (not the wider one, whose outer ring more often reaches another surface): true when
-    // adopted, with `result` filled in as tracked.
+    // adopted, with `result` filled in as tracked; else `result` is as it was but for its iteration count.
     const auto align_robust = [&]() {
       if (!options.robust_fallback) return false;
       GaussNewtonState robust = level_start;
@@ -1279,20 +1279,12 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
         if (WindowFits(image, state, w / 2, settings.cubic)) {
           Residuals(image, window, settings.cubic, state, &result.residual, &result.block_residual);
         }
-        if (options.robust_fallback) {
-          const AlignmentResult given_up = result;
-          if (align_robust()) return result;
-          result = given_up;
-        }
+        if (align_robust()) return result;
         return finish(TrackStatus::kResidualTooLarge, state, 1.0);
       }
       case LevelOutcome::kBadStep:
       case LevelOutcome::kMaxIterations:
-        if (options.robust_fallback) {
-          const AlignmentResult failed = result;
-          if (align_robust()) return result;
-          result = failed;
-        }
+        if (align_robust()) return result;
         if (WindowFits(image, state, w / 2, settings.cubic)) {
           Residuals(image, window, settings.cubic, state, &result.residual, &result.block_residual);
         }
@@ -1366,10 +1358,7 @@ AlignmentResult AlignFromLevel(const ImagePyramid& pyramid, const ReferencePatch
       if (!options.affine_fallback || !(result.residual <= kAffineResidualFactor * options.max_residual) ||
           !align_affine(state)) {
         result = isotropic;
-        if (!align_robust()) {
-          result = isotropic;
-          result.status = TrackStatus::kResidualTooLarge;
-        }
+        if (!align_robust()) result.status = TrackStatus::kResidualTooLarge;
       }
     }
     return result;
@@ -1458,14 +1447,12 @@ const std::vector<TrackedFeature>& FeatureTracker::Track(const ImagePyramid& pyr
   last_results_.clear();
   std::vector<AlignmentResult>& results = scratch_results_;
   results.assign(features_.size(), AlignmentResult());
+  // The features a robust alignment added keep the robust fallback (FeatureTrackerOptions::robust_acquired_tracking).
+  AlignmentOptions robust_alignment = options_.alignment;
+  robust_alignment.robust_fallback = true;
   const auto align = [&](size_t i, const Vector2d& velocity, bool own_velocity) {
     const TrackedFeature& feature = features_[i];
-    AlignmentOptions robust_alignment;
     const bool robust = options_.robust_acquired_tracking && feature.robust_acquired;
-    if (robust) {
-      robust_alignment = options_.alignment;
-      robust_alignment.robust_fallback = true;
-    }
     const AlignmentOptions& alignment = robust ? robust_alignment : options_.alignment;
     WarpState initial = feature.warp;
     const bool predicted = velocity.squaredNorm() > 0.25;

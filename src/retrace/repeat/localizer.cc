@@ -800,8 +800,8 @@ void Localizer::Localize(FrameResult* result) {
     // The camera's place in metres (LastPose: the offset the path law steers by, the next frame's guess) rests on the
     // features the paper's warp located only: the robust fallback's are off by a few tenths of a pixel and, taken by
     // the pose, swerved a closed loop (LocalizerOptions::relocalization_robust_alignment).
-    const AbsolutePose metric_pose =
-        tracker_.NumRobustFeatures() > 0 ? EstimatePoseInArc(*arc, nullptr, /*without_robust=*/true) : pose;
+    const bool robust_tracked = options_.relocalization_robust_alignment && tracker_.NumRobustFeatures() > 0;
+    const AbsolutePose metric_pose = robust_tracked ? EstimatePoseInArc(*arc, nullptr, /*without_robust=*/true) : pose;
     last_pose_.reset();
     if (metric_pose.success) {
       last_pose_ = LastPose{arc_,

@@ -329,12 +329,11 @@ int Localizer::LocateMappedFeatures(const MatchedKeyImage& key_image, const std:
       const std::shared_ptr<const ReferencePatch> reference = Reference(key_image.node, id);
       if (reference == nullptr) continue;
       AlignmentResult refined = RefinePrediction(prediction_pyramid_, *reference, predicted, Median(ratios), robust);
-      if (refined.robust_used && AlternativeStarts() > 0) {
+      if ((!refined.ok() || refined.robust_used) && AlternativeStarts() > 0) {
+        // The paper's warp from the nearest matches before a robust alignment, which stays only when it fails.
         AlignmentResult paper =
             AlignFromNearestMatches(key_image, position->second, predicted, *reference, refine, margin);
-        if (paper.ok()) refined = paper;
-      } else if (!refined.ok() && AlternativeStarts() > 0) {
-        refined = AlignFromNearestMatches(key_image, position->second, predicted, *reference, refine, margin);
+        if (paper.ok() || !refined.ok()) refined = paper;
       }
       if (refined.ok() && tracker_.AddFeature(reference, refined, id) != kInvalidFeatureId) {
         reference_node_[id] = key_image.node;
@@ -350,6 +349,9 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   const arc_t last_arc = last_arc_;
   ClearTracks();
   arc_ = kInvalidArcId;
+  // The place is decided on the features the paper's warp located: those the robust fallback added are tracked, but
+  // a place is not taken on them (LocalizerOptions::relocalization_robust_alignment).
+  const auto located_by_paper = [this]() { return tracker_.NumFeatures() - tracker_.NumRobustFeatures(); };
 
   const WideBaselineFeatures current = options_.binary_relocalization
                                           ? ExtractBinaryFeatures(frame.image, frame_features_)
@@ -420,7 +422,7 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
         std::copy_n(at.begin(), std::min(at.size(), arcs.size()), arcs.begin());
         std::unordered_set<feature_t> seen;
         LocateMappedFeatures(key_image, arcs, &seen);
-        const int located = tracker_.NumFeatures() - tracker_.NumRobustFeatures();  // by the paper's warp
+        const int located = located_by_paper();
         ClearTracks();
         return located;
       };
@@ -522,9 +524,6 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   verify(untried_arc);
   if (agreeing() >= min_agreeing) locate();
   int needed_features = min_features;
-  // The gates count the features the paper's warp located: those the robust fallback added are tracked, but a place
-  // is not taken on them (LocalizerOptions::relocalization_robust_alignment).
-  const auto located_by_paper = [this]() { return tracker_.NumFeatures() - tracker_.NumRobustFeatures(); };
   if (agreeing() < min_agreeing || located_by_paper() < min_features) {
     verify(untried_neighbours);
     if (agreeing() < min_agreeing) {
