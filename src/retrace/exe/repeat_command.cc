@@ -564,6 +564,12 @@ void RegisterRepeatCommand(CLI::App& app) {
                   "Height of the camera above the ground (m) for the metric offset from the taught path (default: "
                   "the one given to teach, stored in the map; without one the lateral_m columns stay empty)")
       ->check(CLI::Range(0.0, 100.0));
+  cmd->add_option("--travel-window", args->options.path.travel_window,
+                  "Arcs before and after the current one whose turns fit the vehicle's travel model (its camera's "
+                  "mount yaw and distance ahead of the rear axle), from which each key-image's direction of travel, "
+                  "heading_error_rad's reference, follows (docs/path-tracking.md; 0: the arcs' chords)")
+      ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
   cmd->add_option(
          "--lateral-window", args->options.lateral_filter.window,
          "Metres driven over which the recent frames' offsets from the taught path are combined into lateral_m "

@@ -209,6 +209,7 @@ struct DriveArguments {
   bool affine_refine = LocalizerOptions().affine_refinement;
   bool relocalization_affine = false;  // LocalizerOptions::relocalization_affine_fallback
   bool robust_relocalization = LocalizerOptions().relocalization_robust_alignment;
+  int travel_window = TaughtPathOptions().travel_window;
   int guided_matching = LocalizerOptions().guided_matching_min_inliers;
   int start_alternative_starts = LocalizerOptions().start_alternative_starts;
   ClosedLoopOptions drive;
@@ -233,6 +234,7 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   base.affine_refinement = args.affine_refine;
   base.relocalization_affine_fallback = args.relocalization_affine;
   base.relocalization_robust_alignment = args.robust_relocalization;
+  base.path.travel_window = args.travel_window;
   base.guided_matching_min_inliers = args.guided_matching;
   base.start_alternative_starts = args.start_alternative_starts;
   MapForLocalizer loaded = LoadMapForLocalizer(args.map, base);
@@ -701,6 +703,11 @@ void RegisterSimCommand(CLI::App& app) {
   drive->add_flag("--relocalization-affine", args->relocalization_affine,
                   "Localizer: align the mapped features a relocalization locates with the affine fallback (`repeat "
                   "--relocalization-affine`)");
+  drive->add_option("--travel-window", args->travel_window,
+                    "Localizer: arcs before and after the current one whose turns fit the vehicle's travel model, "
+                    "the heading error's reference (`repeat --travel-window`; 0: the arcs' chords)")
+      ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
   drive->add_flag("--robust-relocalization", args->robust_relocalization,
                   "Localizer: after a loss, align the mapped features a relocalization cannot locate otherwise with "
                   "the robust fallback (`repeat --robust-relocalization`)");

@@ -15,6 +15,11 @@
 namespace retrace {
 namespace {
 
+// The signed angle from u to v (radians, positive counter-clockwise: to the left in (right, forward) coordinates).
+double SignedAngle(const Vector2d& u, const Vector2d& v) {
+  return std::atan2(u.x() * v.y() - u.y() * v.x(), u.dot(v));
+}
+
 // A cubic Hermite segment on the ground plane, coordinates (right, forward) of the current arc's key-image a.
 struct Segment {
   arc_t arc = kInvalidArcId;
@@ -94,6 +99,12 @@ bool TaughtPathOptions::Check(std::string* error) const {
   }
   if (!(tangent_sigma_rad >= 0 && tangent_sigma_rad < 1)) {
     return fail(fmt::format("tangent_sigma_rad must be in [0, 1), got {}", tangent_sigma_rad));
+  }
+  if (travel_window < 0 || travel_window > 1000) {
+    return fail(fmt::format("travel_window must be in 0..1000, got {}", travel_window));
+  }
+  if (!(travel_min_turn_rad > 0 && travel_min_turn_rad < 1)) {
+    return fail(fmt::format("travel_min_turn_rad must be in (0, 1), got {}", travel_min_turn_rad));
   }
   if (normal_arcs < 1 || normal_arcs > 1000) return fail(fmt::format("normal_arcs must be in 1..1000, got {}", normal_arcs));
   if (scale_window < 0 || scale_window > 100) {
@@ -208,6 +219,24 @@ MapArc::GroundFit TaughtPath::GroundFit(arc_t arc_id) {
   return fit;
 }
 
+template <typename Visit>
+void TaughtPath::ForEachNeighbour(const MapArc& arc, int window, Visit&& visit) const {
+  for (const int direction : {+1, -1}) {
+    const MapArc* current = &arc;
+    double log_unit_ratio = 0.0;  // a length in units of `arc` times exp(this) = the same length in units of `current`
+    for (int step = 0; step < window; ++step) {
+      const MapArc* neighbour = direction > 0 ? Next(*current) : Previous(*current);
+      if (neighbour == nullptr) break;
+      const std::optional<double> scale = direction > 0 ? map_.ScaleAt(current->to, current->id, neighbour->id)
+                                                        : map_.ScaleAt(current->from, neighbour->id, current->id);
+      if (!scale || !(*scale > 0)) break;
+      log_unit_ratio += direction > 0 ? -std::log(*scale) : std::log(*scale);
+      visit(*neighbour, log_unit_ratio, direction, step + 1);
+      current = neighbour;
+    }
+  }
+}
+
 std::optional<double> TaughtPath::MetresPerUnit(arc_t arc_id) {
   if (!enabled()) return std::nullopt;
   Ground(arc_id);
@@ -226,24 +255,14 @@ std::optional<double> TaughtPath::MetresPerUnit(arc_t arc_id) {
   if (ground.metres_per_unit > 0) {
     scales.push_back({std::log(ground.metres_per_unit), 0, 0, fit_sigma(ground.plane)});
   }
-  for (const int direction : {+1, -1}) {
-    const MapArc* current = arc;
-    double log_unit_ratio = 0.0;  // a length in units of `arc` times exp(this) = the same length in units of `current`
-    for (int step = 0; step < options_.scale_window; ++step) {
-      const MapArc* neighbour = direction > 0 ? Next(*current) : Previous(*current);
-      if (neighbour == nullptr) break;
-      const std::optional<double> scale = direction > 0 ? map_.ScaleAt(current->to, current->id, neighbour->id)
-                                                        : map_.ScaleAt(current->from, neighbour->id, current->id);
-      if (!scale || !(*scale > 0)) break;
-      log_unit_ratio += direction > 0 ? -std::log(*scale) : std::log(*scale);
-      const ArcGround& neighbour_ground = Ground(neighbour->id);
-      if (neighbour_ground.metres_per_unit > 0) {
-        scales.push_back({std::log(neighbour_ground.metres_per_unit) + log_unit_ratio, direction, step + 1,
-                          fit_sigma(neighbour_ground.plane)});
-      }
-      current = neighbour;
-    }
-  }
+  ForEachNeighbour(*arc, options_.scale_window,
+                   [&](const MapArc& neighbour, double log_unit_ratio, int side, int steps) {
+                     const ArcGround& neighbour_ground = Ground(neighbour.id);
+                     if (neighbour_ground.metres_per_unit > 0) {
+                       scales.push_back({std::log(neighbour_ground.metres_per_unit) + log_unit_ratio, side, steps,
+                                         fit_sigma(neighbour_ground.plane)});
+                     }
+                   });
   const CombinedScale combined = CombineArcScales(scales, options_);
   if (!combined.valid) return std::nullopt;
   spdlog::debug("taught path: arc {} scale {:.4f} m/unit +- {:.1f} % from {} of {} ground planes", arc_id,
@@ -258,9 +277,7 @@ std::vector<Vector2d> KeyImageTangents(const std::vector<Vector2d>& centres, con
   for (size_t i = 0; i + 1 < centres.size() && i + 1 < headings.size(); ++i) {
     const Vector2d chord = centres[i + 1] - centres[i];
     if (!(chord.norm() > 1e-12)) continue;
-    const Vector2d& h0 = headings[i];
-    const Vector2d& h1 = headings[i + 1];
-    const double turn = std::atan2(h0.x() * h1.y() - h0.y() * h1.x(), h0.dot(h1));  // signed, h0 to h1
+    const double turn = SignedAngle(headings[i], headings[i + 1]);
     tangents[i] += Eigen::Rotation2Dd(-turn / 2) * chord.normalized();
     tangents[i + 1] += Eigen::Rotation2Dd(turn / 2) * chord.normalized();
   }
@@ -268,6 +285,75 @@ std::vector<Vector2d> KeyImageTangents(const std::vector<Vector2d>& centres, con
     if (t.norm() > 1e-12) t.normalize();
   }
   return tangents;
+}
+
+TravelModel FitTravelModel(const std::vector<ArcTravel>& arcs, double min_turn) {
+  TravelModel model;
+  if (arcs.empty()) return model;
+  const auto median = [](std::vector<double> values) {
+    const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+    std::nth_element(values.begin(), middle, values.end());
+    if (values.size() % 2 == 1) return *middle;
+    return 0.5 * (*middle + *std::max_element(values.begin(), middle));
+  };
+  // β = atan(camera_ahead · κ) - mount_yaw; on a straight arc -mount_yaw.
+  std::vector<double> straight;
+  for (const ArcTravel& arc : arcs) {
+    if (std::abs(arc.turn) < min_turn) straight.push_back(-arc.chord_angle);
+  }
+  model.straight_arcs = static_cast<int>(straight.size());
+  model.turning_arcs = static_cast<int>(arcs.size() - straight.size());
+  if (straight.empty()) {
+    for (const ArcTravel& arc : arcs) straight.push_back(-arc.chord_angle);
+  }
+  model.mount_yaw = median(straight);
+  for (int iteration = 0; iteration < 3 && model.turning_arcs > 0; ++iteration) {
+    std::vector<double> ahead;
+    for (const ArcTravel& arc : arcs) {
+      if (std::abs(arc.turn) >= min_turn && arc.length > 0) {
+        ahead.push_back(std::tan(arc.chord_angle + model.mount_yaw) * arc.length / arc.turn);
+      }
+    }
+    if (ahead.empty()) break;
+    model.camera_ahead = median(ahead);
+    std::vector<double> yaw;
+    for (const ArcTravel& arc : arcs) {
+      if (arc.length > 0) yaw.push_back(std::atan(model.camera_ahead * arc.turn / arc.length) - arc.chord_angle);
+    }
+    model.mount_yaw = median(yaw);
+  }
+  model.valid = true;
+  return model;
+}
+
+const TravelModel& TaughtPath::Travel(const MapArc& arc) {
+  const auto it = travel_.find(arc.id);
+  if (it != travel_.end()) return it->second;
+  const Vector3d& n = *normal_;
+  // One arc on the ground plane of its key-image a (coordinates right, forward; the normal is the same in every
+  // key-image's frame, the camera being fixed on the vehicle).
+  const Vector3d forward = (Vector3d::UnitZ() - n.z() * n).normalized();
+  const Vector3d right = n.cross(forward);
+  const auto flat = [&](const Vector3d& x) { return Vector2d(right.dot(x), forward.dot(x)); };
+  const auto measure = [&flat](const MapArc& one, double length) {
+    const Vector3d centre_b = -(one.to_from_from.rotation.transpose() * one.to_from_from.translation);
+    const Vector2d axis_a(0, 1);
+    const double turn = SignedAngle(axis_a, flat(one.to_from_from.rotation.transpose() * Vector3d::UnitZ()));
+    ArcTravel travel;
+    travel.turn = turn;
+    travel.chord_angle = SignedAngle(axis_a, flat(centre_b)) - turn / 2;
+    travel.length = length * flat(centre_b).norm();
+    return travel;
+  };
+  std::vector<ArcTravel> arcs{measure(arc, 1.0)};
+  ForEachNeighbour(arc, options_.travel_window, [&](const MapArc& neighbour, double log_unit_ratio, int, int) {
+    arcs.push_back(measure(neighbour, std::exp(-log_unit_ratio)));
+  });
+  const TravelModel model = FitTravelModel(arcs, options_.travel_min_turn_rad);
+  spdlog::debug("taught path: arc {} travel model from {} arcs ({} turning): mount yaw {:.3f} deg, camera ahead "
+                "{:.3f} units",
+                arc.id, arcs.size(), model.turning_arcs, model.mount_yaw * 180 / M_PI, model.camera_ahead);
+  return travel_.emplace(arc.id, model).first->second;
 }
 
 PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const PoseCovariance* covariance,
@@ -324,6 +410,43 @@ PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const
   std::vector<Vector2d> headings;
   for (const Vector3d& axis : axes) headings.push_back(flat(axis));
   const std::vector<Vector2d> node_tangents = KeyImageTangents(points, headings);
+  // The direction the taught camera travelled at each key-image, the heading error's reference where the arcs on
+  // either side of it are straight (turn less than travel_min_turn_rad; travel_weight 1): its optical axis turned by
+  // the travel model's β at the curvature there (the turns of the arcs on either side over their lengths,
+  // interpolated between the arcs' middles). In turns the curve's tangents are the reference (weight 0): there the
+  // curvature changes within an arc, which the Hermite curve through the key-images' centres follows and the model's
+  // curvatures at the key-images do not (docs/path-tracking.md, "The direction of travel from the vehicle's
+  // kinematics").
+  std::vector<Vector2d> travel = node_tangents;
+  std::vector<double> travel_weight(points.size(), 0.0);
+  if (options_.travel_window > 0) {
+    const TravelModel& model = Travel(*arc);
+    std::vector<double> arc_turn, arc_length, arc_curvature;
+    for (size_t i = 0; i + 1 < points.size(); ++i) {
+      arc_turn.push_back(SignedAngle(headings[i], headings[i + 1]));
+      arc_length.push_back((points[i + 1] - points[i]).norm());
+      arc_curvature.push_back(arc_length.back() > 1e-9 ? arc_turn.back() / arc_length.back() : 0.0);
+    }
+    const auto straight_arc = [&](size_t j) { return std::abs(arc_turn[j]) < options_.travel_min_turn_rad; };
+    for (size_t i = 0; i < points.size(); ++i) {
+      double curvature = 0.0;
+      if (i > 0 && i < arc_length.size()) {
+        const double length_in = arc_length[i - 1], length_out = arc_length[i];
+        curvature = (arc_curvature[i - 1] * length_out + arc_curvature[i] * length_in) /
+                    std::max(1e-9, length_in + length_out);
+      } else if (i > 0) {
+        curvature = arc_curvature[i - 1];
+      } else if (!arc_curvature.empty()) {
+        curvature = arc_curvature[0];
+      }
+      const bool straight = (i == 0 || straight_arc(i - 1)) && (i >= arc_turn.size() || straight_arc(i));
+      // The model's camera_ahead is in the current arc's unit, the curvature in 1/m: κ · (metres per unit) per unit.
+      if (straight && headings[i].norm() > 1e-9) {
+        travel_weight[i] = 1.0;
+        travel[i] = Eigen::Rotation2Dd(model.TravelAngle(curvature * *scale)) * headings[i].normalized();
+      }
+    }
+  }
   std::vector<Segment> segments;
   for (size_t i = 0; i + 1 < points.size(); ++i) {
     Segment s;
@@ -357,7 +480,14 @@ PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const
   pose.lateral_m = (c - segment.At(best_u)).dot(right_of_path);
   const Vector2d look = flat(axis);
   if (!(look.norm() > 1e-9)) return pose;
-  pose.heading_error_rad = std::atan2(tangent.y() * look.x() - tangent.x() * look.y(), tangent.dot(look));
+  // The heading's reference: the direction of travel turning from one key-image's to the next's along the segment,
+  // blended with the curve's tangent by the key-images' weights (one where both are on a straight).
+  const Vector2d& travel_0 = travel[best_segment];
+  const Vector2d& travel_1 = travel[best_segment + 1];
+  const Vector2d travelled = Eigen::Rotation2Dd(best_u * SignedAngle(travel_0, travel_1)) * travel_0.normalized();
+  const double weight = (1 - best_u) * travel_weight[best_segment] + best_u * travel_weight[best_segment + 1];
+  const Vector2d reference = Eigen::Rotation2Dd(weight * SignedAngle(tangent, travelled)) * tangent;
+  pose.heading_error_rad = std::atan2(reference.y() * look.x() - reference.x() * look.y(), reference.dot(look));
   pose.curvature = segment.Curvature(best_u);
 
   // Distance along the path from the reported arc's key-image a.
@@ -406,9 +536,9 @@ PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const
   // becoming exp(δω) · current_from_a), which turns its trace on the ground by δψ = gᵀ δω, g = (R g_axis) × z with
   // g_axis the heading's gradient in the axis; the offset moves by δe = s acrossᵀ δC (s metres per unit).
   if (pose_lateral_variance > 0) {
-    const double x = tangent.dot(look);
-    const double y = tangent.y() * look.x() - tangent.x() * look.y();  // ψ = atan2(y, x)
-    const Vector2d gradient_look = (x * Vector2d(tangent.y(), -tangent.x()) - y * tangent) / (x * x + y * y);
+    const double x = reference.dot(look);
+    const double y = reference.y() * look.x() - reference.x() * look.y();  // ψ = atan2(y, x)
+    const Vector2d gradient_look = (x * Vector2d(reference.y(), -reference.x()) - y * reference) / (x * x + y * y);
     const Vector3d gradient_axis = gradient_look.x() * right + gradient_look.y() * forward;
     const Vector3d g = (current_from_a.rotation * gradient_axis).cross(Vector3d::UnitZ());
     pose.heading_per_lateral = *scale * g.dot(covariance->rotation_centre * across) / pose_lateral_variance;

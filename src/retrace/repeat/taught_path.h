@@ -23,12 +23,15 @@
 // The camera centre (its absolute pose in the arc's reconstruction) is projected on the curves of the previous,
 // current and next arcs; the nearest point gives
 //  - lateral offset: signed distance from the path, positive to the right in the direction of travel;
-//  - heading error: the angle from the path's tangent there to the camera's optical axis (both on the ground
-//    plane), positive when the camera looks to the right of the path;
+//  - heading error: the angle from the taught camera's direction of travel there to the camera's optical axis (both
+//    on the ground plane), positive when the camera looks to the right of the path. The direction of travel is the
+//    curve's tangent in turns and, between key-images whose arcs are straight, their optical axes turned by the
+//    vehicle's travel model (TravelModel below), which the chords of forward motion get wrong by degrees now and then;
 //  - along: distance along the path from the current arc's key-image a (negative before it, beyond the arc's length
 //    after b), and to_next: distance left to b;
 //  - the path's curvature there and the largest curvature within the next arc (1/m, positive turning left).
 
+#include <cmath>
 #include <memory>
 #include <optional>
 #include <unordered_map>
@@ -63,6 +66,15 @@ struct TaughtPathOptions {
   // the validation matrix (README, "Where the car is, in metres") — a Gaussian with that median has σ 0.36°. It adds
   // to the pose's own in heading_sigma_rad.
   double tangent_sigma_rad = 0.006;
+  // The heading error's reference on straights: the direction the taught camera travelled at each key-image, from
+  // its optical axis and the vehicle's travel model (FitTravelModel) fitted over the arcs up to `travel_window` before
+  // and after the current one (carried into its unit through the node scales: 30 arcs add about 8 % to the length
+  // unit's spread, which tilts β by 8 % of atan(camera_ahead · κ) on gentle curves). 0: the curve's tangents
+  // everywhere, as before 2026-12-06.
+  int travel_window = 30;
+  // An arc is straight when it turns less than this (radians, 2°): the key-images between two straight arcs take the
+  // model's direction. The arcs turning more give the model's camera_ahead.
+  double travel_min_turn_rad = 0.035;
 
   bool Check(std::string* error = nullptr) const;
 };
@@ -134,6 +146,46 @@ CombinedScale CombineArcScales(const std::vector<CarriedScale>& scales, const Ta
 // between two arcs the two circles' tangents are averaged. Exact on a circle however the key-images are spaced.
 std::vector<Vector2d> KeyImageTangents(const std::vector<Vector2d>& centres, const std::vector<Vector2d>& headings);
 
+// How a camera fixed on a vehicle moves relative to its optical axis: on the ground plane its direction of travel is
+// turned from the axis by β = atan(camera_ahead · κ) - mount_yaw (positive to the left), κ the path's curvature
+// (positive turning left). A car (or a differential-drive robot) turns about a point on its rear axle; a camera
+// `camera_ahead` in front of it moves sideways by camera_ahead · κ per unit driven (rigid-body kinematics), and a
+// camera yawed on its mount by `mount_yaw` looks that much to the left of the vehicle. Two constants of the vehicle,
+// fitted over many arcs (FitTravelModel), from which each key-image's direction of travel follows from its own axis
+// and the curvature there. Why: in forward motion the two-view geometry determines the translation's direction (the
+// focus of expansion) worst of all, and the chords between key-images, which the taught path's tangents follow, were
+// off by 3° over five straight arcs of long124 (the car then steered 0.3 m off). Against the teach poses of the
+// validation matrix's simulated maps (between the key-images, median / 90th / 99th percentile): on straight arcs the
+// chords' tangents 0.16 / 0.49 / 1.30°, the model's directions 0.04 / 0.10 / 0.26°; next to a turn the chords
+// 0.49 / 1.59 / 3.69°, the model 0.93 / 2.82 / 5.11° — there the curvature changes within an arc, which the curve
+// through the key-images follows and the model's curvatures at the key-images do not. So TaughtPath::Locate takes
+// the model's direction on straights and the curve's tangent in turns (docs/path-tracking.md, "The direction of
+// travel from the vehicle's kinematics").
+struct TravelModel {
+  bool valid = false;
+  double mount_yaw = 0.0;     // radians, positive to the left
+  double camera_ahead = 0.0;  // in the unit of the lengths FitTravelModel was given
+  int straight_arcs = 0;      // arcs turning less than the fit's min_turn
+  int turning_arcs = 0;
+  // β at curvature κ (1 / the fit's unit).
+  double TravelAngle(double curvature) const { return std::atan(camera_ahead * curvature) - mount_yaw; }
+};
+
+// One arc as the travel model sees it, on the ground plane of its key-image a: the angle of its chord from a's
+// optical axis minus half its turn (a circle through a and b has its tangents there: the mean of β at a and b), the
+// turn from a's axis to b's (radians, positive left) and the chord's length.
+struct ArcTravel {
+  double chord_angle = 0.0;
+  double turn = 0.0;
+  double length = 0.0;
+};
+
+// The travel model's two constants from arcs, by medians (robust to the chords the geometry got wrong): mount_yaw
+// from the arcs turning less than `min_turn` (all arcs when there are none), camera_ahead from the others as
+// tan(β + mount_yaw) / κ with κ = turn / length, alternated three times with mount_yaw from every arc. No turning
+// arc: camera_ahead 0 (it then matters little). Invalid without arcs.
+TravelModel FitTravelModel(const std::vector<ArcTravel>& arcs, double min_turn);
+
 class TaughtPath {
  public:
   // `map` must hold its key-images and outlive this object; `camera` images the key-images. Throws
@@ -159,6 +211,13 @@ class TaughtPath {
  private:
   struct ArcGround;
   const ArcGround& Ground(arc_t arc);
+  // The travel model over the arcs within options_.travel_window of `arc`, lengths in `arc`'s unit (cached).
+  const TravelModel& Travel(const MapArc& arc);
+  // Calls visit(neighbour, log_unit_ratio, side, steps) for the arcs up to `window` after (side +1) and before (-1)
+  // `arc` along the route, while the nodes' relative scales chain them: a length in units of `arc` times
+  // exp(log_unit_ratio) is that length in units of the neighbour.
+  template <typename Visit>
+  void ForEachNeighbour(const MapArc& arc, int window, Visit&& visit) const;
   const MapArc* Next(const MapArc& arc) const;
   const MapArc* Previous(const MapArc& arc) const;
 
@@ -168,6 +227,7 @@ class TaughtPath {
   bool normal_estimated_ = false;
   std::optional<Vector3d> normal_;
   std::unordered_map<arc_t, std::unique_ptr<ArcGround>> grounds_;
+  std::unordered_map<arc_t, TravelModel> travel_;
 };
 
 }  // namespace retrace

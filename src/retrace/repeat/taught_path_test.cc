@@ -109,6 +109,14 @@ TEST(TaughtPathOptionsTest, RejectsAScaleModelOutOfRange) {
   options.ground_scale_sigma = -0.1;
   EXPECT_FALSE(options.Check(&error));
   EXPECT_NE(error.find("ground_scale_sigma"), std::string::npos);
+  options = TaughtPathOptions();
+  options.travel_window = -1;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("travel_window"), std::string::npos);
+  options = TaughtPathOptions();
+  options.travel_min_turn_rad = 0.0;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("travel_min_turn_rad"), std::string::npos);
 }
 
 // On a circle the tangents are the circle's, however unevenly the key-images are spaced (Catmull-Rom tangents, the
@@ -136,6 +144,173 @@ TEST(KeyImageTangentsTest, AStraightRoadKeepsItsDirection) {
   const std::vector<Vector2d> headings(4, Vector2d(0.2, 1.0));  // a yawed camera, not along the road: no turn
   const Vector2d road = Vector2d(0.3, 4).normalized();
   for (const Vector2d& t : KeyImageTangents(centres, headings)) EXPECT_LT((t - road).norm(), 1e-12);
+}
+
+
+// A car-like vehicle driven along a curvature profile (rear-axle kinematics), its camera `camera_ahead` metres in
+// front of the rear axle and yawed by `mount_yaw` on its mount. Ground coordinates (X right, Z ahead at the start,
+// y down), angles counter-clockwise (to the left) from +X.
+struct VehicleDrive {
+  double camera_ahead = 1.8;
+  double mount_yaw = 0.0;
+  struct State {
+    Vector2d rear;     // rear axle (m)
+    double heading;    // vehicle's direction
+    double curvature;  // 1/m, positive turning left
+  };
+  std::vector<State> states;  // every 0.05 m
+
+  // Straight 30 m, a 10 m transition into a left turn of radius 12 m for 12 m, a 10 m transition back, straight 20 m.
+  static double Curvature(double s) {
+    const double turn = 1.0 / 12.0;
+    if (s < 30) return 0.0;
+    if (s < 40) return turn * (s - 30) / 10;
+    if (s < 52) return turn;
+    if (s < 62) return turn * (62 - s) / 10;
+    return 0.0;
+  }
+  void Drive(double length) {
+    State state{Vector2d(0, 0), M_PI / 2, 0.0};
+    const double ds = 0.05;
+    for (double s = 0; s <= length; s += ds) {
+      state.curvature = Curvature(s);
+      states.push_back(state);
+      // Midpoint integration of the rear axle's motion.
+      const double mid = state.heading + 0.5 * ds * state.curvature;
+      state.rear += ds * Vector2d(std::cos(mid), std::sin(mid));
+      state.heading += ds * state.curvature;
+    }
+  }
+  Vector2d CameraAt(size_t i) const {
+    const State& st = states[i];
+    return st.rear + camera_ahead * Vector2d(std::cos(st.heading), std::sin(st.heading));
+  }
+  // world_from_camera: camera z along the axis on the ground, y down.
+  Rigid3d WorldFromCamera(size_t i) const {
+    const double axis = states[i].heading + mount_yaw;
+    const double psi = M_PI / 2 - axis;  // the axis turned from +Z towards +X
+    Matrix3d rotation;
+    rotation.col(0) = Vector3d(std::cos(psi), 0, -std::sin(psi));
+    rotation.col(1) = Vector3d(0, 1, 0);
+    rotation.col(2) = Vector3d(std::sin(psi), 0, std::cos(psi));
+    const Vector2d c = CameraAt(i);
+    return Rigid3d(rotation, Vector3d(c.x(), 0, c.y()));
+  }
+  // The camera's heading error against its own path: its direction of travel turned by atan(l κ) from the vehicle's,
+  // its axis by mount_yaw; positive when it looks to the right of its direction of travel.
+  double TrueHeadingError(size_t i) const { return std::atan(camera_ahead * states[i].curvature) - mount_yaw; }
+};
+
+// A map of the drive with key-images every `spacing` states, each arc's unit its chord, ground fits and node scales
+// exact; the arcs listed in `chord_errors` get their translation's direction turned by that angle about the normal
+// (their rotation kept): the focus of expansion forward motion determines worst.
+Map MapOfDrive(const VehicleDrive& drive, size_t spacing, double camera_height,
+               const std::vector<std::pair<int, double>>& chord_errors, std::vector<size_t>* key_states) {
+  key_states->clear();
+  for (size_t i = 0; i < drive.states.size(); i += spacing) key_states->push_back(i);
+  const int arcs = static_cast<int>(key_states->size()) - 1;
+  std::vector<double> lengths;
+  for (int k = 0; k < arcs; ++k) {
+    lengths.push_back((drive.CameraAt((*key_states)[k + 1]) - drive.CameraAt((*key_states)[k])).norm());
+  }
+  std::vector<double> scales;
+  for (int k = 0; k + 1 < arcs; ++k) scales.push_back(lengths[k + 1] / lengths[k]);
+  Map map = LinearMap(arcs, scales);
+  for (int k = 0; k < arcs; ++k) {
+    const Rigid3d b_from_a =
+        drive.WorldFromCamera((*key_states)[k + 1]).Inverse() * drive.WorldFromCamera((*key_states)[k]);
+    MapArc& arc = *map.MutableArc(k);
+    Vector3d centre_b = -(b_from_a.rotation.transpose() * b_from_a.translation) / lengths[k];
+    for (const auto& [which, angle] : chord_errors) {
+      if (which == k) centre_b = ExpSO3(Vector3d(0, angle, 0)) * centre_b;
+    }
+    arc.to_from_from = Rigid3d(b_from_a.rotation, -(b_from_a.rotation * centre_b));
+    arc.ground_fit = MapArc::GroundFit{camera_height / lengths[k], 0.001};
+  }
+  return map;
+}
+
+TEST(FitTravelModelTest, RecoversTheMountAndTheCameraAheadThroughWrongChords) {
+  VehicleDrive drive;
+  drive.camera_ahead = 1.4;
+  drive.mount_yaw = 0.03;
+  drive.Drive(80.0);
+  std::vector<size_t> keys;
+  const Map map = MapOfDrive(drive, 80, 1.5, {}, &keys);  // 4 m apart
+  std::vector<ArcTravel> arcs;
+  for (size_t k = 0; k + 1 < keys.size(); ++k) {
+    // The arc's measurements in metres: the chord's angle from a's axis less half the turn, the turn, the length.
+    const Vector2d a = drive.CameraAt(keys[k]), b = drive.CameraAt(keys[k + 1]);
+    const double axis_a = drive.states[keys[k]].heading + drive.mount_yaw;
+    const double turn = drive.states[keys[k + 1]].heading - drive.states[keys[k]].heading;
+    const double chord = std::atan2((b - a).y(), (b - a).x());
+    const double angle = chord - axis_a - turn / 2;
+    arcs.push_back({std::atan2(std::sin(angle), std::cos(angle)), turn, (b - a).norm()});
+  }
+  // Three chords 3° off, as in long124's arcs 62-65.
+  for (const size_t k : {3, 4, 12}) arcs[k].chord_angle += 3.0 * M_PI / 180;
+  const TravelModel model = FitTravelModel(arcs, 0.035);
+  ASSERT_TRUE(model.valid);
+  EXPECT_GT(model.turning_arcs, 3);
+  EXPECT_NEAR(model.mount_yaw, drive.mount_yaw, 0.002);
+  EXPECT_NEAR(model.camera_ahead, drive.camera_ahead, 0.15);
+  // Straight arcs only: the mount alone, camera_ahead 0; no arcs: invalid.
+  const TravelModel straight = FitTravelModel({{0.01, 0.0, 4.0}, {0.012, 0.001, 4.0}, {0.011, -0.001, 4.0}}, 0.035);
+  EXPECT_TRUE(straight.valid);
+  EXPECT_NEAR(straight.mount_yaw, -0.011, 1e-12);
+  EXPECT_EQ(straight.camera_ahead, 0.0);
+  EXPECT_FALSE(FitTravelModel({}, 0.035).valid);
+}
+
+// The heading error of the taught camera itself, located on its own map, is the angle from its direction of travel
+// to its axis, atan(l κ) - mount_yaw: on the straights the travel model gives it through two arcs whose chords are
+// 3° off (their rotations right; the chords' tangents are then that far off), in the turn the curve through the
+// key-images (a circle there) gives it.
+TEST(TaughtPathTest, HeadingErrorFollowsTheVehicleWhereChordsAreWrong) {
+  VehicleDrive drive;
+  drive.camera_ahead = 1.8;
+  drive.mount_yaw = -0.02;
+  drive.Drive(80.0);
+  std::vector<size_t> keys;
+  const double three_degrees = 3.0 * M_PI / 180;
+  const Map map = MapOfDrive(drive, 80, 1.5, {{3, three_degrees}, {4, -three_degrees}}, &keys);
+  const PerspectiveCamera camera(320, 240, 250.0, 250.0, 159.5, 119.5);
+  TaughtPathOptions options;
+  options.camera_height = 1.5;
+  options.ground.normal_in_camera = Vector3d(0.0, 1.0, 0.0);
+  TaughtPath travel_path(map, camera, options);
+  options.travel_window = 0;
+  TaughtPath chord_path(map, camera, options);
+
+  double worst_travel = 0.0, worst_chord_on_wrong_arcs = 0.0;
+  int steady_points = 0;
+  for (size_t k = 0; k + 1 < keys.size(); ++k) {
+    for (const size_t offset : {20, 40, 60}) {  // a quarter, half and three quarters of the arc
+      const size_t i = keys[k] + offset;
+      // Steady curvature over the arc and its neighbours: the model's κ at a key-image comes from the mean turns of
+      // the arcs on either side.
+      bool steady = k >= 1 && k + 2 < keys.size();
+      for (size_t j = k - 1; steady && j <= k + 2; ++j) {
+        steady = std::abs(VehicleDrive::Curvature(0.05 * keys[j]) - VehicleDrive::Curvature(0.05 * i)) < 1e-9;
+      }
+      if (!steady) continue;
+      ++steady_points;
+      // The camera in the arc's reconstruction (its unit the chord): at its true place and rotation.
+      Rigid3d current_from_a = drive.WorldFromCamera(i).Inverse() * drive.WorldFromCamera(keys[k]);
+      current_from_a.translation /= (drive.CameraAt(keys[k + 1]) - drive.CameraAt(keys[k])).norm();
+      const PathPose travel = travel_path.Locate(static_cast<arc_t>(k), current_from_a, nullptr, static_cast<arc_t>(k));
+      const PathPose chord = chord_path.Locate(static_cast<arc_t>(k), current_from_a, nullptr, static_cast<arc_t>(k));
+      ASSERT_TRUE(travel.valid && chord.valid) << k;
+      const double truth = drive.TrueHeadingError(i);
+      worst_travel = std::max(worst_travel, std::abs(travel.heading_error_rad - truth));
+      if (k == 3 || k == 4) {
+        worst_chord_on_wrong_arcs = std::max(worst_chord_on_wrong_arcs, std::abs(chord.heading_error_rad - truth));
+      }
+    }
+  }
+  EXPECT_EQ(steady_points, 3 * 8);  // five arcs of the first straight, one in the turn, two of the last straight
+  EXPECT_LT(worst_travel, 0.005);  // 0.3°
+  EXPECT_GT(worst_chord_on_wrong_arcs, 0.03);
 }
 
 }  // namespace
