@@ -567,7 +567,8 @@ void RegisterRepeatCommand(CLI::App& app) {
   cmd->add_option("--travel-window", args->options.path.travel_window,
                   "Arcs before and after the current one whose turns fit the vehicle's travel model (its camera's "
                   "mount yaw and distance ahead of the rear axle), from which each key-image's direction of travel, "
-                  "heading_error_rad's reference, follows (docs/path-tracking.md; 0: the arcs' chords)")
+                  "heading_error_rad's reference, follows on straights (docs/path-tracking.md; 0: the arcs' "
+                  "chords, for a robot that can move sideways)")
       ->check(CLI::Range(0, 1000))
       ->capture_default_str();
   cmd->add_option(

@@ -103,6 +103,9 @@ bool TaughtPathOptions::Check(std::string* error) const {
   if (travel_window < 0 || travel_window > 1000) {
     return fail(fmt::format("travel_window must be in 0..1000, got {}", travel_window));
   }
+  if (!(travel_sigma_rad >= 0 && travel_sigma_rad < 1)) {
+    return fail(fmt::format("travel_sigma_rad must be in [0, 1), got {}", travel_sigma_rad));
+  }
   if (!(travel_min_turn_rad > 0 && travel_min_turn_rad < 1)) {
     return fail(fmt::format("travel_min_turn_rad must be in (0, 1), got {}", travel_min_turn_rad));
   }
@@ -526,7 +529,9 @@ PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const
   double along_variance = std::pow(pose.along_m * arc_sigma, 2);
   if (covariance != nullptr) along_variance += *scale * *scale * along_path.dot(covariance->centre * along_path);
   pose.along_sigma_m = std::sqrt(along_variance);
-  double heading_variance = options_.tangent_sigma_rad * options_.tangent_sigma_rad;
+  // The reference's own variance: the chords' where the curve's tangent is taken, the travel model's on straights.
+  double heading_variance = (1 - weight) * options_.tangent_sigma_rad * options_.tangent_sigma_rad +
+                            weight * options_.travel_sigma_rad * options_.travel_sigma_rad;
   if (covariance != nullptr) {
     const Vector3d normal_in_camera = current_from_a.rotation * n;
     heading_variance += std::max(0.0, normal_in_camera.dot(covariance->rotation * normal_in_camera));

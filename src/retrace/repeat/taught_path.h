@@ -64,17 +64,22 @@ struct TaughtPathOptions {
   // The taught path's direction where the camera is, as an angle (radians): it follows the arcs' two-view
   // translations, whose direction was off by 0.24° (median; 90th percentile 0.75°) on the tuning and town drives of
   // the validation matrix (README, "Where the car is, in metres") — a Gaussian with that median has σ 0.36°. It adds
-  // to the pose's own in heading_sigma_rad.
+  // to the pose's own in heading_sigma_rad where the curve's tangent is the reference (travel_sigma_rad elsewhere).
   double tangent_sigma_rad = 0.006;
   // The heading error's reference on straights: the direction the taught camera travelled at each key-image, from
   // its optical axis and the vehicle's travel model (FitTravelModel) fitted over the arcs up to `travel_window` before
-  // and after the current one (carried into its unit through the node scales: 30 arcs add about 8 % to the length
-  // unit's spread, which tilts β by 8 % of atan(camera_ahead · κ) on gentle curves). 0: the curve's tangents
-  // everywhere, as before 2026-12-06.
+  // and after the current one (their lengths carried into its unit through the node scales: 30 arcs away about 8 %
+  // off, σ_r √30, which the medians absorb). 0: the curve's tangents everywhere, as before 2026-12-06 — for a robot
+  // that can move sideways (holonomic), which the model does not describe.
   int travel_window = 30;
   // An arc is straight when it turns less than this (radians, 2°): the key-images between two straight arcs take the
   // model's direction. The arcs turning more give the model's camera_ahead.
   double travel_min_turn_rad = 0.035;
+  // The travel model's direction as an angle (radians) where it is the reference, in place of tangent_sigma_rad in
+  // heading_sigma_rad: between key-images of straight arcs it was 0.03° off at the median on the validation
+  // matrix's simulated maps and 0.14° on kitti07's (24 key-images; the truth there from the poses of the frames on
+  // either side), a Gaussian with the larger median has σ 0.21°.
+  double travel_sigma_rad = 0.0036;
 
   bool Check(std::string* error = nullptr) const;
 };
