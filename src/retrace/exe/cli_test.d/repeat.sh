@@ -35,6 +35,15 @@ if [[ -d $data/kitti07 ]]; then
       --camera-height 1.65 --lateral-window 0.01 --output '$tmp/repeat_short.csv' --no-progress >/dev/null && \
       awk -F, 'NR > 1 && \$33 != \"\" { rows++; if (\$33 != \$39) differ++ } END { print differ + 0, rows + 0 }' \
       '$tmp/repeat_short.csv'"
+  # --travel-window 0 (the heading's reference from the chords alone, as before the travel model) reaches the taught
+  # path: the heading error changes in some metric rows, the lateral offset in none. Prints: rows with a heading that
+  # differs, rows with a lateral_m that differs, metric rows.
+  expect repeat-travel-window 0 "^[1-9][0-9]* 0 [1-9][0-9]*$" -- \
+    bash -c "'$bin' repeat --map '$tmp/repeat_route.db' --sequence '$k' --every 2 --offset 1 --start-arc 0 \
+      --camera-height 1.65 --travel-window 0 --output '$tmp/repeat_chords.csv' --no-progress >/dev/null && \
+      paste -d, <(cut -d, -f33,35 '$tmp/repeat_metric.csv') <(cut -d, -f33,35 '$tmp/repeat_chords.csv') | \
+      awk -F, 'NR > 1 && \$1 != \"\" { rows++; if (\$2 != \$4) heading++; if (\$1 != \$3) lateral++ } \
+      END { print heading + 0, lateral + 0, rows + 0 }'"
   expect repeat-bad-start-arc 1 "^retrace: error: start arc: the map has no arc 99$" -- \
     "$bin" repeat --map "$tmp/repeat_route.db" --sequence "$k" --start-arc 99 --output "$tmp/r.csv" --no-progress
 fi
