@@ -282,11 +282,27 @@ TEST(TaughtPathTest, HeadingErrorFollowsTheVehicleWhereChordsAreWrong) {
   options.travel_window = 0;
   TaughtPath chord_path(map, camera, options);
 
+  const auto turn = [&](size_t j) {
+    return std::abs(drive.states[keys[j + 1]].heading - drive.states[keys[j]].heading);
+  };
   double worst_travel = 0.0, worst_chord_on_wrong_arcs = 0.0;
-  int steady_points = 0;
+  int steady_points = 0, turn_points = 0;
   for (size_t k = 0; k + 1 < keys.size(); ++k) {
     for (const size_t offset : {20, 40, 60}) {  // a quarter, half and three quarters of the arc
       const size_t i = keys[k] + offset;
+      // The camera in the arc's reconstruction (its unit the chord): at its true place and rotation.
+      Rigid3d current_from_a = drive.WorldFromCamera(i).Inverse() * drive.WorldFromCamera(keys[k]);
+      current_from_a.translation /= (drive.CameraAt(keys[k + 1]) - drive.CameraAt(keys[k])).norm();
+      const PathPose travel = travel_path.Locate(static_cast<arc_t>(k), current_from_a, nullptr, static_cast<arc_t>(k));
+      const PathPose chord = chord_path.Locate(static_cast<arc_t>(k), current_from_a, nullptr, static_cast<arc_t>(k));
+      ASSERT_TRUE(travel.valid && chord.valid) << k;
+      // In a turn (the arc and both its neighbours turning by travel_min_turn_rad or more) the reference is the
+      // curve's tangent alone.
+      if (k >= 1 && k + 2 < keys.size() && turn(k - 1) >= options.travel_min_turn_rad &&
+          turn(k) >= options.travel_min_turn_rad && turn(k + 1) >= options.travel_min_turn_rad) {
+        EXPECT_NEAR(travel.heading_error_rad, chord.heading_error_rad, 1e-12) << k;
+        ++turn_points;
+      }
       // Steady curvature over the arc and its neighbours: the model's κ at a key-image comes from the mean turns of
       // the arcs on either side.
       bool steady = k >= 1 && k + 2 < keys.size();
@@ -295,12 +311,6 @@ TEST(TaughtPathTest, HeadingErrorFollowsTheVehicleWhereChordsAreWrong) {
       }
       if (!steady) continue;
       ++steady_points;
-      // The camera in the arc's reconstruction (its unit the chord): at its true place and rotation.
-      Rigid3d current_from_a = drive.WorldFromCamera(i).Inverse() * drive.WorldFromCamera(keys[k]);
-      current_from_a.translation /= (drive.CameraAt(keys[k + 1]) - drive.CameraAt(keys[k])).norm();
-      const PathPose travel = travel_path.Locate(static_cast<arc_t>(k), current_from_a, nullptr, static_cast<arc_t>(k));
-      const PathPose chord = chord_path.Locate(static_cast<arc_t>(k), current_from_a, nullptr, static_cast<arc_t>(k));
-      ASSERT_TRUE(travel.valid && chord.valid) << k;
       const double truth = drive.TrueHeadingError(i);
       worst_travel = std::max(worst_travel, std::abs(travel.heading_error_rad - truth));
       if (k == 3 || k == 4) {
@@ -309,6 +319,7 @@ TEST(TaughtPathTest, HeadingErrorFollowsTheVehicleWhereChordsAreWrong) {
     }
   }
   EXPECT_EQ(steady_points, 3 * 8);  // five arcs of the first straight, one in the turn, two of the last straight
+  EXPECT_GE(turn_points, 3 * 3);
   EXPECT_LT(worst_travel, 0.005);  // 0.3°
   EXPECT_GT(worst_chord_on_wrong_arcs, 0.03);
 }
