@@ -192,9 +192,18 @@ void RunTeach(const TeachArguments& args) {
     TaughtPathOptions path_options;
     path_options.camera_height = args.camera_height;
     const auto fit_start = std::chrono::steady_clock::now();
-    if (StoreGroundFits(database, *camera, path_options)) {
+    TravelModel travel;
+    if (StoreGroundFits(database, *camera, path_options, &travel)) {
       std::cout << fmt::format("metric path: the ground's normal and every arc's ground plane stored ({:.1f} s)\n",
                                std::chrono::duration<double>(std::chrono::steady_clock::now() - fit_start).count());
+      // The rig as the taught arcs show it (repeat/taught_path.h, TravelModel): a car's camera is 1-2 m ahead of
+      // its rear axle; a robot that moves sideways fits no such model (repeat --travel-window 0).
+      if (travel.valid && travel.turning_arcs > 0) {
+        std::cout << fmt::format("vehicle: the camera travels as if {:.2f} m ahead of the point the robot turns "
+                                 "about, yawed {:.2f} deg on its mount ({} turning and {} straight arcs)\n",
+                                 travel.camera_ahead, travel.mount_yaw * 180 / M_PI, travel.turning_arcs,
+                                 travel.straight_arcs);
+      }
     } else {
       spdlog::warn("teach: no ground plane found between the key-images: repeat will have no metric path");
     }

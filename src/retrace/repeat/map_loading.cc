@@ -147,7 +147,7 @@ MapForLocalizer LoadMapForLocalizer(const std::filesystem::path& path, const Loc
 }
 
 std::optional<Vector3d> StoreGroundFits(MapDatabase* database, const CameraModel& camera,
-                                        const TaughtPathOptions& options) {
+                                        const TaughtPathOptions& options, TravelModel* travel) {
   Map map = database->ReadMap(/*load_images=*/false, /*load_signature_features=*/false);
   map.SetKeyImageLoader([database](node_t id) { return database->ReadKeyImage(id); });
   TaughtPath path(map, camera, options);
@@ -160,6 +160,7 @@ std::optional<Vector3d> StoreGroundFits(MapDatabase* database, const CameraModel
   }
   database->SetMetadata("ground_normal", fmt::format("{:.17g} {:.17g} {:.17g}", normal->x(), normal->y(), normal->z()));
   database->SetMetadata("ground_fits", fits);
+  if (travel != nullptr) *travel = path.MapTravelModel();
   return normal;
 }
 

@@ -42,9 +42,10 @@ class MapDatabase;
 // for that normal ("ground_fits": one line "arc distance_b distance_sigma" per arc, 0 0 where none was found; ≈ 5-8
 // ms per arc at 320x240). LoadMapForLocalizer takes them (unless `base` has a normal of its own), so that repeat
 // fits nothing: `retrace teach --camera-height`. Returns the normal; none, and nothing stored, when too few arcs
-// show a ground.
+// show a ground. `travel` (may be null) receives the vehicle's travel model over the map (TaughtPath::MapTravelModel),
+// for teach to report; it is not stored (repeat fits it around each arc).
 std::optional<Vector3d> StoreGroundFits(MapDatabase* database, const CameraModel& camera,
-                                        const TaughtPathOptions& options);
+                                        const TaughtPathOptions& options, TravelModel* travel = nullptr);
 
 // The arcs' ground planes of the "ground_fits" metadata text (StoreGroundFits), in the order stored. Throws InputError
 // naming `source` for a line that is not "arc distance_b distance_sigma" with a non-negative whole arc id and

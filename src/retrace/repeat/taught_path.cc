@@ -329,34 +329,45 @@ TravelModel FitTravelModel(const std::vector<ArcTravel>& arcs, double min_turn) 
   return model;
 }
 
-const TravelModel& TaughtPath::Travel(const MapArc& arc) {
-  const auto it = travel_.find(arc.id);
-  if (it != travel_.end()) return it->second;
+ArcTravel TaughtPath::MeasureTravel(const MapArc& arc, double unit_length) const {
+  // On the ground plane of key-image a (coordinates right, forward; the normal is the same in every key-image's frame,
+  // the camera being fixed on the vehicle).
   const Vector3d& n = *normal_;
-  // One arc on the ground plane of its key-image a (coordinates right, forward; the normal is the same in every
-  // key-image's frame, the camera being fixed on the vehicle).
   const Vector3d forward = (Vector3d::UnitZ() - n.z() * n).normalized();
   const Vector3d right = n.cross(forward);
   const auto flat = [&](const Vector3d& x) { return Vector2d(right.dot(x), forward.dot(x)); };
-  const auto measure = [&flat](const MapArc& one, double length) {
-    const Vector3d centre_b = -(one.to_from_from.rotation.transpose() * one.to_from_from.translation);
-    const Vector2d axis_a(0, 1);
-    const double turn = SignedAngle(axis_a, flat(one.to_from_from.rotation.transpose() * Vector3d::UnitZ()));
-    ArcTravel travel;
-    travel.turn = turn;
-    travel.chord_angle = SignedAngle(axis_a, flat(centre_b)) - turn / 2;
-    travel.length = length * flat(centre_b).norm();
-    return travel;
-  };
-  std::vector<ArcTravel> arcs{measure(arc, 1.0)};
+  const Vector3d centre_b = -(arc.to_from_from.rotation.transpose() * arc.to_from_from.translation);
+  const Vector2d axis_a(0, 1);
+  ArcTravel travel;
+  travel.turn = SignedAngle(axis_a, flat(arc.to_from_from.rotation.transpose() * Vector3d::UnitZ()));
+  travel.chord_angle = SignedAngle(axis_a, flat(centre_b)) - travel.turn / 2;
+  travel.length = unit_length * flat(centre_b).norm();
+  return travel;
+}
+
+const TravelModel& TaughtPath::Travel(const MapArc& arc) {
+  const auto it = travel_.find(arc.id);
+  if (it != travel_.end()) return it->second;
+  std::vector<ArcTravel> arcs{MeasureTravel(arc, 1.0)};
   ForEachNeighbour(arc, options_.travel_window, [&](const MapArc& neighbour, double log_unit_ratio, int, int) {
-    arcs.push_back(measure(neighbour, std::exp(-log_unit_ratio)));
+    arcs.push_back(MeasureTravel(neighbour, std::exp(-log_unit_ratio)));
   });
   const TravelModel model = FitTravelModel(arcs, options_.travel_min_turn_rad);
   spdlog::debug("taught path: arc {} travel model from {} arcs ({} turning): mount yaw {:.3f} deg, camera ahead "
                 "{:.3f} units",
                 arc.id, arcs.size(), model.turning_arcs, model.mount_yaw * 180 / M_PI, model.camera_ahead);
   return travel_.emplace(arc.id, model).first->second;
+}
+
+TravelModel TaughtPath::MapTravelModel() {
+  if (!enabled() || !GroundNormal()) return {};
+  std::vector<ArcTravel> arcs;
+  for (const MapArc& arc : map_.arcs()) {
+    if (const std::optional<double> metres_per_unit = MetresPerUnit(arc.id)) {
+      arcs.push_back(MeasureTravel(arc, *metres_per_unit));
+    }
+  }
+  return FitTravelModel(arcs, options_.travel_min_turn_rad);
 }
 
 PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const PoseCovariance* covariance,

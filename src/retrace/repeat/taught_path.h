@@ -206,6 +206,10 @@ class TaughtPath {
   // The ground plane of `arc` alone (the arc's MapArc::ground_fit when it has one, else fitted between its
   // key-images, ≈ 5-8 ms at 320x240); distance_b 0 when there is none. What teach stores (StoreGroundFits).
   MapArc::GroundFit GroundFit(arc_t arc);
+  // The travel model over every arc of the map with a metric scale, camera_ahead in metres: what teach reports of the
+  // rig (a camera 1-2 m ahead of a car's rear axle; far off, or turning the wrong way, says the robot is not
+  // car-like and --travel-window 0 fits it better). Invalid without a metric path.
+  TravelModel MapTravelModel();
 
   // The camera placed at `current_from_a` in the reconstruction of `pose_arc` (its frame and unit), relative to the
   // taught path around `reported_arc` (pose_arc or one of its neighbours). `covariance` (may be null: the pose taken
@@ -218,6 +222,8 @@ class TaughtPath {
   const ArcGround& Ground(arc_t arc);
   // The travel model over the arcs within options_.travel_window of `arc`, lengths in `arc`'s unit (cached).
   const TravelModel& Travel(const MapArc& arc);
+  // One arc as the travel model sees it, its chord `unit_length` long per unit. Needs the ground's normal.
+  ArcTravel MeasureTravel(const MapArc& arc, double unit_length) const;
   // Calls visit(neighbour, log_unit_ratio, side, steps) for the arcs up to `window` after (side +1) and before (-1)
   // `arc` along the route, while the nodes' relative scales chain them: a length in units of `arc` times
   // exp(log_unit_ratio) is that length in units of the neighbour.

@@ -262,6 +262,29 @@ TEST(FitTravelModelTest, RecoversTheMountAndTheCameraAheadThroughWrongChords) {
   EXPECT_FALSE(FitTravelModel({}, 0.035).valid);
 }
 
+// Over a whole map, in metres: the rig teach reports (a camera 1.4 m ahead of the rear axle, yawed 0.03 rad).
+TEST(TaughtPathTest, MapTravelModelGivesTheRigInMetres) {
+  VehicleDrive drive;
+  drive.camera_ahead = 1.4;
+  drive.mount_yaw = 0.03;
+  drive.Drive(80.0);
+  std::vector<size_t> keys;
+  const Map map = MapOfDrive(drive, 60, 1.5, {{2, 0.05}}, &keys);  // 3 m apart, one chord 3° off
+  const PerspectiveCamera camera(320, 240, 250.0, 250.0, 159.5, 119.5);
+  TaughtPathOptions options;
+  options.camera_height = 1.5;
+  options.ground.normal_in_camera = Vector3d(0.0, 1.0, 0.0);
+  TaughtPath path(map, camera, options);
+  const TravelModel model = path.MapTravelModel();
+  ASSERT_TRUE(model.valid);
+  EXPECT_EQ(model.straight_arcs + model.turning_arcs, static_cast<int>(keys.size()) - 1);
+  EXPECT_NEAR(model.camera_ahead, drive.camera_ahead, 0.15);
+  EXPECT_NEAR(model.mount_yaw, drive.mount_yaw, 0.002);
+  // Without the camera's height there are no metres.
+  options.camera_height = 0.0;
+  EXPECT_FALSE(TaughtPath(map, camera, options).MapTravelModel().valid);
+}
+
 // The heading error of the taught camera itself, located on its own map, is the angle from its direction of travel
 // to its axis, atan(l κ) - mount_yaw: on the straights the travel model gives it through two arcs whose chords are
 // 3° off (their rotations right; the chords' tangents are then that far off), in the turn the curve through the

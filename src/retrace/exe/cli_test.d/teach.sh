@@ -20,6 +20,10 @@ print(\"ok\")'"
     "$bin" teach --sequence "$data/kitti07" --map "$tmp/k07h.db" --every 2 --no-progress --camera-height 1.65
   expect inspect-ground-fits 0 'ground_fits +[0-9]+ arcs, [0-9]+ with a ground plane' -- \
     "$bin" inspect --map "$tmp/k07h.db"
+  # ... and reports the rig the arcs show (repeat/taught_path.h, TravelModel): a car's camera travels as if 0.5-2.5 m
+  # ahead of the rear axle it turns about (kitti07: 0.88 m).
+  expect teach-vehicle 0 "^vehicle: the camera travels as if (0\.[5-9]|1\.[0-9]|2\.[0-4])[0-9] m ahead of the point" -- \
+    "$bin" teach --sequence "$data/kitti07" --map "$tmp/k07v.db" --every 2 --no-progress --camera-height 1.65
   # An existing map is never replaced without --overwrite, and stays intact.
   before=$(md5sum "$tmp/k07.db")
   expect teach-no-overwrite 1 'exists already' -- "$bin" teach --sequence "$data/kitti07" --map "$tmp/k07.db"
