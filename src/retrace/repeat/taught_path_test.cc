@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <random>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -94,29 +96,24 @@ TEST(CombineArcScalesTest, OneFitIsTakenAsItIsAndNoneIsInvalid) {
   EXPECT_NEAR(one.sigma, 0.05, 1e-3);
 }
 
-TEST(TaughtPathOptionsTest, RejectsAScaleModelOutOfRange) {
+TEST(TaughtPathOptionsTest, RejectsAScaleOrTravelModelOutOfRange) {
   std::string error;
-  TaughtPathOptions options;
-  EXPECT_TRUE(options.Check(&error)) << error;
-  options.relative_scale_sigma = 0.0;
-  EXPECT_FALSE(options.Check(&error));
-  EXPECT_NE(error.find("relative_scale_sigma"), std::string::npos);
-  options = TaughtPathOptions();
-  options.ground_outlier_probability = 1.0;
-  EXPECT_FALSE(options.Check(&error));
-  EXPECT_NE(error.find("ground_outlier_probability"), std::string::npos);
-  options = TaughtPathOptions();
-  options.ground_scale_sigma = -0.1;
-  EXPECT_FALSE(options.Check(&error));
-  EXPECT_NE(error.find("ground_scale_sigma"), std::string::npos);
-  options = TaughtPathOptions();
-  options.travel_window = -1;
-  EXPECT_FALSE(options.Check(&error));
-  EXPECT_NE(error.find("travel_window"), std::string::npos);
-  options = TaughtPathOptions();
-  options.travel_min_turn_rad = 0.0;
-  EXPECT_FALSE(options.Check(&error));
-  EXPECT_NE(error.find("travel_min_turn_rad"), std::string::npos);
+  EXPECT_TRUE(TaughtPathOptions().Check(&error)) << error;
+  // Each option out of its range is refused, and named.
+  const std::vector<std::pair<std::string, std::function<void(TaughtPathOptions&)>>> cases = {
+      {"relative_scale_sigma", [](TaughtPathOptions& o) { o.relative_scale_sigma = 0.0; }},
+      {"ground_outlier_probability", [](TaughtPathOptions& o) { o.ground_outlier_probability = 1.0; }},
+      {"ground_scale_sigma", [](TaughtPathOptions& o) { o.ground_scale_sigma = -0.1; }},
+      {"travel_window", [](TaughtPathOptions& o) { o.travel_window = -1; }},
+      {"travel_min_turn_rad", [](TaughtPathOptions& o) { o.travel_min_turn_rad = 0.0; }},
+      {"travel_sigma_rad", [](TaughtPathOptions& o) { o.travel_sigma_rad = -0.001; }},
+  };
+  for (const auto& [name, spoil] : cases) {
+    TaughtPathOptions options;
+    spoil(options);
+    EXPECT_FALSE(options.Check(&error)) << name;
+    EXPECT_NE(error.find(name), std::string::npos) << error;
+  }
 }
 
 // On a circle the tangents are the circle's, however unevenly the key-images are spaced (Catmull-Rom tangents, the
@@ -151,6 +148,11 @@ TEST(KeyImageTangentsTest, AStraightRoadKeepsItsDirection) {
 // front of the rear axle and yawed by `mount_yaw` on its mount. Ground coordinates (X right, Z ahead at the start,
 // y down), angles counter-clockwise (to the left) from +X.
 struct VehicleDrive {
+  // Driven `length` metres along the profile of Curvature().
+  VehicleDrive(double camera_ahead_m, double mount_yaw_rad, double length)
+      : camera_ahead(camera_ahead_m), mount_yaw(mount_yaw_rad) {
+    Drive(length);
+  }
   double camera_ahead = 1.8;
   double mount_yaw = 0.0;
   struct State {
@@ -231,10 +233,7 @@ Map MapOfDrive(const VehicleDrive& drive, size_t spacing, double camera_height,
 }
 
 TEST(FitTravelModelTest, RecoversTheMountAndTheCameraAheadThroughWrongChords) {
-  VehicleDrive drive;
-  drive.camera_ahead = 1.4;
-  drive.mount_yaw = 0.03;
-  drive.Drive(80.0);
+  const VehicleDrive drive(1.4, 0.03, 80.0);
   std::vector<size_t> keys;
   const Map map = MapOfDrive(drive, 80, 1.5, {}, &keys);  // 4 m apart
   std::vector<ArcTravel> arcs;
@@ -264,10 +263,7 @@ TEST(FitTravelModelTest, RecoversTheMountAndTheCameraAheadThroughWrongChords) {
 
 // Over a whole map, in metres: the rig teach reports (a camera 1.4 m ahead of the rear axle, yawed 0.03 rad).
 TEST(TaughtPathTest, MapTravelModelGivesTheRigInMetres) {
-  VehicleDrive drive;
-  drive.camera_ahead = 1.4;
-  drive.mount_yaw = 0.03;
-  drive.Drive(80.0);
+  const VehicleDrive drive(1.4, 0.03, 80.0);
   std::vector<size_t> keys;
   const Map map = MapOfDrive(drive, 60, 1.5, {{2, 0.05}}, &keys);  // 3 m apart, one chord 3° off
   const PerspectiveCamera camera(320, 240, 250.0, 250.0, 159.5, 119.5);
@@ -290,10 +286,7 @@ TEST(TaughtPathTest, MapTravelModelGivesTheRigInMetres) {
 // 3° off (their rotations right; the chords' tangents are then that far off), in the turn the curve through the
 // key-images (a circle there) gives it.
 TEST(TaughtPathTest, HeadingErrorFollowsTheVehicleWhereChordsAreWrong) {
-  VehicleDrive drive;
-  drive.camera_ahead = 1.8;
-  drive.mount_yaw = -0.02;
-  drive.Drive(80.0);
+  const VehicleDrive drive(1.8, -0.02, 80.0);
   std::vector<size_t> keys;
   const double three_degrees = 3.0 * M_PI / 180;
   const Map map = MapOfDrive(drive, 80, 1.5, {{3, three_degrees}, {4, -three_degrees}}, &keys);
