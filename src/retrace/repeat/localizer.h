@@ -172,7 +172,7 @@ struct LocalizerOptions {
   // others), the current geometries and the camera's place in metres (the offset the path law steers by) are
   // estimated without them, and a start (no arc yet) does not use them (a start 2.5 m beside the path was placed two
   // arcs ahead with them). Off by default: over the validation matrix more frames correct (2.5 m beside 89.79 ->
-  // 90.90 % when the steering's pose still took them, none two arcs off), but the closed loop follows the path
+  // 90.98 %, none two arcs off; 90.90 % when the steering's pose still took them), but the closed loop follows the path
   // worse (mixed135's RMS 0.076 -> 0.112 m, over the 0.10 m target; README, "Robust relocalization").
   bool relocalization_robust_alignment = false;
   // σ_p gate (px at reference_width): predictions, consistency checks and transitions use a current geometry only
