@@ -3,8 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <optional>
 #include <string>
 
+#include "retrace/geometry/triangulation.h"
 #include "retrace/util/robust_random_walk.h"
 
 namespace retrace {
@@ -140,6 +143,61 @@ double AlongSigma(const Matrix3d& centre_covariance, const Rigid3d& arc_b_from_a
   return variance >= 0 ? std::sqrt(variance) : std::numeric_limits<double>::infinity();
 }
 
+AbsolutePose ResectFromKeyImages(const std::vector<KeyImageMatches>& views, double max_angle_rad,
+                                 double focal_length_px, const AbsolutePoseOptions& options, int* num_points) {
+  // The frame's key-points matched in two or more key-images: (view, match) per key-point.
+  std::map<int, std::vector<std::pair<size_t, size_t>>> seen_in;
+  for (size_t v = 0; v < views.size(); ++v) {
+    for (size_t m = 0; m < views[v].current_keypoints.size(); ++m) {
+      seen_in[views[v].current_keypoints[m]].push_back({v, m});
+    }
+  }
+  std::vector<Vector3d> points, bearings;
+  std::vector<Matrix3d> covariances;
+  for (const auto& [keypoint, matches] : seen_in) {
+    double widest = 0.0;  // sine of the angle between the two rays
+    std::optional<std::pair<Vector3d, Matrix3d>> best;
+    for (size_t i = 0; i < matches.size(); ++i) {
+      for (size_t j = i + 1; j < matches.size(); ++j) {
+        const KeyImageMatches& first = views[matches[i].first];
+        const KeyImageMatches& second = views[matches[j].first];
+        const Rigid3d second_from_first = second.key_from_arc * first.key_from_arc.Inverse();
+        TriangulatedPoint triangulated;
+        if (!TriangulateMidpoint(second_from_first, first.key_bearings[matches[i].second],
+                                 second.key_bearings[matches[j].second], &triangulated) ||
+            !(triangulated.depth_a > 0) || !(triangulated.depth_b > 0)) {
+          continue;
+        }
+        const Vector3d centre_second = CameraCentre(second_from_first);
+        const double angle =
+            triangulated.point_in_a.normalized().cross((triangulated.point_in_a - centre_second).normalized()).norm();
+        if (!(angle > widest)) continue;
+        const Rigid3d arc_from_first = first.key_from_arc.Inverse();
+        const Vector3d in_arc = arc_from_first * triangulated.point_in_a;
+        bool consistent = true;
+        for (const auto& [v, m] : matches) {
+          const Vector3d in_key = views[v].key_from_arc * in_arc;
+          const Vector3d& ray = views[v].key_bearings[m];
+          consistent &= in_key.dot(ray) > 0 && in_key.normalized().cross(ray).norm() < max_angle_rad;
+        }
+        if (!consistent) continue;
+        widest = angle;
+        const Matrix3d& rotation = arc_from_first.rotation;
+        best = std::make_pair(
+            in_arc,
+            Matrix3d(rotation * TwoViewPointCovariance(triangulated.point_in_a, centre_second) * rotation.transpose()));
+      }
+    }
+    if (!best) continue;
+    const auto& [v, m] = matches.front();
+    points.push_back(best->first);
+    bearings.push_back(views[v].current_bearings[m]);
+    covariances.push_back(best->second);
+  }
+  if (num_points != nullptr) *num_points = static_cast<int>(points.size());
+  return EstimateAbsolutePose(points, bearings, focal_length_px, options, &covariances);
+}
+
 bool PlacementModel::Check(std::string* error) const {
   const auto fail = [&](const std::string& message) {
     if (error != nullptr) *error = message;
@@ -165,7 +223,11 @@ bool PlacementModel::Check(std::string* error) const {
     return fail("lane_outlier_probability must be in (0, 1) and lane_outlier_span positive");
   }
   if (lane_max_poses < 2 || lane_max_arcs < 1) return fail("lane_max_poses must be >= 2 and lane_max_arcs >= 1");
-  for (const double p : {pose_outlier_probability, geometry_outlier_probability, key_image_outlier_probability}) {
+  if (!(verified_pose_sigma_factor >= 1) || !(verified_pose_sigma_floor > 0)) {
+    return fail("verified_pose_sigma_factor must be >= 1 and verified_pose_sigma_floor positive");
+  }
+  for (const double p : {pose_outlier_probability, geometry_outlier_probability, key_image_outlier_probability,
+                         verified_pose_outlier_probability}) {
     if (!(p > 0) || !(p < 1)) return fail("placement outlier probabilities must be in (0, 1)");
   }
   return true;
@@ -325,6 +387,16 @@ PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const A
   }
   // Kept below 1: a measurement that is certainly an outlier carries no information but must not zero the belief.
   return {arc, position.along, sigma, std::min(outlier_probability, 0.999)};
+}
+
+PlaceMeasurement VerifiedPoseMeasurement(arc_t arc, const ArcPosition& position, const AbsolutePose& pose,
+                                         const Rigid3d& arc_b_from_a, const PlacementModel& model,
+                                         const ArcBounds& bounds) {
+  PlaceMeasurement placed =
+      PoseMeasurement(arc, position, pose, arc_b_from_a, model, bounds, PoseSpread(), HeightOffArc(pose, arc_b_from_a));
+  placed.sigma = std::hypot(model.verified_pose_sigma_factor * placed.sigma, model.verified_pose_sigma_floor);
+  placed.outlier_probability = std::max(placed.outlier_probability, model.verified_pose_outlier_probability);
+  return placed;
 }
 
 PlaceMeasurement GeometryMeasurement(arc_t arc, const ArcPosition& position, ArcImage key,

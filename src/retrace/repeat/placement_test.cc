@@ -616,5 +616,88 @@ TEST(LanePrediction, CarriesEachPoseAlongItsHeading) {
   EXPECT_GT(LanePrediction(lane, 1.0, model).deviation, 1.03);  // about the nearest pose's own 1.037
 }
 
+// Four key-images of a straight route 1 apart (z before a, a at the origin, b, c), a camera 0.6 arc lengths beside
+// a, half way to b, turned 4 degrees; points on two facades along the road. Each key-image matched the frame's
+// key-points (one per point) with 0.3 px of noise at a focal length of 200 px; in the key-image a wrong match for
+// every tenth point.
+struct KeyImagesBesideTheCamera {
+  std::vector<KeyImageMatches> views;
+  Vector3d centre = Vector3d(0.6, 0.0, 0.5);
+  Rigid3d current = CamFromWorld(centre, Yaw(4));
+
+  explicit KeyImagesBesideTheCamera(int num_views = 4) {
+    std::mt19937 random(7);
+    std::uniform_real_distribution<double> along(0.5, 8.0), height(-0.6, 0.3), unit(0.0, 1.0);
+    std::normal_distribution<double> noise(0.0, 0.3 / 200.0);
+    std::vector<Vector3d> points;
+    for (int i = 0; i < 120; ++i) points.emplace_back(i % 2 == 0 ? -1.5 : 1.8, height(random), along(random));
+    const auto observe = [&](const Rigid3d& cam_from_world, const Vector3d& point, Vector3d* bearing) {
+      const Vector3d in_cam = cam_from_world * point;
+      if (!(in_cam.z() > 0.2) || std::abs(in_cam.x() / in_cam.z()) > 0.8) return false;
+      *bearing = (in_cam.normalized() + Vector3d(noise(random), noise(random), 0.0)).normalized();
+      return true;
+    };
+    for (int k = 0; k < num_views; ++k) {
+      KeyImageMatches view;
+      view.key_from_arc = CamFromWorld(Vector3d(0.0, 0.0, k - 1.0));
+      for (size_t i = 0; i < points.size(); ++i) {
+        Vector3d key_bearing, current_bearing;
+        if (!observe(view.key_from_arc, points[i], &key_bearing) || !observe(current, points[i], &current_bearing)) {
+          continue;
+        }
+        if (i % 10 == static_cast<size_t>(k)) {  // a wrong match: another point's bearing
+          observe(view.key_from_arc, points[(i + 37) % points.size()], &key_bearing);
+        }
+        view.current_keypoints.push_back(static_cast<int>(i));
+        view.key_bearings.push_back(key_bearing);
+        view.current_bearings.push_back(current_bearing);
+      }
+      views.push_back(std::move(view));
+    }
+  }
+};
+
+TEST(ResectFromKeyImages, PlacesACameraBesideTheKeyImagesFromTheirMatches) {
+  const KeyImagesBesideTheCamera scene;
+  int points = 0;
+  const AbsolutePose pose = ResectFromKeyImages(scene.views, 2.0 / 200.0, 200.0, AbsolutePoseOptions(), &points);
+  ASSERT_TRUE(pose.success);
+  EXPECT_GT(points, 40);
+  EXPECT_LT((CameraCentre(pose.cam_from_world) - scene.centre).norm(), 0.05);
+  EXPECT_LT(RotationErrorDeg(pose.cam_from_world.rotation, scene.current.rotation), 0.5);
+  // On the arc a -> b half way along, as the camera is.
+  const ArcPosition position = LocateOnArc(pose.cam_from_world, scene.views[2].key_from_arc);
+  ASSERT_TRUE(position.valid);
+  EXPECT_NEAR(position.along, 0.5, 0.05);
+}
+
+TEST(ResectFromKeyImages, NeedsAKeyPointMatchedInTwoKeyImages) {
+  // One key-image: no point can be triangulated (its relative pose alone does not say how far the camera is).
+  const KeyImagesBesideTheCamera scene(1);
+  int points = -1;
+  EXPECT_FALSE(ResectFromKeyImages(scene.views, 2.0 / 200.0, 200.0, AbsolutePoseOptions(), &points).success);
+  EXPECT_EQ(points, 0);
+}
+
+TEST(PlacementModel, AResectedPoseIsLooserThanItsCovariance) {
+  // VerifiedPoseMeasurement: the pose's σ times verified_pose_sigma_factor, with the floor in quadrature, and at least
+  // verified_pose_outlier_probability.
+  const KeyImagesBesideTheCamera scene;
+  const AbsolutePose pose = ResectFromKeyImages(scene.views, 2.0 / 200.0, 200.0, AbsolutePoseOptions());
+  ASSERT_TRUE(pose.success);
+  const Rigid3d& b_from_a = scene.views[2].key_from_arc;
+  const ArcPosition position = LocateOnArc(pose.cam_from_world, b_from_a);
+  PlacementModel model;
+  const PlaceMeasurement tracked =
+      PoseMeasurement(3, position, pose, b_from_a, model, ArcBounds(), PoseSpread(), HeightOffArc(pose, b_from_a));
+  const PlaceMeasurement resected = VerifiedPoseMeasurement(3, position, pose, b_from_a, model);
+  EXPECT_EQ(resected.arc, 3);
+  EXPECT_DOUBLE_EQ(resected.along, tracked.along);
+  EXPECT_NEAR(resected.sigma, std::hypot(3.0 * tracked.sigma, 0.1), 1e-12);
+  EXPECT_DOUBLE_EQ(resected.outlier_probability, 0.2);
+  model.verified_pose_sigma_factor = 0.5;
+  EXPECT_FALSE(model.Check());
+}
+
 }  // namespace
 }  // namespace retrace
