@@ -281,6 +281,21 @@ double PlaceBelief::Confidence(arc_t arc) const {
   return k < 0 ? 0.0 : ConfidenceAt(k);
 }
 
+double PlaceBelief::MeasurementSupport(arc_t arc, const PlaceMeasurement& measurement) const {
+  const int k = Index(arc);
+  if (k < 0 || !(measurement.sigma > 0)) return 0.0;
+  const std::optional<double> at =
+      Distance(GraphPlace{arc, 0.0}, GraphPlace{measurement.arc, measurement.along}, options_.reach);
+  if (!at) return 0.0;
+  // The span Confidence counts, in common units from the arc's start.
+  double before = 0.0, after = 0.0;
+  for (const int p : arcs_[k].predecessors) before = std::max(before, options_.node_tolerance * arcs_[p].length);
+  for (const int s : arcs_[k].successors) after = std::max(after, options_.node_tolerance * arcs_[s].length);
+  const double sigma = measurement.sigma * ArcLength(measurement.arc);
+  const auto normal_cdf = [](double z) { return 0.5 * std::erfc(-z / std::sqrt(2.0)); };
+  return normal_cdf((arcs_[k].length + after - *at) / sigma) - normal_cdf((-before - *at) / sigma);
+}
+
 std::optional<double> PlaceBelief::SpeedOn(arc_t arc) const {
   if (!speed_) return std::nullopt;
   return *speed_ / ArcLength(arc);

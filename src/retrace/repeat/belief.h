@@ -169,6 +169,10 @@ class PlaceBelief {
   // PlaceEstimate::confidence gives for the most likely arc); in a gap between two pieces of the map, next to it
   // (the topological truth tolerates both arcs around the gap).
   double Confidence(arc_t arc) const;
+  // Probability that `measurement` alone (its Gaussian; the outlier probability aside) puts the camera where
+  // Confidence(arc) counts: on `arc` or within node_tolerance of its ends on its neighbours (the widest neighbour at a
+  // junction). 0 when the measurement's arc is not within `reach` of `arc`.
+  double MeasurementSupport(arc_t arc, const PlaceMeasurement& measurement) const;
   // Probability that the camera has left the map (more than an arc past a route's end or before its start).
   double OffMap() const { return off_map_; }
   // Length of `arc` in the belief's common unit.

@@ -1,5 +1,6 @@
 #include "retrace/repeat/belief.h"
 
+#include <cmath>
 #include <utility>
 
 #include <gtest/gtest.h>
@@ -337,6 +338,30 @@ TEST(PlaceBelief, OptionsAreChecked) {
   EXPECT_FALSE(options.Check());
   options.jump_probability = 0.0;
   EXPECT_THROW(PlaceBelief(LinearMap(2), options), std::invalid_argument);
+}
+
+TEST(PlaceBelief, AMeasurementsOwnSupportCountsTheArcAndTheToleranceAtItsNodes) {
+  // Arcs of lengths 1, 2, 2 (scale 2 at node 1): arc 1 spans [0, 2] in common units from its start, and Confidence
+  // also counts the last 0.15 of arc 0 (0.15 units) and the first 0.15 of arc 2 (0.3 units).
+  const PlaceBelief belief(LinearMap(3, {2.0, 1.0}));
+  const auto normal_cdf = [](double z) { return 0.5 * std::erfc(-z / std::sqrt(2.0)); };
+  // In the middle of arc 1 with σ 0.25 of arc 1 (0.5 units): the span is [-0.15, 2.3], 1 unit from the centre on
+  // the left and 1.3 on the right.
+  const PlaceMeasurement middle{1, 0.5, 0.25, 0.2};
+  EXPECT_NEAR(belief.MeasurementSupport(1, middle), normal_cdf(1.3 / 0.5) - normal_cdf(-1.15 / 0.5), 1e-12);
+  // The same place measured on the neighbouring arcs' lines: the same support.
+  EXPECT_NEAR(belief.MeasurementSupport(1, PlaceMeasurement{0, 2.0, 0.5, 0.2}), belief.MeasurementSupport(1, middle),
+              1e-12);
+  EXPECT_NEAR(belief.MeasurementSupport(1, PlaceMeasurement{2, -0.5, 0.25, 0.2}), belief.MeasurementSupport(1, middle),
+              1e-12);
+  // Near a node a coarse placement supports neither arc as surely as a confident belief needs.
+  const PlaceMeasurement near_node{1, 0.95, 0.25, 0.2};
+  EXPECT_LT(belief.MeasurementSupport(1, near_node), 0.95);
+  EXPECT_LT(belief.MeasurementSupport(2, near_node), 0.95);
+  EXPECT_GT(belief.MeasurementSupport(1, PlaceMeasurement{1, 0.5, 0.05, 0.2}), 0.999);
+  // Out of reach: no support.
+  const PlaceBelief far(LinearMap(10));
+  EXPECT_EQ(far.MeasurementSupport(9, PlaceMeasurement{0, 0.5, 0.1, 0.2}), 0.0);
 }
 
 }  // namespace
