@@ -550,6 +550,11 @@ void RegisterRepeatCommand(CLI::App& app) {
       "frame, as they were placed (fewer tracks lost after a relocalization; alone, more frames tracked 2-3 m "
       "beside the taught path and a few more one arc behind: README, \"Features placed from a key-image\"; "
       "on by default, with --affine-refine)");
+  cmd->add_flag("--verified-placement,!--no-verified-placement", args->options.place_by_verified_key_images,
+                "When a relocalization verifies key-images but too few mapped features align through them (2.5 m "
+                "beside the taught path, another sun), place the camera by resecting it from the key-images' matches "
+                "and let the belief decide; on by default (README, \"Placed by the key-images a relocalization "
+                "verified\")");
   cmd->add_flag(
       "--pose-point-uncertainty", args->options.pose_point_uncertainty,
       "Weigh each mapped point of the absolute pose by how well its arc's two key-images triangulated it "

@@ -207,6 +207,7 @@ struct DriveArguments {
   // The localizer's options (LocalizerOptions): its defaults unless given.
   bool placed_start_fine = LocalizerOptions().tracker.placed_features_start_fine;
   bool affine_refine = LocalizerOptions().affine_refinement;
+  bool verified_placement = LocalizerOptions().place_by_verified_key_images;
   bool relocalization_affine = false;  // LocalizerOptions::relocalization_affine_fallback
   bool robust_relocalization = LocalizerOptions().relocalization_robust_alignment;
   int travel_window = TaughtPathOptions().travel_window;
@@ -232,6 +233,7 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   base.path.camera_height = args.camera_height > 0 ? args.camera_height : scenario.vehicle.camera_height;
   base.tracker.placed_features_start_fine = args.placed_start_fine;
   base.affine_refinement = args.affine_refine;
+  base.place_by_verified_key_images = args.verified_placement;
   base.relocalization_affine_fallback = args.relocalization_affine;
   base.relocalization_robust_alignment = args.robust_relocalization;
   base.path.travel_window = args.travel_window;
@@ -700,6 +702,9 @@ void RegisterSimCommand(CLI::App& app) {
   drive->add_flag(
       "--affine-refine,!--no-affine-refine", args->affine_refine,
       "Localizer: refine every tracked feature with an affine warp (`repeat --affine-refine`; on by default)");
+  drive->add_flag("--verified-placement,!--no-verified-placement", args->verified_placement,
+                  "Localizer: place the camera by the key-images a relocalization verified when too few mapped "
+                  "features align through them (`repeat --verified-placement`; on by default)");
   drive->add_flag("--relocalization-affine", args->relocalization_affine,
                   "Localizer: align the mapped features a relocalization locates with the affine fallback (`repeat "
                   "--relocalization-affine`)");

@@ -385,7 +385,26 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
       Localize(&result);
     }
   }
-  if (!belief_updated_) belief_.Update({}, frame_counter_);
+  std::optional<PlaceMeasurement> evidence_alone;  // this frame's only evidence, when it is a resected placement
+  if (!belief_updated_) {
+    // A bootstrap that failed may still have placed the camera by the key-images it verified
+    // (PlaceByVerifiedKeyImages). The placements of consecutive frames rest on the same key-images' matches seen from
+    // nearly the same place, and share their error (the validation drive beside111's, frames 128-137, lay 1-3 teach
+    // frames ahead of the truth in a row): k of them in a row carry about the information of one, so the k-th is
+    // given σ √k — otherwise the belief grew confident on the arc ahead of the camera.
+    std::vector<PlaceMeasurement> measurements;
+    if (verified_placement_) {
+      ++verified_placements_in_a_row_;
+      measurements.push_back(*verified_placement_);
+      measurements.back().sigma *= std::sqrt(static_cast<double>(verified_placements_in_a_row_));
+      evidence_alone = verified_placement_;
+    } else {
+      verified_placements_in_a_row_ = 0;
+    }
+    belief_.Update(measurements, frame_counter_);
+  }
+  if (state_ == LocalizerState::kTracking) verified_placements_in_a_row_ = 0;
+  verified_placement_.reset();
 
   // The reported state follows the belief: `tracking` on the current arc only when the belief is confident that
   // the camera is there and this frame gave it evidence.
@@ -409,9 +428,16 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
     } else {
       result.state = LocalizerState::kLost;
     }
-  } else if (estimate.tracking && Arc(estimate.arc) != nullptr) {
+  } else if (estimate.tracking && Arc(estimate.arc) != nullptr &&
+             (!evidence_alone ||
+              belief_.MeasurementSupport(estimate.arc, *evidence_alone) >= options_.belief.min_confidence)) {
     // The tracks were given up in this frame after their placement was accepted: the frame has its own evidence
-    // and the belief is confident, so it is reported on the belief's arc (the next frame relocalizes).
+    // and the belief is confident, so it is reported on the belief's arc (the next frame relocalizes). Or the camera
+    // was resected from the key-images a relocalization verified: its placement is coarse (a fraction of an arc,
+    // PlacementModel::verified_pose_sigma_factor) and the belief carried on it by the motion model over several such
+    // frames grew confident near nodes on the arc ahead (validation drives beside104, beside111: the camera 0.2-0.3
+    // arc lengths before it), so the frame's own placement must put the camera on the arc as surely as the belief
+    // (PlaceBelief::MeasurementSupport).
     ReportTracking(estimate.arc, estimate.along, estimate.sigma, estimate.confidence, &result);
   } else {
     result.state = state_;

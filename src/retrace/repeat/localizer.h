@@ -94,7 +94,10 @@
 // arcs verified and more located features the more key-images it searched (min_global_agreeing_key_images,
 // GlobalBootstrapFeatures) — or, with one key-image verified, more still (SingleKeyImageBootstrapFeatures) — and,
 // when a place elsewhere verified too, the place whose key-image locates clearly more mapped features
-// (retrieval_ambiguity_ratio).
+// (retrieval_ambiguity_ratio). A bootstrap near where the robot was lost or started that locates too few features
+// still gives the belief the camera resected from the verified key-images' matches (`place_by_verified_key_images`,
+// ResectFromKeyImages), a coarser placement: a frame with no other evidence is reported `tracking` on it only when it
+// alone supports the belief's arc as surely as the belief must be (PlaceBelief::MeasurementSupport).
 
 #include <array>
 #include <limits>
@@ -388,6 +391,13 @@ struct LocalizerOptions {
   // Place the camera on the arc by its absolute pose in the arc's reconstruction when that pose is available;
   // false: by the current geometries alone, as the paper (measured on the simulated town in the README).
   bool place_by_absolute_pose = true;
+  // A bootstrap near where the robot was lost or started (not over the whole map) whose key-images verify but through
+  // which too few mapped features align gives the belief the camera resected from those key-images
+  // (PlaceByVerifiedKeyImages; ResectFromKeyImages in placement.h): a frame the belief is then confident about is
+  // reported `tracking` with no features tracked, and the next frame relocalizes again. Measured over the validation
+  // matrix (README, "Placed by the key-images a relocalization verified"). false: such a frame gives the belief
+  // nothing, as before.
+  bool place_by_verified_key_images = true;
   // The absolute pose weighs each mapped point by how well the arc's two key-images fixed it
   // (TwoViewPointCovariance, EstimateAbsolutePose: whitened residuals, Mahalanobis inliers): a point near the
   // key-images' epipole, whose depth they hardly fix, then moves the camera's position little, and the pose's
@@ -611,6 +621,7 @@ class Localizer {
     // holds): what decides that retrieval may stop at a confident candidate.
     int support = 0;
     std::vector<Vector2d> key_points, current_points;  // inlier matches
+    std::vector<int> current_keypoints;                // the frame's key-point of each
     std::vector<double> size_ratios;                   // key-point size in the frame / in the key-image
   };
   // Verifies `candidates` by wide-baseline matching, the most similar in appearance to `image` first, at most
@@ -653,6 +664,10 @@ class Localizer {
   // The arcs that start or end at key-image `node`, by id.
   std::vector<const ArcData*> ArcsAt(node_t node) const;
   bool Bootstrap(const Frame& frame, FrameResult* result);
+  // The camera resected on `arc` from the key-images of `arc` and of its two neighbours among `verified`
+  // (ResectFromKeyImages, VerifiedPoseMeasurement); none when they do not give a pose.
+  std::optional<PlaceMeasurement> PlaceByVerifiedKeyImages(const ArcData& arc,
+                                                           const std::vector<MatchedKeyImage>& verified) const;
   void Localize(FrameResult* result);
   CurrentGeometry EstimateCurrentGeometry(node_t node);
   // The first hypothesis for the current geometry towards `node`: the previous frame's, else one derived from the
@@ -738,6 +753,10 @@ class Localizer {
     int candidates = 1;  // key-images the retrieval chose among
   };
   std::optional<BootstrapKeyImage> bootstrap_key_image_;
+  // A failed bootstrap's placement by the key-images it verified (PlaceByVerifiedKeyImages), and how many frames in a
+  // row have had one without being tracked.
+  std::optional<PlaceMeasurement> verified_placement_;
+  int verified_placements_in_a_row_ = 0;
   bool belief_updated_ = false;  // the belief has had this frame's measurements
   node_t last_passed_ = kInvalidNodeId;  // the key-image passed by the last transition
   // Key-image each tracked feature takes its reference from.

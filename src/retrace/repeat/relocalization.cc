@@ -150,6 +150,7 @@ std::vector<Localizer::MatchedKeyImage> Localizer::MatchKeyImages(const WideBase
       candidate.key_points.emplace_back(kk.pt.x, kk.pt.y);
       candidate.current_points.emplace_back(kc.pt.x, kc.pt.y);
       candidate.size_ratios.push_back(kk.size > 0 && kc.size > 0 ? kc.size / kk.size : 1.0);
+      candidate.current_keypoints.push_back(used[i]->trainIdx);
     }
     verified.push_back(std::move(candidate));
   }
@@ -348,6 +349,7 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   const bool use_start_arc = start_arc_ != kInvalidArcId;
   const arc_t last_arc = last_arc_;
   ClearTracks();
+  verified_placement_.reset();
   arc_ = kInvalidArcId;
   // The place is decided on the features the paper's warp located: those the robust fallback added are tracked, but
   // a place is not taken on them (LocalizerOptions::relocalization_robust_alignment).
@@ -542,6 +544,16 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
     locate();
   }
   if (located_by_paper() < needed_features) {
+    // Not localized by the arc's reconstruction, but the verified key-images may place the camera — near where it was
+    // lost or started, not over the whole map, where look-alike places verify too and only the mapped features they
+    // locate tell them apart (GlobalBootstrapFeatures).
+    if (options_.place_by_verified_key_images && !global) {
+      verified_placement_ = PlaceByVerifiedKeyImages(*arc, verified);
+      if (verified_placement_) {
+        spdlog::debug("repeat: frame {} placed on arc {} at {:.3f} (sigma {:.3f}) by its verified key-images",
+                      frame.index, chosen, verified_placement_->along, verified_placement_->sigma);
+      }
+    }
     spdlog::debug(
         "repeat: bootstrap at frame {} failed: {} of {} features located around arc {} ({} needed; {} more by the "
         "robust fallback; key-image {}, {} inliers, {} key-images of the place verified)",
@@ -557,6 +569,60 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   spdlog::debug("repeat: frame {} localized on arc {} by matching key-image {} ({} inliers), {} of {} features",
                 frame.index, arc_, best_node, best_inliers, tracker_.NumFeatures(), seen.size());
   return true;
+}
+
+std::optional<PlaceMeasurement> Localizer::PlaceByVerifiedKeyImages(
+    const ArcData& arc, const std::vector<MatchedKeyImage>& verified) const {
+  // Each key-image's pose in the arc's frame and unit (a at the origin): the arc's own two, and the outer key-images
+  // of its neighbours through their geometries, their lengths carried into the arc's unit by the belief's arc lengths
+  // (the stored relative scales, belief.h).
+  const Rigid3d& b_from_a = arc.arc->to_from_from;
+  const double length = belief_.ArcLength(arc.arc->id);
+  if (!(length > 0)) return std::nullopt;
+  const auto in_arc_unit = [&](const ArcData& other) {
+    Rigid3d geometry = other.arc->to_from_from;
+    geometry.translation *= belief_.ArcLength(other.arc->id) / length;
+    return geometry;
+  };
+  std::vector<std::pair<node_t, Rigid3d>> key_from_arc = {{arc.arc->from, Rigid3d()}, {arc.arc->to, b_from_a}};
+  if (const ArcData* previous = Arc(arc.previous); previous != nullptr) {
+    key_from_arc.emplace_back(previous->arc->from, in_arc_unit(*previous).Inverse());  // z_from_a
+  }
+  if (const ArcData* next = Arc(arc.next); next != nullptr) {
+    key_from_arc.emplace_back(next->arc->to, in_arc_unit(*next) * b_from_a);  // c_from_a
+  }
+  std::vector<KeyImageMatches> views;
+  for (const auto& [node, pose] : key_from_arc) {
+    const MatchedKeyImage* best = nullptr;  // the key-image's verification with the most inliers
+    for (const MatchedKeyImage& candidate : verified) {
+      if (candidate.node == node && candidate.geometry.success &&
+          (best == nullptr || candidate.geometry.num_inliers > best->geometry.num_inliers)) {
+        best = &candidate;
+      }
+    }
+    if (best == nullptr) continue;
+    KeyImageMatches view;
+    view.key_from_arc = pose;
+    for (size_t i = 0; i < best->key_points.size(); ++i) {
+      Vector3d key_bearing, current_bearing;
+      if (!camera_->Unproject(best->key_points[i], &key_bearing) ||
+          !camera_->Unproject(best->current_points[i], &current_bearing)) {
+        continue;
+      }
+      view.current_keypoints.push_back(best->current_keypoints[i]);
+      view.key_bearings.push_back(key_bearing);
+      view.current_bearings.push_back(current_bearing);
+    }
+    views.push_back(std::move(view));
+  }
+  if (views.size() < 2) return std::nullopt;
+  // A point within twice the verification's inlier threshold of each key-image's ray (both ends of a match err).
+  const double max_angle = 2.0 * relocalization_geometry_.ransac.max_error_px / camera_->FocalLength();
+  const AbsolutePose pose = ResectFromKeyImages(views, max_angle, camera_->FocalLength(), pose_options_);
+  if (!pose.success) return std::nullopt;
+  const ArcPosition position = LocateOnArc(pose.cam_from_world, b_from_a, arc.bounds);
+  if (!position.valid) return std::nullopt;
+  return VerifiedPoseMeasurement(arc.arc->id, position, pose, b_from_a, options_.placement, arc.bounds);
 }
 
 }  // namespace retrace

@@ -310,19 +310,39 @@ TEST(RepeatSim, TwoAndAHalfMetresBesideNoFrameOnAWrongArc) {
   EXPECT_GT(run.evaluation.correct, evaluation.correct + 10);
   const int refined_correct = run.evaluation.correct;
 
-  // The three together, the default: at least as many frames correct as the refinement alone (91.5 % against 89.0 %
-  // when written).
-  Repeat(LocalizerOptions(), &run);
-  std::cout << "  with the defaults (the three): " << run.evaluation.Summary() << "\n";
+  // The three together: at least as many frames correct as the refinement alone (91.5 % against 89.0 % when
+  // written).
+  LocalizerOptions three;
+  three.place_by_verified_key_images = false;
+  Repeat(three, &run);
+  std::cout << "  with the three: " << run.evaluation.Summary() << "\n";
   EXPECT_EQ(run.evaluation.wrong_by_two, 0);
   EXPECT_GT(run.evaluation.correct, evaluation.correct + 10);
   EXPECT_GE(run.evaluation.correct, refined_correct);
   const int three_correct = run.evaluation.correct;
 
+  // The default also places the camera by the key-images a relocalization verified when too few mapped features align
+  // through them (LocalizerOptions::place_by_verified_key_images): more frames correct (89.5 -> 90.5 % when written:
+  // the belief kept on the place while relocalizing), none on a wrong arc, and any frame reported tracking with no
+  // feature tracked on the correct arc (without the check of its own placement's support, PlaceBelief::
+  // MeasurementSupport, frame 12 was so reported one arc ahead).
+  Repeat(LocalizerOptions(), &run);
+  std::cout << "  with the defaults (the three, and placed by the verified key-images): " << run.evaluation.Summary()
+            << "\n";
+  EXPECT_EQ(run.evaluation.wrong, 0);
+  EXPECT_GT(run.evaluation.correct, three_correct);
+  int placed_alone = 0;
+  for (size_t i = 0; i < run.results.size(); ++i) {
+    if (run.results[i].state != LocalizerState::kTracking || run.results[i].tracked > 0) continue;
+    ++placed_alone;
+    EXPECT_TRUE(run.evaluation.per_frame[i].correct) << "frame " << i;
+  }
+  std::cout << "  frames tracking with no feature tracked: " << placed_alone << "\n";
+
   // With robust relocalization (LocalizerOptions::relocalization_robust_alignment), which after a loss also locates
   // the mapped features whose windows straddle two surfaces the other sun lit differently and tracks them on: more
   // frames correct (89.5 -> 92.5 % when written), none two arcs off.
-  LocalizerOptions robust;
+  LocalizerOptions robust = three;
   robust.relocalization_robust_alignment = true;
   Repeat(robust, &run);
   std::cout << "  with robust relocalization: " << run.evaluation.Summary() << "\n";

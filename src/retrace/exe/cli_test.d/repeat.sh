@@ -44,6 +44,13 @@ if [[ -d $data/kitti07 ]]; then
       paste -d, <(cut -d, -f33,35 '$tmp/repeat_metric.csv') <(cut -d, -f33,35 '$tmp/repeat_chords.csv') | \
       awk -F, 'NR > 1 && \$1 != \"\" { rows++; if (\$2 != \$4) heading++; if (\$1 != \$3) lateral++ } \
       END { print heading + 0, lateral + 0, rows + 0 }'"
+  # --no-verified-placement: kitti07's odd frames never need a relocalization's resected placement (every frame is
+  # tracked), so the states and arcs are those of the default frame for frame. Prints: rows that differ, rows.
+  expect repeat-no-verified-placement 0 "^0 80$" -- \
+    bash -c "'$bin' repeat --map '$tmp/repeat_route.db' --sequence '$k' --every 2 --offset 1 --start-arc 0 \
+      --no-verified-placement --output '$tmp/repeat_unplaced.csv' --no-progress >/dev/null && \
+      paste -d, <(cut -d, -f4,5 '$tmp/repeat_run.csv') <(cut -d, -f4,5 '$tmp/repeat_unplaced.csv') | \
+      awk -F, 'NR > 1 { rows++; if (\$1 != \$3 || \$2 != \$4) differ++ } END { print differ + 0, rows + 0 }'"
   expect repeat-bad-start-arc 1 "^retrace: error: start arc: the map has no arc 99$" -- \
     "$bin" repeat --map "$tmp/repeat_route.db" --sequence "$k" --start-arc 99 --output "$tmp/r.csv" --no-progress
 fi
