@@ -389,9 +389,9 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
   if (!belief_updated_) {
     // A bootstrap that failed may still have placed the camera by the key-images it verified
     // (PlaceByVerifiedKeyImages). The placements of consecutive frames rest on the same key-images' matches seen from
-    // nearly the same place, and share their error (the validation drive beside111's, frames 128-137, lay 1-3 teach
-    // frames ahead of the truth in a row): k of them in a row carry about the information of one, so the k-th is
-    // given σ √k — otherwise the belief grew confident on the arc ahead of the camera.
+    // nearly the same place, and share their error (the validation drive beside111's, frames 129-137, lay mostly 1-3
+    // teach frames ahead of the truth): k of them in a row carry about the information of one, so the k-th is given
+    // σ √k — otherwise the belief grew confident on the arc ahead of the camera.
     std::vector<PlaceMeasurement> measurements;
     if (verified_placement_) {
       ++verified_placements_in_a_row_;
