@@ -11,6 +11,7 @@
 #include <spdlog/spdlog.h>
 
 #include "retrace/util/robust_random_walk.h"
+#include "retrace/util/statistics.h"
 
 namespace retrace {
 namespace {
@@ -293,12 +294,6 @@ std::vector<Vector2d> KeyImageTangents(const std::vector<Vector2d>& centres, con
 TravelModel FitTravelModel(const std::vector<ArcTravel>& arcs, double min_turn) {
   TravelModel model;
   if (arcs.empty()) return model;
-  const auto median = [](std::vector<double> values) {
-    const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
-    std::nth_element(values.begin(), middle, values.end());
-    if (values.size() % 2 == 1) return *middle;
-    return 0.5 * (*middle + *std::max_element(values.begin(), middle));
-  };
   // β = atan(camera_ahead · κ) - mount_yaw; on a straight arc -mount_yaw.
   std::vector<double> straight;
   for (const ArcTravel& arc : arcs) {
@@ -309,7 +304,7 @@ TravelModel FitTravelModel(const std::vector<ArcTravel>& arcs, double min_turn) 
   if (straight.empty()) {
     for (const ArcTravel& arc : arcs) straight.push_back(-arc.chord_angle);
   }
-  model.mount_yaw = median(straight);
+  model.mount_yaw = Median(std::move(straight));
   for (int iteration = 0; iteration < 3 && model.turning_arcs > 0; ++iteration) {
     std::vector<double> ahead;
     for (const ArcTravel& arc : arcs) {
@@ -318,12 +313,12 @@ TravelModel FitTravelModel(const std::vector<ArcTravel>& arcs, double min_turn) 
       }
     }
     if (ahead.empty()) break;
-    model.camera_ahead = median(ahead);
+    model.camera_ahead = Median(std::move(ahead));
     std::vector<double> yaw;
     for (const ArcTravel& arc : arcs) {
       if (arc.length > 0) yaw.push_back(std::atan(model.camera_ahead * arc.turn / arc.length) - arc.chord_angle);
     }
-    model.mount_yaw = median(yaw);
+    model.mount_yaw = Median(std::move(yaw));
   }
   model.valid = true;
   return model;

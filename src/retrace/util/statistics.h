@@ -10,4 +10,7 @@ namespace retrace {
 // 0 for no values.
 double Quantile(std::vector<double> values, double q);
 
+// The median: the middle value, or the mean of the two middle values of an even count; 0 for no values.
+double Median(std::vector<double> values);
+
 }  // namespace retrace

@@ -15,5 +15,11 @@ TEST(StatisticsTest, QuantileIsTheElementOfRankFloorQN) {
   EXPECT_EQ(Quantile({7.5}, 0.95), 7.5);
 }
 
+TEST(StatisticsTest, MedianAveragesTheTwoMiddleValuesOfAnEvenCount) {
+  EXPECT_EQ(Median({}), 0.0);
+  EXPECT_EQ(Median({3.0, 1.0, 2.0}), 2.0);
+  EXPECT_EQ(Median({4.0, 1.0, 3.0, 2.0}), 2.5);
+}
+
 }  // namespace
 }  // namespace retrace
