@@ -574,22 +574,26 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
 std::optional<PlaceMeasurement> Localizer::PlaceByVerifiedKeyImages(
     const ArcData& arc, const std::vector<MatchedKeyImage>& verified) const {
   // Each key-image's pose in the arc's frame and unit (a at the origin): the arc's own two, and the outer key-images
-  // of its neighbours through their geometries, their lengths carried into the arc's unit by the belief's arc lengths
-  // (the stored relative scales, belief.h).
+  // of its neighbours through their geometries, carried into the arc's unit by the relative scale stored at the node
+  // they share (UnitRatio; a neighbour without one is left out).
   const Rigid3d& b_from_a = arc.arc->to_from_from;
-  const double length = belief_.ArcLength(arc.arc->id);
-  if (!(length > 0)) return std::nullopt;
-  const auto in_arc_unit = [&](const ArcData& other) {
+  const auto in_arc_unit = [&](const ArcData& other, int direction) -> std::optional<Rigid3d> {
+    const std::optional<double> ratio = UnitRatio(arc.arc->id, other.arc->id, direction);  // arc's unit -> other's
+    if (!ratio) return std::nullopt;
     Rigid3d geometry = other.arc->to_from_from;
-    geometry.translation *= belief_.ArcLength(other.arc->id) / length;
+    geometry.translation /= *ratio;
     return geometry;
   };
   std::vector<std::pair<node_t, Rigid3d>> key_from_arc = {{arc.arc->from, Rigid3d()}, {arc.arc->to, b_from_a}};
   if (const ArcData* previous = Arc(arc.previous); previous != nullptr) {
-    key_from_arc.emplace_back(previous->arc->from, in_arc_unit(*previous).Inverse());  // z_from_a
+    if (const std::optional<Rigid3d> a_from_z = in_arc_unit(*previous, -1)) {
+      key_from_arc.emplace_back(previous->arc->from, a_from_z->Inverse());
+    }
   }
   if (const ArcData* next = Arc(arc.next); next != nullptr) {
-    key_from_arc.emplace_back(next->arc->to, in_arc_unit(*next) * b_from_a);  // c_from_a
+    if (const std::optional<Rigid3d> c_from_b = in_arc_unit(*next, +1)) {
+      key_from_arc.emplace_back(next->arc->to, *c_from_b * b_from_a);
+    }
   }
   std::vector<KeyImageMatches> views;
   for (const auto& [node, pose] : key_from_arc) {
