@@ -7,18 +7,12 @@
 #include <string>
 #include <unordered_set>
 
+#include "retrace/util/statistics.h"
+
 namespace retrace {
 namespace {
 
 constexpr double kInvSqrt2Pi = 0.3989422804014327;
-
-double Median(std::vector<double> values) {
-  const size_t mid = values.size() / 2;
-  std::nth_element(values.begin(), values.begin() + mid, values.end());
-  if (values.size() % 2 == 1) return values[mid];
-  const double upper = values[mid];
-  return 0.5 * (upper + *std::max_element(values.begin(), values.begin() + mid));
-}
 
 // Frames the teach drive spent on an arc (its key-images' source frames), at least 1.
 double TeachFrames(const Map& map, const MapArc& arc) {
