@@ -189,6 +189,8 @@ void PlaceBelief::Reset() {
   if (!mass_.empty()) std::fill(mass_.begin(), mass_.end(), 1.0 / mass_.size());
   off_map_ = 0.0;
   last_place_.reset();
+  step_origin_.reset();
+  newest_step_frame_ = 0;
   steps_.clear();
   speed_.reset();
   estimate_ = PlaceEstimate();
@@ -513,15 +515,25 @@ std::vector<double> PlaceBelief::Update(const std::vector<PlaceMeasurement>& mea
   for (const double p : inlier_probabilities) estimate_.evidence |= p >= options_.min_inlier_probability;
   estimate_.tracking = estimate_.evidence && estimate_.confidence >= options_.min_confidence;
 
-  // The speed from the steps of the estimated position between frames with evidence.
+  // The speed from the steps of the estimated position between frames with evidence. A second update in the same
+  // frame (the localizer's, when the tracks were given up and the camera relocalized within the frame) replaces that
+  // frame's estimate, and so its step: the step is taken again from the frame before.
   if (estimate_.evidence && estimate_.arc != kInvalidArcId) {
     const GraphPlace place{estimate_.arc, estimate_.along};
+    if (last_place_ && frame == last_place_frame_) {
+      if (newest_step_frame_ == frame && !steps_.empty()) steps_.erase(steps_.begin());
+      last_place_ = step_origin_;
+      last_place_frame_ = step_origin_frame_;
+    }
     std::optional<double> step;
     if (last_place_ && frame > last_place_frame_ &&
         frame - last_place_frame_ <= static_cast<size_t>(options_.speed_memory_frames)) {
       const std::optional<double> distance = Distance(*last_place_, place, options_.reach);
       if (distance) step = *distance / static_cast<double>(frame - last_place_frame_);
     }
+    step_origin_ = last_place_;
+    step_origin_frame_ = last_place_frame_;
+    newest_step_frame_ = step ? frame : 0;
     if (step) {
       steps_.insert(steps_.begin(), *step);
       if (static_cast<int>(steps_.size()) > options_.speed_steps) steps_.pop_back();

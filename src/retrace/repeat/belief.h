@@ -225,9 +225,14 @@ class PlaceBelief {
   double off_map_ = 0.0;
   mutable double off_map_pending_ = 0.0;  // moved off the map in this prediction
 
-  // Speed: the last estimated place with evidence and the steps since (common units per frame, newest first).
+  // Speed: the last estimated place with evidence and the steps since (common units per frame, newest first), and
+  // the place the newest step started from with the frame that step was taken in (0: none), so that a second update
+  // of that frame replaces the step.
   std::optional<GraphPlace> last_place_;
   size_t last_place_frame_ = 0;
+  std::optional<GraphPlace> step_origin_;
+  size_t step_origin_frame_ = 0;
+  size_t newest_step_frame_ = 0;
   std::vector<double> steps_;
   std::optional<double> speed_;
   PlaceEstimate estimate_;

@@ -68,6 +68,22 @@ TEST(PlaceBelief, WithoutEvidenceItSpreadsAndIsNotTracking) {
   EXPECT_LT(belief.estimate().confidence, 0.8);
 }
 
+TEST(PlaceBelief, ASecondUpdateOfTheSameFrameReplacesItsStepAndKeepsTheSpeed) {
+  // The localizer updates the belief twice in a frame whose tracks were given up and relocalized at once: the second
+  // estimate replaces the first, and so does its step — the speed must not start again from nothing (it did: in the
+  // validation drive offset3, frames 85-94 knew no speed half the time).
+  PlaceBelief belief(LinearMap(10));
+  for (int t = 0; t < 4; ++t) Frame(&belief, t + 1, {Pose(4, 0.2 + 0.1 * t)});
+  ASSERT_TRUE(belief.SpeedOn(4).has_value());
+  belief.Update({Pose(4, 0.52)}, 4);  // frame 4 again, placed a little farther on
+  ASSERT_TRUE(belief.SpeedOn(4).has_value());
+  EXPECT_NEAR(*belief.SpeedOn(4), 0.1, 0.02);
+  // The next frame's step starts from frame 4's last estimate, not its first.
+  Frame(&belief, 5, {Pose(4, 0.62)});
+  ASSERT_TRUE(belief.SpeedOn(4).has_value());
+  EXPECT_NEAR(*belief.SpeedOn(4), 0.1, 0.02);
+}
+
 TEST(PlaceBelief, MotionCarriesTheMassAcrossSeveralArcsInOneFrame) {
   // Short arcs: the camera covers 2.5 arcs per frame (key-images one teach frame apart, a repeat faster than the
   // teach) — about as fast as a camera of unknown speed is expected to move, so the first placements may count as
