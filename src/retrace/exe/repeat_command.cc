@@ -559,6 +559,15 @@ void RegisterRepeatCommand(CLI::App& app) {
       "--pose-point-uncertainty", args->options.pose_point_uncertainty,
       "Weigh each mapped point of the absolute pose by how well its arc's two key-images triangulated it "
       "(README, validation matrix: slightly better lateral_m at 0-2 m beside, a few more frames one arc off)");
+  cmd->add_flag_callback(
+      "--pose-point-uncertainty-covariance",
+      [args]() {
+        args->options.pose_point_uncertainty = true;
+        args->options.pose.weigh_by_point_covariances = false;
+      },
+      "The points' uncertainty in the absolute pose's covariance only: the pose as with exact points, its sigma along "
+      "the arc widened where far points near the key-images' epipole are seen from beside the path (docs/repeat.md, "
+      "\"The points' uncertainty in the pose's covariance only\")");
   cmd->add_option("--max-sigma-p", args->options.max_sigma_p_px, "sigma_p gate of current geometries, px at 320 px")
       ->capture_default_str();
   cmd->add_option("--steering-gain", args->options.steering_gain, "k of eq. (10)")->capture_default_str();

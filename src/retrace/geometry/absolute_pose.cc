@@ -108,6 +108,27 @@ double NormalEquations(const Rigid3d& pose, const std::vector<Vector3d>& points,
   return cost;
 }
 
+// B = Σ Jᵢᵀ Cᵢ Jᵢ over the correspondences `indices`: J the plain residual's Jacobian in the 6 parameters (as in
+// NormalEquations), C = I + J_X Σ_X J_Xᵀ the residual's covariance per unit measurement variance (Linearise).
+Eigen::Matrix<double, 6, 6> ResidualCovarianceNormalMatrix(const Rigid3d& pose, const std::vector<Vector3d>& points,
+                                                           const std::vector<Vector3d>& bearings,
+                                                           const std::vector<int>& indices,
+                                                           const std::vector<Matrix3d>& point_covariances) {
+  Eigen::Matrix<double, 6, 6> b = Eigen::Matrix<double, 6, 6>::Zero();
+  for (const int i : indices) {
+    Correspondence c;
+    if (!Linearise(pose, points[i], bearings[i], nullptr, &c)) continue;
+    Eigen::Matrix<double, 2, 6> j;
+    j.leftCols<3>() = -c.d_r_d_p * CrossProductMatrix(c.p);
+    j.rightCols<3>() = c.d_r_d_p;
+    const Eigen::Matrix<double, 2, 3> d_r_d_x = c.d_r_d_p * pose.rotation;
+    const Eigen::Matrix2d covariance =
+        Eigen::Matrix2d::Identity() + d_r_d_x * point_covariances[i] * d_r_d_x.transpose();
+    b += j.transpose() * covariance * j;
+  }
+  return b;
+}
+
 // Levenberg-Marquardt on the tangent-plane residuals of `indices` (whitened by the points' covariances when given)
 // with the analytic Jacobian (least squares, as the two-view refinement: on a clean inlier set it is the
 // maximum-likelihood estimate).
@@ -245,13 +266,13 @@ AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world, 
   }
 
   // Local optimisation: refine on the inliers, re-select, refine again while the inlier set grows.
+  const std::vector<Matrix3d>* weighing = options.weigh_by_point_covariances ? point_covariances : nullptr;
   Rigid3d pose = best_pose;
-  std::vector<int> inliers = InlierIndices(pose, points_in_world, bearings, point_covariances, tau2);
+  std::vector<int> inliers = InlierIndices(pose, points_in_world, bearings, weighing, tau2);
   for (int round = 0; round < options.refinement_rounds && static_cast<int>(inliers.size()) >= min_needed;
        ++round) {
-    const Rigid3d refined =
-        Refine(points_in_world, bearings, inliers, point_covariances, pose, options.refinement_iterations);
-    std::vector<int> refined_inliers = InlierIndices(refined, points_in_world, bearings, point_covariances, tau2);
+    const Rigid3d refined = Refine(points_in_world, bearings, inliers, weighing, pose, options.refinement_iterations);
+    std::vector<int> refined_inliers = InlierIndices(refined, points_in_world, bearings, weighing, tau2);
     if (refined_inliers.size() < inliers.size()) break;
     pose = refined;
     const bool same = refined_inliers == inliers;
@@ -266,11 +287,11 @@ AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world, 
   double sum_squares = 0.0;  // pixels²; whitened by the points' covariances when given
   for (const int i : inliers) {
     result.inlier_mask[i] = true;
-    if (point_covariances == nullptr) {
+    if (weighing == nullptr) {
       sum_squares += TangentResidualPx(bearings[i], pose * points_in_world[i], focal_length_px).squaredNorm();
     } else {
       Correspondence c;
-      if (Linearise(pose, points_in_world[i], bearings[i], &(*point_covariances)[i], &c)) {
+      if (Linearise(pose, points_in_world[i], bearings[i], &(*weighing)[i], &c)) {
         sum_squares += (focal_length_px * (c.whitening * c.r)).squaredNorm();
       }
     }
@@ -290,9 +311,18 @@ AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world, 
     Eigen::Matrix<double, 6, 1> jtr;
     const double cost = NormalEquations(pose, points_in_world, bearings, inliers, point_covariances, &jtj, &jtr);
     const double variance = cost / (2.0 * result.num_inliers - 6.0);
+    const bool sandwich = point_covariances != nullptr && weighing == nullptr;
+    // The estimate's normal matrix A: the whitened one, or the plain one when the points were taken as exact.
+    if (sandwich) NormalEquations(pose, points_in_world, bearings, inliers, nullptr, &jtj, &jtr);
     const Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(jtj);
     if (lu.isInvertible()) {
-      const Eigen::Matrix<double, 6, 6> covariance = variance * lu.inverse();
+      Eigen::Matrix<double, 6, 6> covariance = variance * lu.inverse();
+      if (sandwich) {
+        const Eigen::Matrix<double, 6, 6> a_inverse = lu.inverse();
+        covariance = variance * a_inverse * ResidualCovarianceNormalMatrix(pose, points_in_world, bearings, inliers,
+                                                                            *point_covariances) *
+                     a_inverse;
+      }
       const Matrix3d translation_covariance = covariance.bottomRightCorner<3, 3>();
       const Matrix3d& r = pose.rotation;
       result.centre_covariance = r.transpose() * translation_covariance * r;

@@ -48,6 +48,11 @@ struct AbsolutePoseOptions {
   int refinement_iterations = 10;
   // Tolerated probability p of σ_p (Segvic 2009, eq. (6)).
   double sigma_p_probability = 0.05;
+  // With point covariances (EstimateAbsolutePose): true, the estimate, its inliers and σ_p weigh each residual by
+  // them; false, the estimate, inliers and σ_p are those of exact points and only the covariance includes the
+  // points' errors — the sandwich A⁻¹ B A⁻¹ of the least-squares estimate (A its normal matrix, B the same with each
+  // residual's covariance I + J_X Σ_X J_Xᵀ), scaled by the unit variance of the whitened residuals.
+  bool weigh_by_point_covariances = true;
 
   bool Check(std::string* error = nullptr) const;
 };
