@@ -284,7 +284,7 @@ AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world, 
   result.cam_from_world = pose;
   result.num_iterations = iteration;
   result.inlier_mask.assign(n, false);
-  double sum_squares = 0.0;  // pixels²; whitened by the points' covariances when given
+  double sum_squares = 0.0;  // pixels²; whitened by the points' covariances when they weigh the residuals
   for (const int i : inliers) {
     result.inlier_mask[i] = true;
     if (weighing == nullptr) {
@@ -311,18 +311,19 @@ AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world, 
     Eigen::Matrix<double, 6, 1> jtr;
     const double cost = NormalEquations(pose, points_in_world, bearings, inliers, point_covariances, &jtj, &jtr);
     const double variance = cost / (2.0 * result.num_inliers - 6.0);
+    // The estimate's normal matrix A: the whitened one, or the plain one when the points were taken as exact and
+    // their errors enter the covariance only (the sandwich A⁻¹ B A⁻¹, AbsolutePoseOptions::weigh_by_point_covariances).
     const bool sandwich = point_covariances != nullptr && weighing == nullptr;
-    // The estimate's normal matrix A: the whitened one, or the plain one when the points were taken as exact.
     if (sandwich) NormalEquations(pose, points_in_world, bearings, inliers, nullptr, &jtj, &jtr);
     const Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(jtj);
     if (lu.isInvertible()) {
-      Eigen::Matrix<double, 6, 6> covariance = variance * lu.inverse();
-      if (sandwich) {
-        const Eigen::Matrix<double, 6, 6> a_inverse = lu.inverse();
-        covariance = variance * a_inverse * ResidualCovarianceNormalMatrix(pose, points_in_world, bearings, inliers,
-                                                                            *point_covariances) *
-                     a_inverse;
-      }
+      const Eigen::Matrix<double, 6, 6> a_inverse = lu.inverse();
+      const Eigen::Matrix<double, 6, 6> covariance =
+          sandwich ? Eigen::Matrix<double, 6, 6>(
+                         variance * a_inverse *
+                         ResidualCovarianceNormalMatrix(pose, points_in_world, bearings, inliers, *point_covariances) *
+                         a_inverse)
+                   : Eigen::Matrix<double, 6, 6>(variance * a_inverse);
       const Matrix3d translation_covariance = covariance.bottomRightCorner<3, 3>();
       const Matrix3d& r = pose.rotation;
       result.centre_covariance = r.transpose() * translation_covariance * r;

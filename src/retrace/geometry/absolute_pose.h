@@ -101,7 +101,8 @@ struct AbsolutePose {
 // The robust sampling is unchanged; after it, a correspondence is an inlier when its whitened residual (its
 // Mahalanobis distance) is within the threshold — a threshold on the plain residual keeps the points whose errors
 // happen to agree with the sampled pose, and the estimate and its covariance then inherit that selection (in
-// PointCovariancesWeighTheReconstructionsErrors of the tests: the centre's error 2.8 times larger).
+// PointCovariancesWeighTheReconstructionsErrors of the tests: the centre's error 2.8 times larger). With
+// `options.weigh_by_point_covariances` false the covariances enter the centre's and rotation's covariance only.
 AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world, const std::vector<Vector3d>& bearings,
                                   double focal_length_px, const AbsolutePoseOptions& options = AbsolutePoseOptions(),
                                   const std::vector<Matrix3d>* point_covariances = nullptr);
