@@ -28,13 +28,14 @@ double SquaredResidual(const Rigid3d& cam_from_world, const Vector3d& point, con
 }
 
 // One correspondence under `pose`: the point in the camera `p`, the tangent-plane residual `r` (radians) of the
-// direction to it against the bearing, its Jacobian in p, and the whitening W of r (WᵀW = C⁻¹ for the residual's
-// covariance C = I + J_X Σ_X J_Xᵀ per unit measurement variance, J_X = ∂r/∂p R; the identity without Σ_X).
+// direction to it against the bearing, its Jacobian in p, the residual's covariance C = I + J_X Σ_X J_Xᵀ per unit
+// measurement variance (J_X = ∂r/∂p R) and its whitening W (WᵀW = C⁻¹); both the identity without Σ_X.
 // False for a point at the camera's centre.
 struct Correspondence {
   Vector3d p;
   Eigen::Vector2d r;
   Eigen::Matrix<double, 2, 3> d_r_d_p;
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity();
   Eigen::Matrix2d whitening = Eigen::Matrix2d::Identity();
 };
 bool Linearise(const Rigid3d& pose, const Vector3d& point, const Vector3d& bearing, const Matrix3d* point_covariance,
@@ -49,15 +50,25 @@ bool Linearise(const Rigid3d& pose, const Vector3d& point, const Vector3d& beari
   // d direction / d p = (I - d dᵀ) / |p|.
   c->d_r_d_p.row(0) = (u - u.dot(direction) * direction).transpose() / norm;
   c->d_r_d_p.row(1) = (v - v.dot(direction) * direction).transpose() / norm;
+  c->covariance.setIdentity();
   c->whitening.setIdentity();
   if (point_covariance != nullptr) {
     const Eigen::Matrix<double, 2, 3> d_r_d_x = c->d_r_d_p * pose.rotation;
-    const Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity() + d_r_d_x * *point_covariance * d_r_d_x.transpose();
+    c->covariance += d_r_d_x * *point_covariance * d_r_d_x.transpose();
     // C⁻¹ = L Lᵀ: W = Lᵀ.
-    const Eigen::LLT<Eigen::Matrix2d> llt(covariance.inverse());
+    const Eigen::LLT<Eigen::Matrix2d> llt(c->covariance.inverse());
     if (llt.info() == Eigen::Success) c->whitening = llt.matrixU();
   }
   return true;
+}
+
+// The residual's Jacobian in the 6 parameters (δω, δt) of the update x_cam <- exp(δω) x_cam + δt:
+// d p / d δω = -[p]ₓ, d p / d δt = I.
+Eigen::Matrix<double, 2, 6> PoseJacobian(const Correspondence& c) {
+  Eigen::Matrix<double, 2, 6> j;
+  j.leftCols<3>() = -c.d_r_d_p * CrossProductMatrix(c.p);
+  j.rightCols<3>() = c.d_r_d_p;
+  return j;
 }
 
 // The correspondences within τ of `pose`: the residual's angle, or with `point_covariances` its whitened norm (the
@@ -97,10 +108,7 @@ double NormalEquations(const Rigid3d& pose, const std::vector<Vector3d>& points,
     const Eigen::Vector2d r = whiten ? Eigen::Vector2d(c.whitening * c.r) : c.r;
     cost += r.squaredNorm();
     if (jtj == nullptr) continue;
-    // d p / d δω = -[p]ₓ, d p / d δt = I.
-    Eigen::Matrix<double, 2, 6> j;
-    j.leftCols<3>() = -c.d_r_d_p * CrossProductMatrix(c.p);
-    j.rightCols<3>() = c.d_r_d_p;
+    Eigen::Matrix<double, 2, 6> j = PoseJacobian(c);
     if (whiten) j = c.whitening * j;
     *jtj += j.transpose() * j;
     *jtr += j.transpose() * r;
@@ -108,8 +116,8 @@ double NormalEquations(const Rigid3d& pose, const std::vector<Vector3d>& points,
   return cost;
 }
 
-// B = Σ Jᵢᵀ Cᵢ Jᵢ over the correspondences `indices`: J the plain residual's Jacobian in the 6 parameters (as in
-// NormalEquations), C = I + J_X Σ_X J_Xᵀ the residual's covariance per unit measurement variance (Linearise).
+// B = Σ Jᵢᵀ Cᵢ Jᵢ over the correspondences `indices`: J the plain residual's Jacobian in the 6 parameters
+// (PoseJacobian), C the residual's covariance per unit measurement variance (Linearise).
 Eigen::Matrix<double, 6, 6> ResidualCovarianceNormalMatrix(const Rigid3d& pose, const std::vector<Vector3d>& points,
                                                            const std::vector<Vector3d>& bearings,
                                                            const std::vector<int>& indices,
@@ -117,14 +125,9 @@ Eigen::Matrix<double, 6, 6> ResidualCovarianceNormalMatrix(const Rigid3d& pose, 
   Eigen::Matrix<double, 6, 6> b = Eigen::Matrix<double, 6, 6>::Zero();
   for (const int i : indices) {
     Correspondence c;
-    if (!Linearise(pose, points[i], bearings[i], nullptr, &c)) continue;
-    Eigen::Matrix<double, 2, 6> j;
-    j.leftCols<3>() = -c.d_r_d_p * CrossProductMatrix(c.p);
-    j.rightCols<3>() = c.d_r_d_p;
-    const Eigen::Matrix<double, 2, 3> d_r_d_x = c.d_r_d_p * pose.rotation;
-    const Eigen::Matrix2d covariance =
-        Eigen::Matrix2d::Identity() + d_r_d_x * point_covariances[i] * d_r_d_x.transpose();
-    b += j.transpose() * covariance * j;
+    if (!Linearise(pose, points[i], bearings[i], &point_covariances[i], &c)) continue;
+    const Eigen::Matrix<double, 2, 6> j = PoseJacobian(c);
+    b += j.transpose() * c.covariance * j;
   }
   return b;
 }
@@ -309,11 +312,13 @@ AbsolutePose EstimateAbsolutePose(const std::vector<Vector3d>& points_in_world, 
   if (result.num_inliers > 3) {
     Eigen::Matrix<double, 6, 6> jtj;
     Eigen::Matrix<double, 6, 1> jtr;
-    const double cost = NormalEquations(pose, points_in_world, bearings, inliers, point_covariances, &jtj, &jtr);
-    const double variance = cost / (2.0 * result.num_inliers - 6.0);
-    // The estimate's normal matrix A: the whitened one, or the plain one when the points were taken as exact and
-    // their errors enter the covariance only (the sandwich A⁻¹ B A⁻¹, AbsolutePoseOptions::weigh_by_point_covariances).
+    // The unit variance from the whitened residuals; the estimate's normal matrix A: the whitened one, or the plain
+    // one when the points were taken as exact and their errors enter the covariance only (the sandwich A⁻¹ B A⁻¹,
+    // AbsolutePoseOptions::weigh_by_point_covariances).
     const bool sandwich = point_covariances != nullptr && weighing == nullptr;
+    const double cost = NormalEquations(pose, points_in_world, bearings, inliers, point_covariances,
+                                        sandwich ? nullptr : &jtj, &jtr);
+    const double variance = cost / (2.0 * result.num_inliers - 6.0);
     if (sandwich) NormalEquations(pose, points_in_world, bearings, inliers, nullptr, &jtj, &jtr);
     const Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(jtj);
     if (lu.isInvertible()) {
