@@ -1,6 +1,7 @@
 #include "retrace/geometry/triangulation.h"
 
 #include <cmath>
+#include <limits>
 
 namespace retrace {
 
@@ -85,6 +86,75 @@ Vector2d TangentResidualPx(const Vector3d& bearing, const Vector3d& point_in_cam
     residual = n > 1e-12 ? Vector2d(residual / n * (2.0 - n)) : Vector2d(2.0, 0.0);
   }
   return focal_length_px * residual;
+}
+
+bool RefinePointMultiView(const std::vector<Rigid3d>& cam_from_world, const std::vector<Vector3d>& bearings,
+                          const Vector3d& initial, double focal_length_px, Vector3d* point, double* max_residual_px) {
+  const size_t views = cam_from_world.size();
+  if (views < 2 || bearings.size() != views || !(focal_length_px > 0.0)) return false;
+  // Residuals in a tangent basis fixed per view (the bearing's), so that the Jacobian is that of a smooth function:
+  // r_i(X) = f [u_i · y, v_i · y], y = (R_i X + t_i) / |R_i X + t_i|; dy/dY = (I - y yᵀ) / |Y|, dY/dX = R_i.
+  std::vector<std::pair<Vector3d, Vector3d>> bases(views);
+  for (size_t i = 0; i < views; ++i) TangentBasis(bearings[i], &bases[i].first, &bases[i].second);
+  const auto cost = [&](const Vector3d& x) {
+    double sum = 0.0;
+    for (size_t i = 0; i < views; ++i) {
+      const Vector3d y = cam_from_world[i].rotation * x + cam_from_world[i].translation;
+      if (!(y.dot(bearings[i]) > 0.0)) return std::numeric_limits<double>::infinity();
+      const Vector3d d = y.normalized();
+      sum += focal_length_px * focal_length_px *
+             (std::pow(bases[i].first.dot(d), 2) + std::pow(bases[i].second.dot(d), 2));
+    }
+    return sum;
+  };
+  Vector3d x = initial;
+  double current = cost(x);
+  if (!std::isfinite(current)) return false;
+  double damping = 1e-3;  // Levenberg-Marquardt: a point far along its rays is weakly fixed in depth
+  for (int iteration = 0; iteration < 20; ++iteration) {
+    Matrix3d normal = Matrix3d::Zero();
+    Vector3d gradient = Vector3d::Zero();
+    for (size_t i = 0; i < views; ++i) {
+      const Vector3d y_full = cam_from_world[i].rotation * x + cam_from_world[i].translation;
+      const double norm = y_full.norm();
+      const Vector3d y = y_full / norm;
+      const Matrix3d dy_dx = (Matrix3d::Identity() - y * y.transpose()) / norm * cam_from_world[i].rotation;
+      Eigen::Matrix<double, 2, 3> jacobian;
+      jacobian.row(0) = focal_length_px * bases[i].first.transpose() * dy_dx;
+      jacobian.row(1) = focal_length_px * bases[i].second.transpose() * dy_dx;
+      const Vector2d residual(focal_length_px * bases[i].first.dot(y), focal_length_px * bases[i].second.dot(y));
+      normal += jacobian.transpose() * jacobian;
+      gradient += jacobian.transpose() * residual;
+    }
+    bool improved = false;
+    for (int attempt = 0; attempt < 10 && !improved; ++attempt) {
+      Matrix3d damped = normal;
+      damped.diagonal() *= 1.0 + damping;
+      const Vector3d step = damped.ldlt().solve(-gradient);
+      if (!step.allFinite()) return false;
+      const double next = cost(x + step);
+      if (next < current) {
+        x += step;
+        improved = true;
+        damping = std::max(1e-6, damping * 0.3);
+        if (current - next < 1e-12 * (1.0 + current)) iteration = 20;  // converged
+        current = next;
+      } else {
+        damping *= 10.0;
+      }
+    }
+    if (!improved) break;
+  }
+  if (!x.allFinite() || !std::isfinite(current)) return false;
+  *point = x;
+  if (max_residual_px != nullptr) {
+    *max_residual_px = 0.0;
+    for (size_t i = 0; i < views; ++i) {
+      const Vector3d y = cam_from_world[i].rotation * x + cam_from_world[i].translation;
+      *max_residual_px = std::max(*max_residual_px, TangentResidualPx(bearings[i], y, focal_length_px).norm());
+    }
+  }
+  return true;
 }
 
 }  // namespace retrace

@@ -7,6 +7,8 @@
 // "in front of the camera" means a positive distance along the ray, which is also meaningful for rays that point
 // sideways or backwards in a panorama.
 
+#include <vector>
+
 #include "retrace/util/types.h"
 
 namespace retrace {
@@ -38,6 +40,14 @@ bool InFrontOfBothCameras(const Rigid3d& b_from_a, const Vector3d& bearing_a, co
 // Rays closer than `min_sin_parallax` to parallel are taken at that parallax.
 Matrix3d TwoViewPointCovariance(const Vector3d& point_in_a, const Vector3d& centre_b_in_a,
                                 double min_sin_parallax = 1e-3);
+
+// A point seen along `bearings[i]` from cameras `cam_from_world[i]` (at least two), refined from `initial` by
+// Levenberg-Marquardt on the tangent residuals (TangentResidualPx, focal_length_px) of every view, each weighed alike.
+// Returns false when it does not converge to a point in front of every camera; `max_residual_px` (optional): the
+// largest residual of a view at the result.
+bool RefinePointMultiView(const std::vector<Rigid3d>& cam_from_world, const std::vector<Vector3d>& bearings,
+                          const Vector3d& initial, double focal_length_px, Vector3d* point,
+                          double* max_residual_px = nullptr);
 
 // An orthonormal basis (u, v) of the plane tangent to the unit sphere at `bearing`. For a bearing near the optical
 // axis (0, 0, 1), u is close to +x (right) and v close to +y (down), so tangent coordinates times the focal length
