@@ -568,6 +568,13 @@ void RegisterRepeatCommand(CLI::App& app) {
       "The points' uncertainty in the absolute pose's covariance only: the pose as with exact points, its sigma along "
       "the arc widened where far points near the key-images' epipole are seen from beside the path (docs/repeat.md, "
       "\"The points' uncertainty in the pose's covariance only\")");
+  cmd->add_flag("--multi-view-points,!--no-multi-view-points", args->options.multi_view_points,
+                "Triangulate each arc's points again from every key-image that sees them, the neighbouring arcs' "
+                "outer key-images too (docs/repeat.md, \"Points from more than two key-images\")");
+  cmd->add_option("--multi-view-max-residual", args->options.multi_view_max_residual_px,
+                  "--multi-view-points: a point is kept as its arc made it when a key-image's residual exceeds this "
+                  "(px at 320 px)")
+      ->capture_default_str();
   cmd->add_option("--max-sigma-p", args->options.max_sigma_p_px, "sigma_p gate of current geometries, px at 320 px")
       ->capture_default_str();
   cmd->add_option("--steering-gain", args->options.steering_gain, "k of eq. (10)")->capture_default_str();

@@ -208,6 +208,7 @@ struct DriveArguments {
   bool placed_start_fine = LocalizerOptions().tracker.placed_features_start_fine;
   bool affine_refine = LocalizerOptions().affine_refinement;
   bool verified_placement = LocalizerOptions().place_by_verified_key_images;
+  bool multi_view_points = LocalizerOptions().multi_view_points;
   bool relocalization_affine = false;  // LocalizerOptions::relocalization_affine_fallback
   bool robust_relocalization = LocalizerOptions().relocalization_robust_alignment;
   int travel_window = TaughtPathOptions().travel_window;
@@ -234,6 +235,7 @@ void RunDrive(const CLI::App& command, const DriveArguments& args) {
   base.tracker.placed_features_start_fine = args.placed_start_fine;
   base.affine_refinement = args.affine_refine;
   base.place_by_verified_key_images = args.verified_placement;
+  base.multi_view_points = args.multi_view_points;
   base.relocalization_affine_fallback = args.relocalization_affine;
   base.relocalization_robust_alignment = args.robust_relocalization;
   base.path.travel_window = args.travel_window;
@@ -705,6 +707,9 @@ void RegisterSimCommand(CLI::App& app) {
   drive->add_flag("--verified-placement,!--no-verified-placement", args->verified_placement,
                   "Localizer: place the camera by the key-images a relocalization verified when too few mapped "
                   "features align through them (`repeat --verified-placement`; on by default)");
+  drive->add_flag("--multi-view-points,!--no-multi-view-points", args->multi_view_points,
+                  "Localizer: triangulate each arc's points again from every key-image that sees them (`repeat "
+                  "--multi-view-points`)");
   drive->add_flag("--relocalization-affine", args->relocalization_affine,
                   "Localizer: align the mapped features a relocalization locates with the affine fallback (`repeat "
                   "--relocalization-affine`)");

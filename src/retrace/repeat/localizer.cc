@@ -53,6 +53,7 @@ bool LocalizerOptions::Check(std::string* error) const {
   if (!(backward_margin >= 0)) return fail("backward_margin must be >= 0");
   if (!(min_parallax_px >= 0)) return fail("min_parallax_px must be >= 0");
   if (!(agreement_sigmas > 0)) return fail("agreement_sigmas must be positive");
+  if (!(multi_view_max_residual_px > 0)) return fail("multi_view_max_residual_px must be positive");
   std::string belief_error;
   if (!belief.Check(&belief_error)) return fail("belief: " + belief_error);
   std::string placement_error;
@@ -214,6 +215,46 @@ Localizer::Localizer(Map map, const CameraModel& camera, const LocalizerOptions&
     }
     arcs_[arc.id] = std::move(data);
   }
+  if (options_.multi_view_points) RefineArcPointsMultiView();
+}
+
+void Localizer::RefineArcPointsMultiView() {
+  // Every refined point is computed from the points as teach made them, so the order of the arcs does not matter.
+  std::unordered_map<arc_t, std::unordered_map<feature_t, Vector3d>> refined;
+  int points = 0, with_more_views = 0, changed = 0;
+  for (const auto& [id, data] : arcs_) {
+    if (data->arc->IsLink()) continue;
+    // The key-images that may see the arc's points, as cameras in its frame and unit (a at the origin).
+    const std::vector<std::pair<node_t, Rigid3d>> cameras = KeyImagesInArcFrame(*data);
+    auto& out = refined[id];
+    for (const auto& [feature, point] : data->points) {
+      ++points;
+      std::vector<Rigid3d> poses;
+      std::vector<Vector3d> bearings;
+      for (const auto& [node, pose] : cameras) {
+        const NodeData& node_data = *nodes_.at(node);
+        const auto bearing = node_data.bearings.find(feature);
+        if (bearing == node_data.bearings.end()) continue;
+        poses.push_back(pose);
+        bearings.push_back(bearing->second);
+      }
+      if (poses.size() < 3) continue;
+      ++with_more_views;
+      Vector3d better;
+      double worst = 0.0;
+      if (!RefinePointMultiView(poses, bearings, point, camera_->FocalLength(), &better, &worst) ||
+          worst > options_.multi_view_max_residual_px * pixel_scale_) {
+        continue;
+      }
+      out[feature] = better;
+      ++changed;
+    }
+  }
+  for (auto& [id, points_of_arc] : refined) {
+    for (auto& [feature, point] : points_of_arc) arcs_[id]->points[feature] = point;
+  }
+  spdlog::debug("repeat: {} of {} arc points seen by three or more key-images, {} triangulated again from them",
+                with_more_views, points, changed);
 }
 
 Localizer::~Localizer() = default;
@@ -363,6 +404,7 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
   // The belief moves with the camera whatever this frame shows (motion model, belief.h).
   belief_.Predict(1);
   belief_updated_ = false;
+  frame_placement_.reset();
 
   if (state_ == LocalizerState::kTracking) {
     const int before = tracker_.NumFeatures();
@@ -419,11 +461,14 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
     if (confident) {
       ReportTracking(arc_, *along, estimate.sigma * belief_.ArcLength(estimate.arc) / belief_.ArcLength(arc_),
                      result.confidence, &result);
-    } else if (estimate.tracking && IsNeighbour(arc_, estimate.arc)) {
+    } else if (estimate.tracking && IsNeighbour(arc_, estimate.arc) && MeetAtANode(arc_, estimate.arc)) {
       // Near a node the belief may be confident in the neighbouring arc (its tolerance reaches back over the node)
       // and not in the tracked one, which the camera has not left yet (eq. (9)): a short last arc of a route, whose
       // tolerance is a few centimetres, leaves a camera standing just before its first key-image `lost` with over a
-      // hundred features tracked. The belief's arc is reported.
+      // hundred features tracked. The belief's arc is reported — only when the two arcs meet at a node: across a gap
+      // in the map (the belief's graph joins the pieces, IsNeighbour) the camera is not near the tracked arc's node,
+      // and after a loss there the belief lagged on the piece before while the tracks were located on the next
+      // (`scripts/validation --random 24`'s rand1114 frame 219 with `--multi-view-points`, two arcs off).
       ReportTracking(estimate.arc, estimate.along, estimate.sigma, estimate.confidence, &result);
     } else {
       result.state = LocalizerState::kLost;
@@ -529,6 +574,14 @@ bool Localizer::IsNeighbour(arc_t arc, arc_t other) const {
   const auto& predecessors = belief_.Predecessors(arc);
   return std::find(successors.begin(), successors.end(), other) != successors.end() ||
          std::find(predecessors.begin(), predecessors.end(), other) != predecessors.end();
+}
+
+bool Localizer::MeetAtANode(arc_t arc, arc_t other) const {
+  const ArcData* first = Arc(arc);
+  const ArcData* second = Arc(other);
+  if (first == nullptr || second == nullptr) return false;
+  const auto has_end = [second](node_t node) { return node == second->arc->from || node == second->arc->to; };
+  return has_end(first->arc->from) || has_end(first->arc->to);
 }
 
 void Localizer::ReportTracking(arc_t arc_id, double along, double sigma, double confidence,
@@ -758,6 +811,8 @@ ArcPosition Localizer::UpdateBelief(const Placements& placements) {
                                                bootstrap_key_image_->candidates, options_.placement, beside));
     bootstrap_key_image_.reset();
   }
+  // The frame's placement from its tracks: of the last update when it has two (tracks given up and relocalized).
+  if (!measurements.empty()) frame_placement_ = measurements.front();
   const std::vector<double> inlier = belief_.Update(measurements, frame_counter_);
   belief_updated_ = true;
   // The lane keeps the poses the belief took as right (PlacementModel::pose_lateral_sigma). A lane entry comes with
@@ -1034,6 +1089,22 @@ void Localizer::Localize(FrameResult* result) {
   int direction = DecideTransition(position, options_.backward_margin);
   if (direction == 0) return;
   const std::vector<arc_t> path = PathTo(estimate.arc, direction);
+  // Across a gap in the map the belief's graph is a guess (the gap as long as the teach drive took to cross it), so
+  // the tracks follow the belief there only when this frame's own placement puts the camera on the belief's arc as
+  // surely as the belief must be (PlaceBelief::MeasurementSupport). Otherwise a belief that lagged on the piece
+  // before took tracks just located on the next piece back across the gap, two arcs from the truth
+  // (`scripts/validation --random 24`'s rand1114 frame 219 with `--multi-view-points`).
+  arc_t from = arc_;
+  for (const arc_t step : path) {
+    if (!MeetAtANode(from, step) &&
+        (!frame_placement_ ||
+         belief_.MeasurementSupport(estimate.arc, *frame_placement_) < options_.belief.min_confidence)) {
+      spdlog::debug("repeat: frame {}: no transition to arc {} across a gap without this frame's support",
+                    result->frame_index, estimate.arc);
+      return;
+    }
+    from = step;
+  }
   for (const arc_t step : path) {
     ApplyTransition(step, direction, result);
     result->transition += direction;

@@ -27,6 +27,10 @@ TEST(LocalizerOptions, CheckRejectsBadValues) {
   options.prediction_skipped_levels = -1;
   EXPECT_FALSE(options.Check());
   options = LocalizerOptions();
+  options.multi_view_max_residual_px = 0.0;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("multi_view_max_residual_px"), std::string::npos) << error;
+  options = LocalizerOptions();
   options.guided_matching_min_inliers = -1;
   EXPECT_FALSE(options.Check(&error));
   EXPECT_NE(error.find("guided_matching_min_inliers"), std::string::npos) << error;

@@ -571,11 +571,9 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   return true;
 }
 
-std::optional<PlaceMeasurement> Localizer::PlaceByVerifiedKeyImages(
-    const ArcData& arc, const std::vector<MatchedKeyImage>& verified) const {
-  // Each key-image's pose in the arc's frame and unit (a at the origin): the arc's own two, and the outer key-images
-  // of its neighbours through their geometries, carried into the arc's unit by the relative scale stored at the node
-  // they share (UnitRatio; a neighbour without one is left out).
+std::vector<std::pair<node_t, Rigid3d>> Localizer::KeyImagesInArcFrame(const ArcData& arc) const {
+  // The arc's own two, and the outer key-images of its neighbours through their geometries, carried into the arc's
+  // unit by the relative scale stored at the node they share (UnitRatio; a neighbour without one is left out).
   const Rigid3d& b_from_a = arc.arc->to_from_from;
   const auto in_arc_unit = [&](const ArcData& other, int direction) -> std::optional<Rigid3d> {
     const std::optional<double> ratio = UnitRatio(arc.arc->id, other.arc->id, direction);  // arc's unit -> other's
@@ -595,8 +593,14 @@ std::optional<PlaceMeasurement> Localizer::PlaceByVerifiedKeyImages(
       key_from_arc.emplace_back(next->arc->to, *c_from_b * b_from_a);
     }
   }
+  return key_from_arc;
+}
+
+std::optional<PlaceMeasurement> Localizer::PlaceByVerifiedKeyImages(
+    const ArcData& arc, const std::vector<MatchedKeyImage>& verified) const {
+  const Rigid3d& b_from_a = arc.arc->to_from_from;
   std::vector<KeyImageMatches> views;
-  for (const auto& [node, pose] : key_from_arc) {
+  for (const auto& [node, pose] : KeyImagesInArcFrame(arc)) {
     const MatchedKeyImage* best = nullptr;  // the key-image's verification with the most inliers
     for (const MatchedKeyImage& candidate : verified) {
       if (candidate.node == node && candidate.geometry.success &&
