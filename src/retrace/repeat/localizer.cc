@@ -811,7 +811,8 @@ ArcPosition Localizer::UpdateBelief(const Placements& placements) {
                                                bootstrap_key_image_->candidates, options_.placement, beside));
     bootstrap_key_image_.reset();
   }
-  // The frame's placement from its tracks: of the last update when it has two (tracks given up and relocalized).
+  // The frame's own placement for the gap rule (Localize): of the last update when it has two (tracks given up and
+  // relocalized).
   if (!measurements.empty()) frame_placement_ = measurements.front();
   const std::vector<double> inlier = belief_.Update(measurements, frame_counter_);
   belief_updated_ = true;

@@ -779,7 +779,8 @@ class Localizer {
   // A failed bootstrap's placement by the key-images it verified (PlaceByVerifiedKeyImages), and how many frames in a
   // row have had one without being tracked.
   std::optional<PlaceMeasurement> verified_placement_;
-  // This frame's placement from its tracked features (the first measurement of its last UpdateBelief), if any.
+  // This frame's own placement: the first measurement of its last UpdateBelief (its tracks' placement, else the
+  // key-image a bootstrap verified), if any.
   std::optional<PlaceMeasurement> frame_placement_;
   int verified_placements_in_a_row_ = 0;
   bool belief_updated_ = false;  // the belief has had this frame's measurements
