@@ -96,14 +96,13 @@ bool RefinePointMultiView(const std::vector<Rigid3d>& cam_from_world, const std:
   // r_i(X) = f [u_i · y, v_i · y], y = (R_i X + t_i) / |R_i X + t_i|; dy/dY = (I - y yᵀ) / |Y|, dY/dX = R_i.
   std::vector<std::pair<Vector3d, Vector3d>> bases(views);
   for (size_t i = 0; i < views; ++i) TangentBasis(bearings[i], &bases[i].first, &bases[i].second);
+  // The sum of squared residuals (TangentResidualPx); infinite behind a camera.
   const auto cost = [&](const Vector3d& x) {
     double sum = 0.0;
     for (size_t i = 0; i < views; ++i) {
       const Vector3d y = cam_from_world[i].rotation * x + cam_from_world[i].translation;
       if (!(y.dot(bearings[i]) > 0.0)) return std::numeric_limits<double>::infinity();
-      const Vector3d d = y.normalized();
-      sum += focal_length_px * focal_length_px *
-             (std::pow(bases[i].first.dot(d), 2) + std::pow(bases[i].second.dot(d), 2));
+      sum += TangentResidualPx(bearings[i], y, focal_length_px).squaredNorm();
     }
     return sum;
   };
@@ -111,7 +110,8 @@ bool RefinePointMultiView(const std::vector<Rigid3d>& cam_from_world, const std:
   double current = cost(x);
   if (!std::isfinite(current)) return false;
   double damping = 1e-3;  // Levenberg-Marquardt: a point far along its rays is weakly fixed in depth
-  for (int iteration = 0; iteration < 20; ++iteration) {
+  bool converged = false;
+  for (int iteration = 0; iteration < 20 && !converged; ++iteration) {
     Matrix3d normal = Matrix3d::Zero();
     Vector3d gradient = Vector3d::Zero();
     for (size_t i = 0; i < views; ++i) {
@@ -137,7 +137,7 @@ bool RefinePointMultiView(const std::vector<Rigid3d>& cam_from_world, const std:
         x += step;
         improved = true;
         damping = std::max(1e-6, damping * 0.3);
-        if (current - next < 1e-12 * (1.0 + current)) iteration = 20;  // converged
+        converged = current - next < 1e-12 * (1.0 + current);
         current = next;
       } else {
         damping *= 10.0;

@@ -219,15 +219,13 @@ Localizer::Localizer(Map map, const CameraModel& camera, const LocalizerOptions&
 }
 
 void Localizer::RefineArcPointsMultiView() {
-  // Every refined point is computed from the points as teach made them, so the order of the arcs does not matter.
-  std::unordered_map<arc_t, std::unordered_map<feature_t, Vector3d>> refined;
+  // An arc's points are refined from its own points and the key-images' bearings only, in place.
   int points = 0, with_more_views = 0, changed = 0;
   for (const auto& [id, data] : arcs_) {
     if (data->arc->IsLink()) continue;
     // The key-images that may see the arc's points, as cameras in its frame and unit (a at the origin).
     const std::vector<std::pair<node_t, Rigid3d>> cameras = KeyImagesInArcFrame(*data);
-    auto& out = refined[id];
-    for (const auto& [feature, point] : data->points) {
+    for (auto& [feature, point] : data->points) {
       ++points;
       std::vector<Rigid3d> poses;
       std::vector<Vector3d> bearings;
@@ -246,12 +244,9 @@ void Localizer::RefineArcPointsMultiView() {
           worst > options_.multi_view_max_residual_px * pixel_scale_) {
         continue;
       }
-      out[feature] = better;
+      point = better;
       ++changed;
     }
-  }
-  for (auto& [id, points_of_arc] : refined) {
-    for (auto& [feature, point] : points_of_arc) arcs_[id]->points[feature] = point;
   }
   spdlog::debug("repeat: {} of {} arc points seen by three or more key-images, {} triangulated again from them",
                 with_more_views, points, changed);
@@ -579,9 +574,8 @@ bool Localizer::IsNeighbour(arc_t arc, arc_t other) const {
 bool Localizer::MeetAtANode(arc_t arc, arc_t other) const {
   const ArcData* first = Arc(arc);
   const ArcData* second = Arc(other);
-  if (first == nullptr || second == nullptr) return false;
-  const auto has_end = [second](node_t node) { return node == second->arc->from || node == second->arc->to; };
-  return has_end(first->arc->from) || has_end(first->arc->to);
+  return first != nullptr && second != nullptr &&
+         (HasEnd(*second->arc, first->arc->from) || HasEnd(*second->arc, first->arc->to));
 }
 
 void Localizer::ReportTracking(arc_t arc_id, double along, double sigma, double confidence,

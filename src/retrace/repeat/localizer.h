@@ -680,13 +680,13 @@ class Localizer {
   // The arcs that start or end at key-image `node`, by id.
   std::vector<const ArcData*> ArcsAt(node_t node) const;
   bool Bootstrap(const Frame& frame, FrameResult* result);
-  // The camera resected on `arc` from the key-images of `arc` and of its two neighbours among `verified`
-  // (ResectFromKeyImages, VerifiedPoseMeasurement); none when they do not give a pose.
   // Each key-image that may see `arc`'s points with its pose in the arc's frame and unit (a at the origin): the arc's
   // two, then the outer key-images of its neighbours (previous, next) where the map stores the scale at the node.
   std::vector<std::pair<node_t, Rigid3d>> KeyImagesInArcFrame(const ArcData& arc) const;
   // LocalizerOptions::multi_view_points: the arcs' points refined by their neighbours' key-images.
   void RefineArcPointsMultiView();
+  // The camera resected on `arc` from the key-images of `arc` and of its two neighbours among `verified`
+  // (ResectFromKeyImages, VerifiedPoseMeasurement); none when they do not give a pose.
   std::optional<PlaceMeasurement> PlaceByVerifiedKeyImages(const ArcData& arc,
                                                            const std::vector<MatchedKeyImage>& verified) const;
   void Localize(FrameResult* result);

@@ -32,6 +32,9 @@ struct Localizer::NodeData {
   }
 };
 
+// Whether `node` is one of the two key-images of `arc`.
+inline bool HasEnd(const MapArc& arc, node_t node) { return node == arc.from || node == arc.to; }
+
 struct Localizer::ArcData {
   const MapArc* arc = nullptr;
   std::unordered_map<feature_t, Vector3d> points;

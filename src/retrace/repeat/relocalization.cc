@@ -22,8 +22,6 @@ using internal::Median;
 
 namespace {
 
-// Whether `node` is one of the two key-images of `arc`.
-bool HasEnd(const MapArc& arc, node_t node) { return node == arc.from || node == arc.to; }
 
 // min_bootstrap_features + λ ln(candidates / gate_candidates), rounded up, and no less than min_bootstrap_features.
 int AContrarioFeatures(const LocalizerOptions& options, size_t candidates, int gate_candidates) {
