@@ -751,13 +751,14 @@ PlaceMeasurement Localizer::PlacePose(const ArcData& arc, const ArcPosition& pla
                                       const PoseSpread& spread, std::optional<LaneEntry>* lane) const {
   const Rigid3d& b_from_a = arc.arc->to_from_from;
   const PoseDeviation lateral = LateralOffArc(pose, b_from_a);
-  const double collapsed = CollapseProbability(CheckLane(arc.arc->id, placed.along, lateral), options_.placement);
+  const LaneCheck lane_check = CheckLane(arc.arc->id, placed.along, lateral);
+  const double collapsed = CollapseProbability(lane_check, options_.placement);
   lane->reset();
   if (lateral.valid && collapsed < 0.5) {
     *lane = LaneEntryOf(arc.arc->id, placed.along, lateral, HeadingOffArc(pose.cam_from_world, b_from_a, placed.along));
   }
   return PoseMeasurement(arc.arc->id, placed, pose, b_from_a, options_.placement, arc.bounds, spread,
-                         HeightOffArc(pose, b_from_a), collapsed);
+                         HeightOffArc(pose, b_from_a), collapsed, FarSideProbability(lane_check, options_.placement));
 }
 
 LaneCheck Localizer::CheckLane(arc_t arc, double along, const PoseDeviation& lateral) const {

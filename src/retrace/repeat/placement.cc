@@ -358,9 +358,25 @@ double CollapseProbability(const LaneCheck& lane, const PlacementModel& model) {
   return std::isfinite(posterior) ? posterior : 0.0;
 }
 
+double FarSideProbability(const LaneCheck& lane, const PlacementModel& model) {
+  if (!lane.valid || !(model.pose_lateral_sigma > 0) || !(lane.lateral * lane.predicted < 0)) return 0.0;
+  const double variance = lane.sigma * lane.sigma + model.pose_lateral_sigma * model.pose_lateral_sigma;
+  // Farther out than the lane: the lane may rest on poses that crossed the path (as in CollapseProbability, a pose
+  // farther out than the lane is not doubted).
+  if (std::abs(lane.lateral) > std::abs(lane.predicted) + 2.0 * std::sqrt(variance)) return 0.0;
+  const double c = model.pose_collapse_probability;
+  const double on_lane = (1.0 - c) * GaussianDensity(lane.lateral - lane.predicted, variance);
+  // Collapsed onto the path, where such poses pile up, with the check's noise.
+  const double collapsed = c * GaussianDensity(lane.lateral, variance);
+  const double wrong = model.pose_outlier_probability / model.lane_outlier_span;
+  const double posterior = wrong / (wrong + (1.0 - model.pose_outlier_probability) * (on_lane + collapsed));
+  return std::isfinite(posterior) ? posterior : 0.0;
+}
+
 PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const AbsolutePose& pose,
                                  const Rigid3d& arc_b_from_a, const PlacementModel& model, const ArcBounds& bounds,
-                                 const PoseSpread& spread, const PoseDeviation& height, double collapse_probability) {
+                                 const PoseSpread& spread, const PoseDeviation& height, double collapse_probability,
+                                 double far_side_probability) {
   double sigma = model.pose_sigma_floor;
   if (pose.covariance_valid) {
     const double fitted = AlongSigma(pose.centre_covariance, arc_b_from_a, CameraCentre(pose.cam_from_world), bounds);
@@ -381,6 +397,7 @@ PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const A
         outlier_probability * wrong / (outlier_probability * wrong + (1.0 - outlier_probability) * right);
     if (std::isfinite(posterior)) outlier_probability = std::max(outlier_probability, posterior);
   }
+  outlier_probability = std::max(outlier_probability, far_side_probability);
   // The probability that the pose collapsed towards the path (CollapseProbability) widens its σ.
   if (collapse_probability > 0) {
     sigma = std::sqrt(sigma * sigma + collapse_probability * model.collapsed_pose_sigma * model.collapsed_pose_sigma);

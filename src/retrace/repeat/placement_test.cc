@@ -585,6 +585,43 @@ TEST(PlacementModel, APoseCollapsedOntoThePathBesideTheLaneIsLessCertain) {
   EXPECT_FALSE(bad.Check());
 }
 
+// A collapse brings a pose nearer the path, not across it (FarSideProbability): with the lane 0.8 arc lengths to the
+// right, a pose 0.6 to the left is a wrong pose, and its placement an outlier; one on the lane's side, collapsed or
+// not, is not doubted by this check; with the lane on the path (0.02) a pose 0.1 to the left is the lane's noise.
+TEST(PlacementModel, APoseAcrossThePathFromTheLaneIsWrong) {
+  const PlacementModel model;
+  const auto far_side = [&](double lateral, double predicted) {
+    return FarSideProbability(LaneCheck{true, lateral, predicted, 0.05}, model);
+  };
+  EXPECT_GT(far_side(-0.6, 0.8), 0.999);
+  EXPECT_GT(far_side(0.6, -0.8), 0.999);  // the lane on the left
+  EXPECT_GT(far_side(-0.3, 0.8), 0.99);
+  EXPECT_DOUBLE_EQ(far_side(0.05, 0.8), 0.0);  // collapsed on the lane's side
+  EXPECT_DOUBLE_EQ(far_side(0.8, 0.8), 0.0);
+  EXPECT_DOUBLE_EQ(far_side(1.2, 0.8), 0.0);
+  EXPECT_DOUBLE_EQ(far_side(0.56, -0.17), 0.0);  // farther out than the lane, which may have drifted across
+  EXPECT_LT(far_side(-0.1, 0.02), 0.01);
+  // Nearer the path the collapse's blur explains it more: the probability falls as the pose nears the path.
+  EXPECT_LT(far_side(-0.05, 0.8), far_side(-0.15, 0.8));
+  EXPECT_DOUBLE_EQ(FarSideProbability(LaneCheck(), model), 0.0);
+  PlacementModel off = model;
+  off.pose_lateral_sigma = 0.0;
+  EXPECT_DOUBLE_EQ(FarSideProbability(LaneCheck{true, -0.6, 0.8, 0.05}, off), 0.0);
+
+  const Rigid3d b_from_a = CamFromWorld(Vector3d(0.0, 0.0, 1.0));
+  const AbsolutePose pose = PoseWithIsotropicCovariance(0.04);
+  const PlaceMeasurement plain = PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, model);
+  const PlaceMeasurement across = PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, model, ArcBounds(), PoseSpread(),
+                                                  PoseDeviation(), 0.0, far_side(-0.6, 0.8));
+  EXPECT_DOUBLE_EQ(across.sigma, plain.sigma);
+  EXPECT_GT(across.outlier_probability, 0.99);
+  EXPECT_LT(across.outlier_probability, 1.0);  // kept below 1: it must not zero the belief
+  EXPECT_DOUBLE_EQ(PoseMeasurement(2, AlongArc(0.4), pose, b_from_a, model, ArcBounds(), PoseSpread(),
+                                   PoseDeviation(), 0.0, 0.0)
+                       .outlier_probability,
+                   model.pose_outlier_probability);
+}
+
 // The heading against the path: on a straight arc, a camera yawed 10° to the right (Yaw(10) turns the optical axis
 // towards x) heads 10° off the path; on an arc whose key-image b turned 20° the same camera halfway along follows
 // the path, and so does one at b turned as b; one yawed 10° to the left there heads 20° to the left of it.
