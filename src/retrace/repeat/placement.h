@@ -208,7 +208,8 @@ struct PlacementModel {
   // within the prediction's distance from the path, on either side — they overshoot it a little — widened by two
   // standard deviations), a pose on the lane is Gaussian around the prediction. A pose farther out than the lane is
   // not doubted (the lane itself may rest on collapsed poses: seed3's first two), nor is any on the path, where
-  // nothing collapses. The prediction combines the poses of the last `lane_window` arc lengths of travel
+  // nothing collapses. A pose across the path beyond the check's noise is another matter: a wrong pose, an outlier
+  // (FarSideProbability). The prediction combines the poses of the last `lane_window` arc lengths of travel
   // (LanePrediction), each carried along its own heading against the path (a car steering back onto it from 1.5 m
   // beside turns by 8°: the offsets of a lane carried straight lagged it, and the poses that followed it looked
   // collapsed) with a standard deviation of `lane_heading_sigma` times the length travelled for the heading's change

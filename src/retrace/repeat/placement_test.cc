@@ -601,7 +601,7 @@ TEST(PlacementModel, APoseAcrossThePathFromTheLaneIsWrong) {
   EXPECT_DOUBLE_EQ(far_side(1.2, 0.8), 0.0);
   EXPECT_DOUBLE_EQ(far_side(0.56, -0.17), 0.0);  // farther out than the lane, which may have drifted across
   EXPECT_LT(far_side(-0.1, 0.02), 0.01);
-  // Nearer the path the collapse's blur explains it more: the probability falls as the pose nears the path.
+  // Nearer the path a collapse onto it explains the pose more: the probability falls as the pose nears the path.
   EXPECT_LT(far_side(-0.05, 0.8), far_side(-0.15, 0.8));
   EXPECT_DOUBLE_EQ(FarSideProbability(LaneCheck(), model), 0.0);
   PlacementModel off = model;
