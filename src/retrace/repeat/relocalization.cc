@@ -22,7 +22,6 @@ using internal::Median;
 
 namespace {
 
-
 // min_bootstrap_features + λ ln(candidates / gate_candidates), rounded up, and no less than min_bootstrap_features.
 int AContrarioFeatures(const LocalizerOptions& options, size_t candidates, int gate_candidates) {
   const double excess = static_cast<double>(candidates) / gate_candidates;
