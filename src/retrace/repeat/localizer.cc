@@ -485,8 +485,12 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
   // The camera relative to the taught path in metres, from this frame's usable absolute pose.
   if (result.state == LocalizerState::kTracking && path_ != nullptr && last_pose_ && last_pose_->usable &&
       last_pose_->frame == frame_counter_) {
-    result.path = path_->Locate(last_pose_->arc, last_pose_->current_from_from,
-                                last_pose_->covariance ? &*last_pose_->covariance : nullptr, arc_);
+    // The heading's σ from the rotation's covariance with the pose's residual noise floored, as the lateral offset's
+    // in the recent frames' combination (FilterLateralOffset, LocalizerOptions::lateral_noise_floor_px).
+    std::optional<PoseCovariance> covariance = last_pose_->covariance;
+    if (covariance) covariance->rotation *= last_pose_->noise_floor_factor;
+    result.path = path_->Locate(last_pose_->arc, last_pose_->current_from_from, covariance ? &*covariance : nullptr,
+                                arc_);
   }
   if (result.state == LocalizerState::kTracking && result.path.valid) FilterLateralOffset(result.arc, &result.path);
   if (result.state != LocalizerState::kTracking) {

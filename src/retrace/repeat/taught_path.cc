@@ -304,6 +304,7 @@ TravelModel FitTravelModel(const std::vector<ArcTravel>& arcs, double min_turn) 
   if (straight.empty()) {
     for (const ArcTravel& arc : arcs) straight.push_back(-arc.chord_angle);
   }
+  std::vector<double> votes = straight;
   model.mount_yaw = Median(std::move(straight));
   for (int iteration = 0; iteration < 3 && model.turning_arcs > 0; ++iteration) {
     std::vector<double> ahead;
@@ -318,7 +319,25 @@ TravelModel FitTravelModel(const std::vector<ArcTravel>& arcs, double min_turn) 
     for (const ArcTravel& arc : arcs) {
       if (arc.length > 0) yaw.push_back(std::atan(model.camera_ahead * arc.turn / arc.length) - arc.chord_angle);
     }
+    votes = yaw;
     model.mount_yaw = Median(std::move(yaw));
+  }
+  // The median's standard error from the votes' spread (a robust σ: 1.4826 times the median absolute deviation).
+  if (static_cast<int>(votes.size()) >= TravelModel::kMinVotesForSigma) {
+    std::vector<double> deviations;
+    for (const double v : votes) deviations.push_back(std::abs(v - model.mount_yaw));
+    const double sigma = 1.4826 * Median(std::move(deviations));
+    model.mount_yaw_sigma = std::sqrt(M_PI / 2) * sigma / std::sqrt(static_cast<double>(votes.size()));
+    std::vector<double> curvatures;
+    for (const ArcTravel& arc : arcs) {
+      if (std::abs(arc.turn) < min_turn && arc.length > 0) curvatures.push_back(arc.turn / arc.length);
+    }
+    if (static_cast<int>(curvatures.size()) >= TravelModel::kMinVotesForSigma) {
+      const double middle = Median(curvatures);
+      std::vector<double> spread;
+      for (const double k : curvatures) spread.push_back(std::abs(k - middle));
+      model.curvature_sigma = 1.4826 * Median(std::move(spread));
+    }
   }
   model.valid = true;
   return model;
@@ -348,9 +367,10 @@ const TravelModel& TaughtPath::Travel(const MapArc& arc) {
     arcs.push_back(MeasureTravel(neighbour, std::exp(-log_unit_ratio)));
   });
   const TravelModel model = FitTravelModel(arcs, options_.travel_min_turn_rad);
-  spdlog::debug("taught path: arc {} travel model from {} arcs ({} turning): mount yaw {:.3f} deg, camera ahead "
-                "{:.3f} units",
-                arc.id, arcs.size(), model.turning_arcs, model.mount_yaw * 180 / M_PI, model.camera_ahead);
+  spdlog::debug("taught path: arc {} travel model from {} arcs ({} turning): mount yaw {:.3f} +- {:.3f} deg, camera "
+                "ahead {:.3f} units",
+                arc.id, arcs.size(), model.turning_arcs, model.mount_yaw * 180 / M_PI,
+                model.mount_yaw_sigma * 180 / M_PI, model.camera_ahead);
   return travel_.emplace(arc.id, model).first->second;
 }
 
@@ -428,8 +448,10 @@ PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const
   // kinematics").
   std::vector<Vector2d> travel = node_tangents;
   std::vector<double> travel_weight(points.size(), 0.0);
+  double travel_sigma = options_.travel_sigma_rad;
   if (options_.travel_window > 0) {
     const TravelModel& model = Travel(*arc);
+    if (std::isfinite(model.mount_yaw_sigma)) travel_sigma = model.DirectionSigma();
     std::vector<double> arc_turn, arc_length, arc_curvature;
     for (size_t i = 0; i + 1 < points.size(); ++i) {
       arc_turn.push_back(SignedAngle(headings[i], headings[i + 1]));
@@ -537,7 +559,7 @@ PathPose TaughtPath::Locate(arc_t pose_arc, const Rigid3d& current_from_a, const
   pose.along_sigma_m = std::sqrt(along_variance);
   // The reference's own variance: the chords' where the curve's tangent is taken, the travel model's on straights.
   double heading_variance = (1 - weight) * options_.tangent_sigma_rad * options_.tangent_sigma_rad +
-                            weight * options_.travel_sigma_rad * options_.travel_sigma_rad;
+                            weight * travel_sigma * travel_sigma;
   if (covariance != nullptr) {
     const Vector3d normal_in_camera = current_from_a.rotation * n;
     heading_variance += std::max(0.0, normal_in_camera.dot(covariance->rotation * normal_in_camera));

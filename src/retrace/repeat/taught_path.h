@@ -32,6 +32,7 @@
 //  - the path's curvature there and the largest curvature within the next arc (1/m, positive turning left).
 
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <unordered_map>
@@ -76,9 +77,12 @@ struct TaughtPathOptions {
   // model's direction. The arcs turning more give the model's camera_ahead.
   double travel_min_turn_rad = 0.035;
   // The travel model's direction as an angle (radians) where it is the reference, in place of tangent_sigma_rad in
-  // heading_sigma_rad: between key-images of straight arcs it was 0.03° off at the median on the validation
-  // matrix's simulated maps and 0.14° on kitti07's (24 key-images; the truth there from the poses of the frames on
-  // either side), a Gaussian with the larger median has σ 0.21°.
+  // heading_sigma_rad, when the model's own (TravelModel::DirectionSigma, from the spread of the arcs it was fitted
+  // to) cannot be measured (fewer than 5 arcs). Between key-images of straight arcs the direction was 0.03° off at the
+  // median on the validation matrix's simulated maps and 0.14° on kitti07's (24 key-images; the truth there from the
+  // poses of the frames on either side): a Gaussian with the larger median has σ 0.21°. That constant, used
+  // everywhere until 2026-12-07, was about five times the σ of the simulated maps' errors, where the model's own σ
+  // is about 0.03° (docs/path-tracking.md, "The heading's σ from the map").
   double travel_sigma_rad = 0.0036;
 
   bool Check(std::string* error = nullptr) const;
@@ -172,6 +176,16 @@ struct TravelModel {
   double camera_ahead = 0.0;  // in the unit of the lengths FitTravelModel was given
   int straight_arcs = 0;      // arcs turning less than the fit's min_turn
   int turning_arcs = 0;
+  // The standard error of mount_yaw (radians): the median of n votes spread by σ (1.4826 times their median absolute
+  // deviation) has √(π/2) σ / √n. NaN with fewer than kMinVotesForSigma votes (no spread to measure).
+  double mount_yaw_sigma = std::numeric_limits<double>::quiet_NaN();
+  static constexpr int kMinVotesForSigma = 5;
+  // The spread (robust σ, 1 / the fit's unit) of the straight arcs' curvatures, turn / length (0 with fewer than
+  // kMinVotesForSigma): the curvature the direction of travel is taken at errs by about this on a straight.
+  double curvature_sigma = 0.0;
+  // The standard deviation of the direction of travel on a straight (radians): the mount's error and the curvature's
+  // through camera_ahead; NaN where mount_yaw_sigma is.
+  double DirectionSigma() const { return std::hypot(mount_yaw_sigma, camera_ahead * curvature_sigma); }
   // β at curvature κ (1 / the fit's unit).
   double TravelAngle(double curvature) const { return std::atan(camera_ahead * curvature) - mount_yaw; }
 };

@@ -259,6 +259,32 @@ TEST(FitTravelModelTest, RecoversTheMountAndTheCameraAheadThroughWrongChords) {
   EXPECT_NEAR(straight.mount_yaw, -0.011, 1e-12);
   EXPECT_EQ(straight.camera_ahead, 0.0);
   EXPECT_FALSE(FitTravelModel({}, 0.035).valid);
+  EXPECT_TRUE(std::isnan(straight.mount_yaw_sigma));  // three votes: too few for their spread
+}
+
+// mount_yaw_sigma is the spread of mount_yaw over drives: straight chords off by 0.1° (σ) in 400 drives of 12 or
+// 40 arcs; the standard deviation of the fitted mount yaw against the mean of its σ.
+TEST(FitTravelModelTest, MountYawSigmaIsTheSpreadOfTheFit) {
+  std::mt19937 random(5);
+  const double chord_sigma = 0.1 * M_PI / 180;
+  std::normal_distribution<double> chord_error(0.0, chord_sigma);
+  for (const int arcs_per_drive : {12, 40}) {
+    double sum = 0.0, sum_squares = 0.0, sigma_sum = 0.0;
+    const int drives = 400;
+    for (int d = 0; d < drives; ++d) {
+      std::vector<ArcTravel> arcs;
+      for (int k = 0; k < arcs_per_drive; ++k) arcs.push_back({0.02 + chord_error(random), 0.0, 4.0});
+      const TravelModel model = FitTravelModel(arcs, 0.035);
+      ASSERT_TRUE(std::isfinite(model.mount_yaw_sigma));
+      sum += model.mount_yaw;
+      sum_squares += model.mount_yaw * model.mount_yaw;
+      sigma_sum += model.mount_yaw_sigma;
+    }
+    const double mean = sum / drives;
+    const double spread = std::sqrt(sum_squares / drives - mean * mean);
+    EXPECT_NEAR(mean, -0.02, 3 * spread / std::sqrt(drives)) << arcs_per_drive << " arcs";
+    EXPECT_NEAR(sigma_sum / drives / spread, 1.0, 0.2) << arcs_per_drive << " arcs";
+  }
 }
 
 // Over a whole map, in metres: the rig teach reports (a camera 1.4 m ahead of the rear axle, yawed 0.03 rad).
