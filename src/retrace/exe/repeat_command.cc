@@ -570,7 +570,8 @@ void RegisterRepeatCommand(CLI::App& app) {
       "\"The points' uncertainty in the pose's covariance only\")");
   cmd->add_flag("--multi-view-points,!--no-multi-view-points", args->options.multi_view_points,
                 "Triangulate each arc's points again from every key-image that sees them, the neighbouring arcs' "
-                "outer key-images too (docs/repeat.md, \"Points from more than two key-images\")");
+                "outer key-images too; on by default since 2026-12-07, off: each arc's points as its two key-images "
+                "made them (docs/repeat.md, \"Points from more than two key-images\")");
   cmd->add_option("--multi-view-max-residual", args->options.multi_view_max_residual_px,
                   "--multi-view-points: a point is kept as its arc made it when a key-image's residual exceeds this "
                   "(px at 320 px)")

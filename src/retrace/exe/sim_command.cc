@@ -709,7 +709,7 @@ void RegisterSimCommand(CLI::App& app) {
                   "features align through them (`repeat --verified-placement`; on by default)");
   drive->add_flag("--multi-view-points,!--no-multi-view-points", args->multi_view_points,
                   "Localizer: triangulate each arc's points again from every key-image that sees them (`repeat "
-                  "--multi-view-points`)");
+                  "--multi-view-points`; on by default)");
   drive->add_flag("--relocalization-affine", args->relocalization_affine,
                   "Localizer: align the mapped features a relocalization locates with the affine fallback (`repeat "
                   "--relocalization-affine`)");

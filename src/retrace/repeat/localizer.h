@@ -415,12 +415,13 @@ struct LocalizerOptions {
   // shared node (RefinePointMultiView). Two key-images a few metres apart fix far points near their epipole from a
   // pixel or two of parallax; the neighbours double the baseline and, in a turn, look from another direction. A point
   // is kept as the arc made it when a view disagrees by more than `multi_view_max_residual_px` (at 320 px).
-  // Measured (docs/repeat.md, "Points from more than two key-images"): on the validation matrix 97.45 → 97.56 %
-  // correct, 24 → 18 frames one arc off, kitti07 at 320 px 96.11 → 98.39 %; on 48 drives drawn at random 40 → 21
-  // one arc off; lateral_m's 95th percentile at 1 m 0.115 → 0.102 m. Off by default: the closed loop converged from
-  // 1.5 m beside in one drive fewer (38 of 42), a drive 3 m aside had 18 frames with lateral_m 2-3 m off, and the
-  // lateral filter and the heading's σ, fitted to the errors without it, no longer pass repeat_sim_test.
-  bool multi_view_points = false;
+  // Measured (docs/repeat.md, "Points from more than two key-images"): on the validation matrix 97.46 → 97.61 %
+  // correct, 18 → 13 frames one arc off (calibration 99.93 → 99.95 %), kitti07 at 320 px 96.11 → 98.39 %; on the
+  // two sets of 24 drives drawn at random 27 → 14 and 10 → 4 one arc off (calibration 99.82 → 99.91 % and 99.92 →
+  // 99.97 %: the 99.9 % on all three sets); lateral_m's 95th percentile at 1 m 0.115 → 0.102 m. On by
+  // default since 2026-12-07; at 3 m aside (offset3) one run of 18 frames has lateral_m 2-3 m off, where 13 points of
+  // one facade give a nearly degenerate pose that moves by metres when the points move by 1 %.
+  bool multi_view_points = true;
   double multi_view_max_residual_px = 1.0;
   // A current geometry's decomposed transfer predicts the current arc's features only when its placement agrees
   // with the belief within this many standard deviations (of the placement and the belief together).
