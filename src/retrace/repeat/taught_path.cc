@@ -304,8 +304,8 @@ TravelModel FitTravelModel(const std::vector<ArcTravel>& arcs, double min_turn) 
   if (straight.empty()) {
     for (const ArcTravel& arc : arcs) straight.push_back(-arc.chord_angle);
   }
-  std::vector<double> votes = straight;
-  model.mount_yaw = Median(std::move(straight));
+  std::vector<double> votes = std::move(straight);  // mount_yaw's, from the last fit below
+  model.mount_yaw = Median(votes);
   for (int iteration = 0; iteration < 3 && model.turning_arcs > 0; ++iteration) {
     std::vector<double> ahead;
     for (const ArcTravel& arc : arcs) {
@@ -319,26 +319,22 @@ TravelModel FitTravelModel(const std::vector<ArcTravel>& arcs, double min_turn) 
     for (const ArcTravel& arc : arcs) {
       if (arc.length > 0) yaw.push_back(std::atan(model.camera_ahead * arc.turn / arc.length) - arc.chord_angle);
     }
-    votes = yaw;
-    model.mount_yaw = Median(std::move(yaw));
+    votes = std::move(yaw);
+    model.mount_yaw = Median(votes);
   }
-  // The median's standard error from the votes' spread (a robust σ: 1.4826 times the median absolute deviation).
-  if (static_cast<int>(votes.size()) >= TravelModel::kMinVotesForSigma) {
-    std::vector<double> deviations;
-    for (const double v : votes) deviations.push_back(std::abs(v - model.mount_yaw));
-    const double sigma = 1.4826 * Median(std::move(deviations));
-    model.mount_yaw_sigma = std::sqrt(M_PI / 2) * sigma / std::sqrt(static_cast<double>(votes.size()));
-    std::vector<double> curvatures;
-    for (const ArcTravel& arc : arcs) {
-      if (std::abs(arc.turn) < min_turn && arc.length > 0) curvatures.push_back(arc.turn / arc.length);
-    }
-    if (static_cast<int>(curvatures.size()) >= TravelModel::kMinVotesForSigma) {
-      const double middle = Median(curvatures);
-      std::vector<double> spread;
-      for (const double k : curvatures) spread.push_back(std::abs(k - middle));
-      model.curvature_sigma = 1.4826 * Median(std::move(spread));
-    }
+  // The median's standard error from the votes' robust spread, and the straight arcs' curvatures' spread.
+  const auto enough = [](const std::vector<double>& v) {
+    return static_cast<int>(v.size()) >= TravelModel::kMinVotesForSigma;
+  };
+  if (enough(votes)) {
+    model.mount_yaw_sigma = std::sqrt(M_PI / 2) * RobustSigmaAbout(votes, model.mount_yaw) /
+                            std::sqrt(static_cast<double>(votes.size()));
   }
+  std::vector<double> curvatures;
+  for (const ArcTravel& arc : arcs) {
+    if (std::abs(arc.turn) < min_turn && arc.length > 0) curvatures.push_back(arc.turn / arc.length);
+  }
+  if (enough(curvatures)) model.curvature_sigma = RobustSigmaAbout(curvatures, Median(curvatures));
   model.valid = true;
   return model;
 }

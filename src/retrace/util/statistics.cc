@@ -1,6 +1,7 @@
 #include "retrace/util/statistics.h"
 
 #include <algorithm>
+#include <cmath>
 
 namespace retrace {
 
@@ -17,6 +18,13 @@ double Median(std::vector<double> values) {
   std::nth_element(values.begin(), middle, values.end());
   if (values.size() % 2 == 1) return *middle;
   return 0.5 * (*middle + *std::max_element(values.begin(), middle));
+}
+
+double RobustSigmaAbout(const std::vector<double>& values, double centre) {
+  std::vector<double> deviations;
+  deviations.reserve(values.size());
+  for (const double v : values) deviations.push_back(std::abs(v - centre));
+  return 1.4826 * Median(std::move(deviations));
 }
 
 }  // namespace retrace

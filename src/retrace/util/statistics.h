@@ -13,4 +13,8 @@ double Quantile(std::vector<double> values, double q);
 // The median: the middle value, or the mean of the two middle values of an even count; 0 for no values.
 double Median(std::vector<double> values);
 
+// A robust standard deviation of `values` about `centre`: 1.4826 times their median absolute deviation from it (the
+// σ of Gaussian values); 0 for no values.
+double RobustSigmaAbout(const std::vector<double>& values, double centre);
+
 }  // namespace retrace
