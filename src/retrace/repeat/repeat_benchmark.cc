@@ -162,6 +162,19 @@ void BM_RepeatSimUnrefined(benchmark::State& state) {
 }
 BENCHMARK(BM_RepeatSimUnrefined)->Unit(benchmark::kMillisecond)->Iterations(1);
 
+// The same drives with each arc's points as its two key-images triangulated them (`repeat --no-multi-view-points`,
+// LocalizerOptions::multi_view_points off): what the default's points from more than two key-images cost, measured in
+// the same process.
+LocalizerOptions WithTwoViewPoints() {
+  LocalizerOptions options;
+  options.multi_view_points = false;
+  return options;
+}
+void BM_RepeatKittiTwoViewPoints(benchmark::State& state) { RunRepeatKitti(state, WithTwoViewPoints()); }
+BENCHMARK(BM_RepeatKittiTwoViewPoints)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)->Iterations(1);
+void BM_RepeatSimTwoViewPoints(benchmark::State& state) { RunRepeat(*GetSimSetup(), state, WithTwoViewPoints()); }
+BENCHMARK(BM_RepeatSimTwoViewPoints)->Unit(benchmark::kMillisecond)->Iterations(1);
+
 // One frame localized from scratch (a fresh Localizer, no key-image features cached), `frame` of the repeat drive.
 void RunFindStart(const Setup& setup, size_t frame, benchmark::State& state) {
   LocalizerOptions options;
