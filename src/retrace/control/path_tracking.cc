@@ -49,6 +49,9 @@ bool PathTrackingOptions::Check(std::string* error) const {
   if (!(uncertain_speed_fraction > 0 && uncertain_speed_fraction <= 1)) {
     return fail(fmt::format("uncertain_speed_fraction must be in (0, 1], got {}", uncertain_speed_fraction));
   }
+  if (!(heading_process_sigma >= 0 && heading_process_sigma <= 10)) {
+    return fail(fmt::format("heading_process_sigma must be in [0, 10] rad/sqrt(m), got {}", heading_process_sigma));
+  }
   std::string offset_error;
   if (!offset.Check(&offset_error)) return fail("offset: " + offset_error);
   return true;
@@ -67,14 +70,39 @@ PathTracker::PathTracker(const PathTrackingOptions& options) : options_(options)
   offsets_ = ObservationWindow(options_.offset);
 }
 
-double PathTracker::FilteredOffset(const PathTrackingInput& input, double dt) {
+double PathTracker::FilteredHeading(const PathTrackingInput& input, double dt) {
+  const double measured = input.heading_error_rad;
+  const double sigma = input.heading_sigma_rad;
+  const bool known = std::isfinite(sigma) && sigma > 0.0;
+  if (!std::isfinite(heading_)) {
+    heading_ = measured;
+    heading_variance_ = known ? sigma * sigma : 0.0;
+  } else {
+    // Predict: over the speed·dt metres since the last frame the path turned by κ_p (the mean of both frames') and
+    // the car by the commanded κ: dψ/ds = κ_p − κ.
+    const double travelled = speed_ * dt;
+    const double path_curvature = 0.5 * (path_curvature_ + input.path_curvature);
+    const double predicted = heading_ + (path_curvature - curvature_) * travelled;
+    const double predicted_variance =
+        heading_variance_ + options_.heading_process_sigma * options_.heading_process_sigma * travelled;
+    if (!known) {
+      heading_ = measured;
+      heading_variance_ = 0.0;
+    } else {
+      // Update with the frame's own, each by its variance.
+      const double gain = predicted_variance / (predicted_variance + sigma * sigma);
+      heading_ = predicted + gain * (measured - predicted);
+      heading_variance_ = (1.0 - gain) * predicted_variance;
+    }
+  }
+  path_curvature_ = input.path_curvature;
+  return heading_;
+}
+
+double PathTracker::FilteredOffset(const PathTrackingInput& input, double heading, double dt) {
   // The camera moved speed·dt since the last frame in the direction φ = ψ − atan(d κ) relative to the path.
   if (!offsets_.empty()) {
     const double travelled = speed_ * dt;
-    // With heading_from_offset the heading of the last frame, taken with its combined offset (this frame's own may
-    // come with an offset the window corrects, and would carry the window's frames by its error).
-    const double heading =
-        options_.heading_from_offset && std::isfinite(steered_heading_) ? steered_heading_ : input.heading_error_rad;
     const double direction = heading - std::atan(options_.camera_forward * curvature_);
     distance_ += travelled;
     drift_ += travelled * std::sin(direction);
@@ -90,7 +118,7 @@ PathTrackingCommand PathTracker::Update(const PathTrackingInput& input, bool pre
   if (!input.tracking) {
     // Lost: stop now; the wheels keep their angle (nothing to steer by).
     offsets_.Clear();
-    steered_heading_ = std::numeric_limits<double>::quiet_NaN();
+    steered_heading_ = heading_ = std::numeric_limits<double>::quiet_NaN();
     speed_ = 0.0;
     command.mode = SteeringMode::kStop;
     command.curvature = curvature_;
@@ -100,10 +128,20 @@ PathTrackingCommand PathTracker::Update(const PathTrackingInput& input, bool pre
   double wanted = curvature_;
   if (input.metric && !prefer_image) {
     command.mode = SteeringMode::kPath;
+    // The heading: the frame's own combined with the last one carried by the motion; with heading_from_offset the
+    // frame's own, and the last frame's taken with its combined offset carries the window (this frame's own may come
+    // with an offset the window corrects, and would carry the window's frames by its error).
+    double heading = input.heading_error_rad;
+    double carried_by = heading;
+    if (options_.heading_from_offset) {
+      if (std::isfinite(steered_heading_)) carried_by = steered_heading_;
+    } else if (options_.heading_process_sigma > 0) {
+      heading = carried_by = FilteredHeading(input, dt);
+    }
     double lateral = input.lateral_m;
-    if (options_.offset.process_sigma > 0) lateral = FilteredOffset(input, dt);
+    if (options_.offset.process_sigma > 0) lateral = FilteredOffset(input, carried_by, dt);
     command.lateral_m = lateral;
-    command.heading_error_rad = input.heading_error_rad;  // each frame's own (a filter over frames, README: not kept)
+    command.heading_error_rad = heading;
     if (options_.heading_from_offset && std::isfinite(input.heading_per_lateral)) {
       command.heading_error_rad += input.heading_per_lateral * (lateral - input.lateral_m);
     }
@@ -115,9 +153,9 @@ PathTrackingCommand PathTracker::Update(const PathTrackingInput& input, bool pre
   } else {
     command.mode = SteeringMode::kImage;  // nothing new to steer by: hold the wheels
   }
-  if (command.mode != SteeringMode::kPath) {  // the filtered offset starts again with the metric path
+  if (command.mode != SteeringMode::kPath) {  // the filtered offset and heading start again with the metric path
     offsets_.Clear();
-    steered_heading_ = std::numeric_limits<double>::quiet_NaN();
+    steered_heading_ = heading_ = std::numeric_limits<double>::quiet_NaN();
   }
   wanted = std::clamp(wanted, -options_.max_curvature, options_.max_curvature);
   const double step = options_.max_curvature_rate * dt;

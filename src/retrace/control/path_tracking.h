@@ -18,9 +18,11 @@
 //
 // The offset e the law uses is not the frame's alone: the recent frames' offsets, carried to the current frame by the
 // commanded motion (de/ds = sin φ), are combined robustly (PathTrackingOptions::offset), so that a run of frames a
-// metre off does not turn the car towards a phantom path. Optionally (`heading_from_offset`) the heading is the one
-// that goes with that combined offset through the pose's covariance (the bas-relief ambiguity; README: a trade over
-// the closed-loop drives, off by default).
+// metre off does not turn the car towards a phantom path. The heading ψ is the frame's own combined with the last
+// frame's carried by the commanded motion and the taught path's curvature (dψ/ds = κ_p − κ), each by its variance
+// (`heading_process_sigma`): a heading resting on a few features, with a σ of several degrees, does not swerve the car.
+// Optionally (`heading_from_offset`, instead) the heading is the one that goes with that combined offset through the
+// pose's covariance (the bas-relief ambiguity; README: a trade over the closed-loop drives, off by default).
 //
 // Without a metric offset (no camera height, or no usable absolute pose in this frame) the law falls back to the
 // image steering of Segvic 2009, eq. (10) (control/steering.h): κ = −image_gain · w. Curvature is limited in value
@@ -88,6 +90,18 @@ struct PathTrackingOptions {
   // and turned by about −δe / Z together (the bas-relief ambiguity); where the combined offset e_c corrects δe, this
   // corrects the turn that came with it.
   bool heading_from_offset = false;
+  // The heading the law steers by (without heading_from_offset): the frame's own combined with the last frame's carried
+  // to this one by the motion (a one-state Kalman filter, PathTracker::FilteredHeading): dψ/ds = κ_p − κ with the
+  // commanded curvature κ and the taught path's κ_p (PathTrackingInput::path_curvature), plus a random walk of
+  // `heading_process_sigma` rad/√m for what that misses; the frame's heading enters with its own σ
+  // (PathTrackingInput::heading_sigma_rad). A frame whose pose rests on a few features gives a heading with a σ of
+  // 0.05-0.1 rad and may be that far off (the closed loop's rate5: 0.095 rad off with σ 0.12 at 5 Hz, which swerved
+  // the car 0.39 m aside); a frame of a well-posed pose (σ ≲ 0.01 rad) is taken almost as it is. 0.03 rad/√m: over
+  // the four closed-loop drives that missed the convergence target, the carried true heading (the map's κ_p, the
+  // commands) missed the next frame's by 0.002-0.013 rad/√m (robust σ) but by 0.034-0.069 rad/√m at the 95th
+  // percentile (entering turns, where the map's curvature lags), whose Gaussian σ is about 0.03. 0: each frame's own
+  // heading.
+  double heading_process_sigma = 0.03;
   bool Check(std::string* error = nullptr) const;
 };
 
@@ -102,6 +116,8 @@ struct PathTrackingInput {
   // errors (PathTrackingOptions::offset.shared_correlation); -1 unknown.
   int64_t arc = -1;
   double heading_error_rad = 0.0;  // positive looking right of the path
+  double heading_sigma_rad = 0.0;  // its standard deviation (0 unknown: the heading is taken as it is)
+  double path_curvature = 0.0;     // 1/m, positive left, the taught path's curvature where the camera is
   double heading_per_lateral = 0.0;  // rad/m, the pose's regression of its heading on its offset (0 unknown)
   double curvature_ahead = 0.0;  // 1/m, the sharpest of the taught path ahead (0 when unknown)
   bool image_steering_valid = false;
@@ -138,8 +154,14 @@ class PathTracker {
   PathTrackingOptions options_;
   double curvature_ = 0.0;
   double speed_ = 0.0;
-  // The recent frames' offsets for FilteredOffset, each less the motion's drift up to it, at the metres driven.
-  double FilteredOffset(const PathTrackingInput& input, double dt);
+  // The heading combined with the last frame's carried by the motion (PathTrackingOptions::heading_process_sigma).
+  double FilteredHeading(const PathTrackingInput& input, double dt);
+  double heading_ = std::numeric_limits<double>::quiet_NaN();  // the last FilteredHeading (NaN: none yet)
+  double heading_variance_ = 0.0;
+  double path_curvature_ = 0.0;  // the last frame's PathTrackingInput::path_curvature
+  // The recent frames' offsets for FilteredOffset, each less the motion's drift up to it, at the metres driven; the
+  // camera's heading over the last step is `heading`.
+  double FilteredOffset(const PathTrackingInput& input, double heading, double dt);
   ObservationWindow offsets_;
   double distance_ = 0.0;
   double drift_ = 0.0;  // ∫ sin φ ds

@@ -121,6 +121,8 @@ ClosedLoopSummary DriveClosedLoop(Simulator* simulator, Localizer* localizer, co
     input.lateral_sigma_m = result.path.frame_lateral_sigma_m;
     input.arc = result.arc;  // kInvalidArcId (-1) when not tracking
     input.heading_error_rad = result.path.heading_error_rad;
+    input.heading_sigma_rad = result.path.heading_sigma_rad;
+    input.path_curvature = result.path.curvature;
     input.heading_per_lateral = result.path.heading_per_lateral;
     input.curvature_ahead = result.path.curvature_ahead;  // 0 when the frame has no metric path
     input.image_steering_valid = result.steering_valid;

@@ -746,6 +746,13 @@ void RegisterSimCommand(CLI::App& app) {
   drive->add_flag("--heading-from-offset", args->drive.tracking.heading_from_offset,
                   "Path law: steer by the heading that goes with the recent frames' combined offset (the pose's "
                   "heading-offset covariance) instead of the frame's own");
+  drive
+      ->add_option("--heading-process-sigma", args->drive.tracking.heading_process_sigma,
+                   "Path law: the heading steered by is the frame's own combined with the last frame's carried by the "
+                   "commanded motion and the taught path's curvature, plus a random walk of this many rad/sqrt(m) "
+                   "(a one-state Kalman filter; 0: each frame's own heading)")
+      ->check(CLI::Range(0.0, 10.0))
+      ->capture_default_str();
   drive->add_option("--image-gain", args->drive.tracking.image_gain,
                     "eq. (10) law: curvature = -gain * w (1/m), [-100, 100]")
       ->capture_default_str();
