@@ -74,7 +74,8 @@ double PathTracker::FilteredHeading(const PathTrackingInput& input, double dt) {
   const double measured = input.heading_error_rad;
   const double sigma = input.heading_sigma_rad;
   const bool known = std::isfinite(sigma) && sigma > 0.0;
-  if (!std::isfinite(heading_)) {
+  if (!std::isfinite(heading_) || !known) {
+    // The first heading, or one without a σ: taken as it is.
     heading_ = measured;
     heading_variance_ = known ? sigma * sigma : 0.0;
   } else {
@@ -85,15 +86,10 @@ double PathTracker::FilteredHeading(const PathTrackingInput& input, double dt) {
     const double predicted = heading_ + (path_curvature - curvature_) * travelled;
     const double predicted_variance =
         heading_variance_ + options_.heading_process_sigma * options_.heading_process_sigma * travelled;
-    if (!known) {
-      heading_ = measured;
-      heading_variance_ = 0.0;
-    } else {
-      // Update with the frame's own, each by its variance.
-      const double gain = predicted_variance / (predicted_variance + sigma * sigma);
-      heading_ = predicted + gain * (measured - predicted);
-      heading_variance_ = (1.0 - gain) * predicted_variance;
-    }
+    // Update with the frame's own, each by its variance.
+    const double gain = predicted_variance / (predicted_variance + sigma * sigma);
+    heading_ = predicted + gain * (measured - predicted);
+    heading_variance_ = (1.0 - gain) * predicted_variance;
   }
   path_curvature_ = input.path_curvature;
   return heading_;

@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <string>
 
 #include <benchmark/benchmark.h>
 #include <opencv2/core.hpp>
@@ -140,40 +141,36 @@ BENCHMARK(BM_RepeatKitti)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)->Iter
 void BM_RepeatSim(benchmark::State& state) { RunRepeat(*GetSimSetup(), state); }
 BENCHMARK(BM_RepeatSim)->Unit(benchmark::kMillisecond)->Iterations(1);
 
-// The same drives with the tracker's affine fallback on (`repeat --affine`, LocalizerOptions::affine_fallback): what
-// the fallback costs, measured in the same process.
-LocalizerOptions WithAffineFallback() {
-  LocalizerOptions options;
-  options.affine_fallback = true;
-  return options;
+// The same drives with other options, measured in the same process against the default: BM_RepeatKitti<name>/0,
+// /320 and BM_RepeatSim<name> for each variant below.
+void RegisterRepeatVariant(const std::string& name, LocalizerOptions options) {
+  benchmark::RegisterBenchmark(("BM_RepeatKitti" + name).c_str(),
+                               [options](benchmark::State& state) { RunRepeatKitti(state, options); })
+      ->Arg(0)
+      ->Arg(320)
+      ->Unit(benchmark::kMillisecond)
+      ->Iterations(1);
+  benchmark::RegisterBenchmark(("BM_RepeatSim" + name).c_str(),
+                               [options](benchmark::State& state) { RunRepeat(*GetSimSetup(), state, options); })
+      ->Unit(benchmark::kMillisecond)
+      ->Iterations(1);
 }
-void BM_RepeatKittiAffine(benchmark::State& state) { RunRepeatKitti(state, WithAffineFallback()); }
-BENCHMARK(BM_RepeatKittiAffine)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)->Iterations(1);
-void BM_RepeatSimAffine(benchmark::State& state) { RunRepeat(*GetSimSetup(), state, WithAffineFallback()); }
-BENCHMARK(BM_RepeatSimAffine)->Unit(benchmark::kMillisecond)->Iterations(1);
 
-// The same drives with the three that are on by default off (LocalizerOptions::WithPaperWarp: the paper's warp
-// alone; README, "The three as the default"): what the default's affine refinement costs, measured in the same
-// process.
-void BM_RepeatKittiUnrefined(benchmark::State& state) { RunRepeatKitti(state, LocalizerOptions().WithPaperWarp()); }
-BENCHMARK(BM_RepeatKittiUnrefined)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)->Iterations(1);
-void BM_RepeatSimUnrefined(benchmark::State& state) {
-  RunRepeat(*GetSimSetup(), state, LocalizerOptions().WithPaperWarp());
-}
-BENCHMARK(BM_RepeatSimUnrefined)->Unit(benchmark::kMillisecond)->Iterations(1);
-
-// The same drives with each arc's points as its two key-images triangulated them (`repeat --no-multi-view-points`,
-// LocalizerOptions::multi_view_points off): what the default's points from more than two key-images cost, measured in
-// the same process.
-LocalizerOptions WithTwoViewPoints() {
-  LocalizerOptions options;
-  options.multi_view_points = false;
-  return options;
-}
-void BM_RepeatKittiTwoViewPoints(benchmark::State& state) { RunRepeatKitti(state, WithTwoViewPoints()); }
-BENCHMARK(BM_RepeatKittiTwoViewPoints)->Arg(0)->Arg(320)->Unit(benchmark::kMillisecond)->Iterations(1);
-void BM_RepeatSimTwoViewPoints(benchmark::State& state) { RunRepeat(*GetSimSetup(), state, WithTwoViewPoints()); }
-BENCHMARK(BM_RepeatSimTwoViewPoints)->Unit(benchmark::kMillisecond)->Iterations(1);
+const bool kVariantsRegistered = [] {
+  // The tracker's affine fallback on (`repeat --affine`, LocalizerOptions::affine_fallback): what the fallback costs.
+  LocalizerOptions affine;
+  affine.affine_fallback = true;
+  RegisterRepeatVariant("Affine", affine);
+  // The three that are on by default off (LocalizerOptions::WithPaperWarp: the paper's warp alone; README, "The three
+  // as the default"): what the default's affine refinement costs.
+  RegisterRepeatVariant("Unrefined", LocalizerOptions().WithPaperWarp());
+  // Each arc's points as its two key-images triangulated them (`repeat --no-multi-view-points`,
+  // LocalizerOptions::multi_view_points off): what the default's points from more than two key-images cost.
+  LocalizerOptions two_view_points;
+  two_view_points.multi_view_points = false;
+  RegisterRepeatVariant("TwoViewPoints", two_view_points);
+  return true;
+}();
 
 // One frame localized from scratch (a fresh Localizer, no key-image features cached), `frame` of the repeat drive.
 void RunFindStart(const Setup& setup, size_t frame, benchmark::State& state) {
