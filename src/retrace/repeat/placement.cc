@@ -226,8 +226,12 @@ bool PlacementModel::Check(std::string* error) const {
   if (!(verified_pose_sigma_factor >= 1) || !(verified_pose_sigma_floor > 0)) {
     return fail("verified_pose_sigma_factor must be >= 1 and verified_pose_sigma_floor positive");
   }
-  for (const double p : {pose_outlier_probability, geometry_outlier_probability, key_image_outlier_probability,
-                         verified_pose_outlier_probability}) {
+  if (!(pose_outlier_inliers >= 0)) return fail("pose_outlier_inliers must be >= 0");
+  if (!(pose_outlier_min > 0) || !(pose_outlier_min <= pose_outlier_max)) {
+    return fail("pose_outlier_min must be positive and at most pose_outlier_max");
+  }
+  for (const double p : {pose_outlier_probability, pose_outlier_max, geometry_outlier_probability,
+                         key_image_outlier_probability, verified_pose_outlier_probability}) {
     if (!(p > 0) || !(p < 1)) return fail("placement outlier probabilities must be in (0, 1)");
   }
   return true;
@@ -373,6 +377,12 @@ double FarSideProbability(const LaneCheck& lane, const PlacementModel& model) {
   return std::isfinite(posterior) ? posterior : 0.0;
 }
 
+double PoseOutlierProbability(int inliers, const PlacementModel& model) {
+  if (!(model.pose_outlier_inliers > 0)) return model.pose_outlier_probability;
+  const double ratio = model.pose_outlier_inliers / std::max(inliers, 1);
+  return std::clamp(model.pose_outlier_probability * ratio * ratio, model.pose_outlier_min, model.pose_outlier_max);
+}
+
 PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const AbsolutePose& pose,
                                  const Rigid3d& arc_b_from_a, const PlacementModel& model, const ArcBounds& bounds,
                                  const PoseSpread& spread, const PoseDeviation& height, double collapse_probability,
@@ -388,7 +398,7 @@ PlaceMeasurement PoseMeasurement(arc_t arc, const ArcPosition& position, const A
   // Bayes' rule on the centre's height off the arc (PlacementModel::pose_height_sigma): the pose a wrong one with the
   // prior probability, its height uniform over the span then; raised only (a height on the line does not confirm a
   // pose, which can be wrong along the road).
-  double outlier_probability = model.pose_outlier_probability;
+  double outlier_probability = PoseOutlierProbability(pose.num_inliers, model);
   if (height.valid && model.pose_height_sigma > 0) {
     const double variance = height.sigma * height.sigma + model.pose_height_sigma * model.pose_height_sigma;
     const double right = GaussianDensity(height.deviation, variance);

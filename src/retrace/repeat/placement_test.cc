@@ -317,13 +317,48 @@ TEST(PlacementModel, ASharedScaleErrorMovesAPoseOnDistantPointsAlongTheArc) {
   EXPECT_GT(std::abs(along_biased - along_exact), 6.0 * fitted_only.sigma);
 }
 
-// A successful pose whose centre has standard deviation `sigma` (arc lengths) along every axis.
+// A successful pose whose centre has standard deviation `sigma` (arc lengths) along every axis, on as many inliers as
+// give it the model's pose_outlier_probability (PoseOutlierProbability).
 AbsolutePose PoseWithIsotropicCovariance(double sigma) {
   AbsolutePose pose;
   pose.success = true;
+  pose.num_inliers = static_cast<int>(PlacementModel().pose_outlier_inliers);
   pose.covariance_valid = true;
   pose.centre_covariance = Matrix3d::Identity() * sigma * sigma;
   return pose;
+}
+
+// A pose on many inliers is rarely wrong (PlacementModel::pose_outlier_inliers, measured over the validation matrix):
+// its outlier probability falls with the square of its inliers, within the model's bounds, and is the flat
+// pose_outlier_probability when pose_outlier_inliers is 0.
+TEST(PlacementModel, APosesOutlierProbabilityFallsWithItsInliers) {
+  PlacementModel model;
+  EXPECT_DOUBLE_EQ(PoseOutlierProbability(20, model), model.pose_outlier_probability);
+  EXPECT_DOUBLE_EQ(PoseOutlierProbability(40, model), model.pose_outlier_probability / 4.0);
+  EXPECT_DOUBLE_EQ(PoseOutlierProbability(127, model), model.pose_outlier_min);
+  // Few inliers: at most pose_outlier_max (by default the flat value: raising it lost correct frames).
+  EXPECT_DOUBLE_EQ(PoseOutlierProbability(6, model), model.pose_outlier_max);
+  EXPECT_DOUBLE_EQ(PoseOutlierProbability(0, model), model.pose_outlier_max);
+  model.pose_outlier_max = 0.2;
+  EXPECT_DOUBLE_EQ(PoseOutlierProbability(10, model), 4.0 * model.pose_outlier_probability);
+  EXPECT_DOUBLE_EQ(PoseOutlierProbability(6, model), model.pose_outlier_max);
+  // The measurement carries it.
+  AbsolutePose pose;
+  pose.success = true;
+  pose.num_inliers = 9;
+  const Rigid3d b_from_a = CamFromWorld(Vector3d(0.0, 0.0, 1.0));
+  EXPECT_DOUBLE_EQ(PoseMeasurement(1, AlongArc(0.4), pose, b_from_a, model).outlier_probability,
+                   PoseOutlierProbability(9, model));
+  model.pose_outlier_inliers = 0.0;
+  EXPECT_TRUE(model.Check());
+  for (const int n : {0, 9, 20, 127}) EXPECT_DOUBLE_EQ(PoseOutlierProbability(n, model), model.pose_outlier_probability);
+  model.pose_outlier_min = 0.0;
+  EXPECT_FALSE(model.Check());
+  model.pose_outlier_min = 0.3;
+  EXPECT_FALSE(model.Check());  // above pose_outlier_max
+  model.pose_outlier_min = 0.002;
+  model.pose_outlier_max = 1.0;
+  EXPECT_FALSE(model.Check());
 }
 
 TEST(PlacementModel, MeasurementsCarryTheirUncertainty) {
