@@ -134,10 +134,10 @@ struct PlacementModel {
   // (PoseOutlierProbability; pose_outlier_inliers 0: pose_outlier_probability for every pose, as before). A start
   // whose pose on 113-127 features placed the camera an arc behind the key-image it verified best was not confident
   // with 0.02 (0.66-0.93: the pose wrong and the camera at the key-image weighed 7-34 %; three of the 1000 starts of
-  // `scripts/kidnap-validation`). The bound above stays the flat 0.02: raised to 0.2, the poses on fewer than 20 inliers
-  // (beside the path, kitti07 at 320 px) gave way to the other placements in frames they had right — over the matrix
-  // 97.61 -> 97.46 % correct, 91.27 -> 90.81 % at 2.5 m, 13 frames on a wrong arc either way (docs/repeat.md, "A pose's
-  // outlier probability by its inliers").
+  // `scripts/kidnap-validation`). The upper bound stays the flat 0.02: raised to 0.2, the poses on fewer than 20
+  // inliers (beside the path, kitti07 at 320 px) gave way to the other placements in frames they had right — over the
+  // matrix 97.61 -> 97.46 % correct, 91.27 -> 90.81 % at 2.5 m, 13 frames on a wrong arc either way (docs/repeat.md,
+  // "A pose on many inliers is rarely wrong").
   double pose_outlier_probability = 0.02;
   double pose_outlier_inliers = 20.0;
   double pose_outlier_min = 0.002;
