@@ -689,6 +689,8 @@ class Localizer {
   // The arc at `key_image`'s node on whose side of it the camera is by its verified relative pose (the sign test of
   // Segvic 2009 eq. (9)); a route's end has one.
   arc_t ArcBySideOf(const MatchedKeyImage& key_image) const;
+  // Whether key-image `node` is an end of `arc` or of its previous or next arc (the arcs a bootstrap locates).
+  bool OfArcOrNeighbours(const ArcData& arc, node_t node) const;
   // Each key-image that may see `arc`'s points with its pose in the arc's frame and unit (a at the origin): the arc's
   // two, then the outer key-images of its neighbours (previous, next) where the map stores the scale at the node.
   std::vector<std::pair<node_t, Rigid3d>> KeyImagesInArcFrame(const ArcData& arc) const;

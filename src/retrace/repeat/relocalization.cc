@@ -342,6 +342,13 @@ int Localizer::LocateMappedFeatures(const MatchedKeyImage& key_image, const std:
   return located_features;
 }
 
+bool Localizer::OfArcOrNeighbours(const ArcData& arc, node_t node) const {
+  for (const ArcData* around : {&arc, Arc(arc.previous), Arc(arc.next)}) {
+    if (around != nullptr && HasEnd(*around->arc, node)) return true;
+  }
+  return false;
+}
+
 arc_t Localizer::ArcBySideOf(const MatchedKeyImage& key_image) const {
   const node_t k = key_image.node;
   const MapArc* out = nullptr;
@@ -474,16 +481,9 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
     // Not a key-image of the chosen arc or of its two neighbours, whose mapped features the bootstrap locates: near a
     // node two adjacent key-images may each put the camera beyond the other (side tests with little parallax), one
     // place all the same (the default drive's frame 125, `RepeatSim.KidnappedStartsRankedByAppearanceAndVisualWords`).
-    const ArcData* chosen_data = Arc(chosen);
-    std::vector<node_t> place_nodes;
-    for (const ArcData* located : {chosen_data, Arc(chosen_data->previous), Arc(chosen_data->next)}) {
-      if (located == nullptr) continue;
-      place_nodes.push_back(located->arc->from);
-      place_nodes.push_back(located->arc->to);
-    }
     const MatchedKeyImage* rival = nullptr;
     for (const MatchedKeyImage& other : verified) {
-      if (std::find(place_nodes.begin(), place_nodes.end(), other.node) != place_nodes.end() ||
+      if (OfArcOrNeighbours(*Arc(chosen), other.node) ||
           other.geometry.num_inliers < options_.retrieval_ambiguity_ratio * best->geometry.num_inliers) {
         continue;
       }
@@ -511,11 +511,6 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   // first frame's time): the arc's own first, its neighbours' outer key-images only when the features located so far
   // are too few or, over the whole map, the place not yet verified beyond one pair of images.
   const std::array<const ArcData*, 3> located_arcs = {arc, Arc(arc->previous), Arc(arc->next)};
-  const auto on_located_arcs = [&located_arcs](node_t node) {
-    return std::any_of(located_arcs.begin(), located_arcs.end(), [node](const ArcData* located) {
-      return located != nullptr && HasEnd(*located->arc, node);
-    });
-  };
   std::vector<node_t> untried_arc, untried_neighbours;
   for (const ArcData* located : located_arcs) {
     if (located == nullptr || use_start_arc) continue;
@@ -538,7 +533,7 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   // its neighbours verify (LocalizerOptions::min_global_agreeing_key_images; a look-alike place mostly verifies one).
   const auto agreeing = [&]() {
     return static_cast<int>(std::count_if(verified.begin(), verified.end(), [&](const MatchedKeyImage& candidate) {
-      return on_located_arcs(candidate.node);
+      return OfArcOrNeighbours(*arc, candidate.node);
     }));
   };
 
