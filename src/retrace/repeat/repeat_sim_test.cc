@@ -9,7 +9,6 @@
 #include <array>
 #include <cmath>
 #include <iostream>
-#include <random>
 #include <string>
 #include <vector>
 
@@ -23,32 +22,6 @@
 
 namespace retrace {
 namespace {
-
-// The standard error of median(a) - median(b) over paired samples (a[i], b[i] of one frame) by a moving-block
-// bootstrap (Künsch 1989): blocks of `block` consecutive pairs drawn with replacement, 2000 resamples, a fixed seed.
-double PairedMedianDifferenceSe(const std::vector<double>& a, const std::vector<double>& b, size_t block) {
-  const size_t n = std::min(a.size(), b.size());
-  if (n < 2 * block) return 0.0;
-  std::mt19937 random(1);
-  std::uniform_int_distribution<size_t> start(0, n - block);
-  double sum = 0.0, sum_squares = 0.0;
-  const int resamples = 2000;
-  for (int r = 0; r < resamples; ++r) {
-    std::vector<double> ra, rb;
-    while (ra.size() < n) {
-      const size_t first = start(random);
-      for (size_t i = first; i < first + block && ra.size() < n; ++i) {
-        ra.push_back(a[i]);
-        rb.push_back(b[i]);
-      }
-    }
-    const double difference = Median(std::move(ra)) - Median(std::move(rb));
-    sum += difference;
-    sum_squares += difference * difference;
-  }
-  const double mean = sum / resamples;
-  return std::sqrt(std::max(0.0, sum_squares / resamples - mean * mean));
-}
 
 // The map teach makes of `drive` with the default options.
 Map Teach(const RecordedDrive& drive) {
@@ -166,7 +139,7 @@ void RepeatAndCheck(const Scenario& base, const std::string& label, bool check_s
   // bootstrap (blocks of 10 frames: the frames' errors come in runs) — 0.0018 and 0.0021 m here, more than the
   // differences (-0.0009 and +0.0008 m): on one drive the two medians are a tie, which a strict comparison decided
   // by chance.
-  const double median_difference_se = PairedMedianDifferenceSe(lateral_errors, frame_lateral_errors, 10);
+  const double median_difference_se = PairedMedianDifferenceStandardError(lateral_errors, frame_lateral_errors, 10);
   std::cout << "  combined minus own median " << median - frame_median << " m, standard error " << median_difference_se
             << " m\n";
   EXPECT_LT(median - frame_median, 2.0 * median_difference_se);
