@@ -83,15 +83,13 @@
 // (relative pose on the matches) in that order, within a budget: at most `retrieval_shortlist` of them
 // (`start_retrieval_shortlist` before the first localization), stopping at the first with `retrieval_confident_inliers`
 // (issue 16: a relocalizing frame costs the same on a map of any size; at a start, at the first candidate after it that
-// is not within the belief's reach of it) — unless the place it proposes is not taken, when the rest of the budget is
-// verified and the place decided again over all of them. The verified key-image with most inliers wins. Its arc is
-// chosen by which side of the key-image the camera is on (the sign test of eq. (9), which needs no scale); the
-// key-image is a measurement of the belief. The mapped features of that arc and of its two neighbours seen in the
-// matched key-images are then located in the frame from the displacement of the nearest matched key-points and
-// refined against their references (without the coarsest pyramid level, like every refined prediction); the regular
-// transfer predicts the remaining ones from the next frame on. Key-images of these three arcs that retrieval did not
-// verify are verified for this: the arc's own first, the neighbours' outer ones only when too few features were
-// located through those. A
+// is not within the belief's reach of it). The verified key-image with most inliers wins. Its arc is chosen by which
+// side of the key-image the camera is on (the sign test of eq. (9), which needs no scale); the key-image is a
+// measurement of the belief. The mapped features of that arc and of its two neighbours seen in the matched key-images
+// are then located in the frame from the displacement of the nearest matched key-points and refined against their
+// references (without the coarsest pyramid level, like every refined prediction); the regular transfer predicts the
+// remaining ones from the next frame on. Key-images of these three arcs that retrieval did not verify are verified for
+// this: the arc's own first, the neighbours' outer ones only when too few features were located through those. A
 // bootstrap over the whole map is a multiple test against look-alike places: it also needs a second key-image of those
 // arcs verified and more located features the more key-images it searched (min_global_agreeing_key_images,
 // GlobalBootstrapFeatures) — or, with one key-image verified, more still (SingleKeyImageBootstrapFeatures) — and,
@@ -651,14 +649,12 @@ class Localizer {
   // Verifies `candidates` by wide-baseline matching, the most similar in appearance to `image` first, at most
   // `shortlist` of them (0: all; see LocalizerOptions::retrieval_shortlist), stopping at the first confident one
   // (retrieval_confident_inliers) or, with `confident_reach` > 0, going on down the ranking while the candidates are
-  // key-images of the arcs within that many arcs of the first arc at it (NodesNear); without `stop_when_confident`
-  // the whole budget. Candidates already in `tried` (an earlier pass over the same frame) are skipped; every one
-  // tried is added to it. A retrieval over the whole map
+  // key-images of the arcs within that many arcs of the first arc at it (NodesNear); every candidate tried is added
+  // to `tried`. A retrieval over the whole map
   // (`whole_map`) also ranks by visual words (visual_word_retrieval) and screens its candidates (MatchKeyImages).
   std::vector<MatchedKeyImage> RetrieveKeyImages(const cv::Mat& image, const WideBaselineFeatures& current,
                                                  const std::vector<node_t>& candidates, std::vector<node_t>* tried,
-                                                 int shortlist, bool whole_map, int confident_reach,
-                                                 bool stop_when_confident);
+                                                 int shortlist, bool whole_map, int confident_reach);
   // Where the candidates of MatchKeyImages come from, which decides how hard each is tried.
   enum class CandidateSource {
     kNearby,           // near where the robot was lost or started: full sample budget, guided matching allowed
@@ -690,12 +686,6 @@ class Localizer {
   // The arcs that start or end at key-image `node`, by id.
   std::vector<const ArcData*> ArcsAt(node_t node) const;
   bool Bootstrap(const Frame& frame, FrameResult* result);
-  // The rest of a bootstrap once key-images are verified: the place among `verified` (look-alikes weighed), its arc
-  // by the side test, the mapped features of the arc and its neighbours located through their key-images (those not
-  // in `tried` verified lazily) and the gates on them; false, tracks cleared, when the frame decides no place.
-  // `candidate_count` key-images were searched, over the whole map when `global`.
-  bool DecidePlace(const Frame& frame, const WideBaselineFeatures& current, std::vector<MatchedKeyImage> verified,
-                   const std::vector<node_t>& tried, size_t candidate_count, bool global, FrameResult* result);
   // The arc at `key_image`'s node on whose side of it the camera is by its verified relative pose (the sign test of
   // Segvic 2009 eq. (9)); a route's end has one.
   arc_t ArcBySideOf(const MatchedKeyImage& key_image) const;

@@ -158,8 +158,7 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
                                                                      const WideBaselineFeatures& current,
                                                                      const std::vector<node_t>& candidates,
                                                                      std::vector<node_t>* tried, int shortlist,
-                                                                     bool whole_map, int confident_reach,
-                                                                     bool stop_when_confident) {
+                                                                     bool whole_map, int confident_reach) {
   // Rank by appearance: an exhaustive scan of the quantised thumbnails (about 0.3 µs per key-image).
   std::vector<size_t> entries;
   entries.reserve(candidates.size());
@@ -185,13 +184,11 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
   const size_t budget = limited ? std::min(static_cast<size_t>(shortlist), ranked.size()) : ranked.size();
   std::vector<MatchedKeyImage> verified;
   std::optional<std::vector<node_t>> near_confident;  // the key-images within confident_reach of the first confident
-  const std::vector<node_t> tried_before = *tried;    // verified by an earlier pass over this frame: skipped
   for (size_t i = 0; i < budget; ++i) {
     if (near_confident &&
         std::find(near_confident->begin(), near_confident->end(), ranked[i]) == near_confident->end()) {
       break;
     }
-    if (std::find(tried_before.begin(), tried_before.end(), ranked[i]) != tried_before.end()) continue;
     tried->push_back(ranked[i]);
     std::vector<MatchedKeyImage> one =
         MatchKeyImages(current, {ranked[i]}, whole_map ? CandidateSource::kWholeMapScreened : CandidateSource::kNearby);
@@ -200,7 +197,7 @@ std::vector<Localizer::MatchedKeyImage> Localizer::RetrieveKeyImages(const cv::M
     if (one.empty()) continue;
     const bool confident = one.front().support >= options_.retrieval_confident_inliers;
     verified.push_back(std::move(one.front()));
-    if (!confident || !limited || !stop_when_confident || near_confident) continue;
+    if (!confident || !limited || near_confident) continue;
     if (confident_reach <= 0) break;
     const std::vector<const ArcData*> at = ArcsAt(ranked[i]);
     if (at.empty()) break;
@@ -370,72 +367,51 @@ arc_t Localizer::ArcBySideOf(const MatchedKeyImage& key_image) const {
 }
 
 bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
+  const bool use_start_arc = start_arc_ != kInvalidArcId;
   const arc_t last_arc = last_arc_;
   ClearTracks();
   verified_placement_.reset();
   arc_ = kInvalidArcId;
-  const WideBaselineFeatures current = options_.binary_relocalization
-                                          ? ExtractBinaryFeatures(frame.image, frame_features_)
-                                          : ExtractWideBaselineFeatures(frame.image, options_.matching);
-  std::vector<node_t> tried;
-  if (start_arc_ != kInvalidArcId) {
-    const MapArc* arc = Arc(start_arc_)->arc;
-    tried = {arc->from, arc->to};
-    result->key_images_matched = static_cast<int>(tried.size());
-    return DecidePlace(frame, current, MatchKeyImages(current, tried), tried, /*candidate_count=*/2, /*global=*/false,
-                       result);
-  }
-  // After a loss the robot is still near where it was lost: only the key-images within a window of arcs around
-  // the last arc are matched, widened with every frame since the loss; the whole map (retrieval) at the start
-  // and for a robot lost for long (carried elsewhere). Look-alike streets elsewhere in the map verify too: in the
-  // simulated town a frame 19 arcs from the truth matched a key-image with 42 inliers a frame after a loss.
-  const size_t frames_lost = frame_counter_ - lost_at_frame_;
-  std::vector<node_t> candidates;
-  bool global = false;  // retrieval over the whole map (a start without a start arc, or lost for long)
-  if (last_arc != kInvalidArcId && frames_lost < static_cast<size_t>(options_.global_relocalization_frames)) {
-    candidates = NodesNear(last_arc, options_.relocalization_neighbourhood +
-                                         static_cast<int>(frames_lost) * options_.relocalization_widening);
-  } else {
-    for (const MapNode& node : map_.nodes()) candidates.push_back(node.id);
-    global = true;
-  }
-  // Over the whole map most candidates are other places, and a lost robot's frame rate depends on how fast they
-  // are refused (screening, MatchKeyImages); near where it was lost a candidate is likely the place: full budget.
-  // Not localized since the start: the start's larger budget (LocalizerOptions::start_retrieval_shortlist), and
-  // the candidates ranked after the first confident one that lie within the belief's reach of it verified too.
-  const bool start = last_arc == kInvalidArcId;
-  const int shortlist = start ? options_.start_retrieval_shortlist : options_.retrieval_shortlist;
-  const int confident_reach = start ? options_.belief.reach : 0;
-  std::vector<MatchedKeyImage> verified = RetrieveKeyImages(frame.image, current, candidates, &tried, shortlist,
-                                                            global, confident_reach, /*stop_when_confident=*/true);
-  result->key_images_matched = static_cast<int>(tried.size());
-  if (DecidePlace(frame, current, verified, tried, candidates.size(), global, result)) return true;
-  // Stopping at a confident candidate only saves time: when the place it proposed is not taken (too few mapped
-  // features located, or ambiguous), the rest of the budget is verified and the place decided again over all of
-  // them. On the 4.8 km map a start verified a look-alike 116 m away with 79 inliers at rank 1, which located 13
-  // mapped features of the 31 needed, and stopped there; the place itself was at rank 10 with 136 inliers
-  // (`retrace -v bench kidnap --map out/kidnap/lawn.db --sequence out/kidnap/repeat --at 3724`).
-  const size_t budget = shortlist > 0 ? std::min(static_cast<size_t>(shortlist), candidates.size()) : candidates.size();
-  if (verified.empty() || tried.size() >= budget) return false;
-  std::vector<MatchedKeyImage> more = RetrieveKeyImages(frame.image, current, candidates, &tried, shortlist, global,
-                                                        confident_reach, /*stop_when_confident=*/false);
-  result->key_images_matched = static_cast<int>(tried.size());
-  if (more.empty()) return false;
-  spdlog::debug("repeat: bootstrap at frame {}: {} more key-images verified after the confident one's place failed",
-                frame.index, more.size());
-  verified.insert(verified.end(), std::make_move_iterator(more.begin()), std::make_move_iterator(more.end()));
-  return DecidePlace(frame, current, std::move(verified), tried, candidates.size(), global, result);
-}
-
-bool Localizer::DecidePlace(const Frame& frame, const WideBaselineFeatures& current,
-                            std::vector<MatchedKeyImage> verified, const std::vector<node_t>& tried,
-                            size_t candidate_count, bool global, FrameResult* result) {
-  const bool use_start_arc = start_arc_ != kInvalidArcId;
-  ClearTracks();
-  verified_placement_.reset();
   // The place is decided on the features the paper's warp located: those the robust fallback added are tracked, but
   // a place is not taken on them (LocalizerOptions::relocalization_robust_alignment).
   const auto located_by_paper = [this]() { return tracker_.NumFeatures() - tracker_.NumRobustFeatures(); };
+
+  const WideBaselineFeatures current = options_.binary_relocalization
+                                          ? ExtractBinaryFeatures(frame.image, frame_features_)
+                                          : ExtractWideBaselineFeatures(frame.image, options_.matching);
+  std::vector<MatchedKeyImage> verified;
+  std::vector<node_t> tried;
+  size_t candidate_count = 2;
+  bool global = false;  // retrieval over the whole map (a start without a start arc, or lost for long)
+  if (use_start_arc) {
+    const MapArc* arc = Arc(start_arc_)->arc;
+    tried = {arc->from, arc->to};
+    verified = MatchKeyImages(current, tried);
+  } else {
+    // After a loss the robot is still near where it was lost: only the key-images within a window of arcs around
+    // the last arc are matched, widened with every frame since the loss; the whole map (retrieval) at the start
+    // and for a robot lost for long (carried elsewhere). Look-alike streets elsewhere in the map verify too: in the
+    // simulated town a frame 19 arcs from the truth matched a key-image with 42 inliers a frame after a loss.
+    const size_t frames_lost = frame_counter_ - lost_at_frame_;
+    std::vector<node_t> candidates;
+    if (last_arc != kInvalidArcId && frames_lost < static_cast<size_t>(options_.global_relocalization_frames)) {
+      candidates = NodesNear(last_arc, options_.relocalization_neighbourhood +
+                                           static_cast<int>(frames_lost) * options_.relocalization_widening);
+    } else {
+      for (const MapNode& node : map_.nodes()) candidates.push_back(node.id);
+      global = true;
+    }
+    // Over the whole map most candidates are other places, and a lost robot's frame rate depends on how fast they
+    // are refused (screening, MatchKeyImages); near where it was lost a candidate is likely the place: full budget.
+    // Not localized since the start: the start's larger budget (LocalizerOptions::start_retrieval_shortlist), and
+    // the candidates ranked after the first confident one that lie within the belief's reach of it verified too.
+    const bool start = last_arc == kInvalidArcId;
+    const int shortlist = start ? options_.start_retrieval_shortlist : options_.retrieval_shortlist;
+    verified = RetrieveKeyImages(frame.image, current, candidates, &tried, shortlist, /*whole_map=*/global,
+                                 /*confident_reach=*/start ? options_.belief.reach : 0);
+    candidate_count = candidates.size();
+  }
+  result->key_images_matched = static_cast<int>(tried.size());
   if (verified.empty()) return false;
   const MatchedKeyImage* best = &*std::max_element(verified.begin(), verified.end(),
                                                    [](const MatchedKeyImage& x, const MatchedKeyImage& y) {
