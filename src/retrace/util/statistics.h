@@ -1,6 +1,7 @@
 #pragma once
 
-// Order statistics of measurements for the figures retrace prints (medians, percentiles of errors).
+// Order statistics of measurements for the figures retrace prints (medians, percentiles of errors), and the
+// bootstrap standard error of a difference of medians that tests compare two estimators by.
 
 #include <cstddef>
 #include <cstdint>
@@ -23,7 +24,7 @@ double RobustSigmaAbout(const std::vector<double>& values, double centre);
 // moving-block bootstrap (Künsch 1989): the first min(a.size(), b.size()) pairs resampled as blocks of `block`
 // consecutive pairs drawn with replacement, `resamples` times, from a generator seeded with `seed` (the same answer on
 // every run). Blocks keep the runs in which errors of consecutive frames come; block 1 is the ordinary paired
-// bootstrap. 0 for fewer than 2 · block pairs (or block 0).
+// bootstrap. 0 for fewer than 2 · block pairs, block 0 or fewer than 2 resamples.
 double PairedMedianDifferenceStandardError(const std::vector<double>& a, const std::vector<double>& b, size_t block,
                                            int resamples = 2000, uint32_t seed = 1);
 
