@@ -94,10 +94,11 @@
 // arcs verified and more located features the more key-images it searched (min_global_agreeing_key_images,
 // GlobalBootstrapFeatures) — or, with one key-image verified, more still (SingleKeyImageBootstrapFeatures) — and,
 // when a place elsewhere (or a key-image nearby that puts the camera on another arc) verified too, the place whose
-// key-image locates clearly more mapped features (retrieval_ambiguity_ratio). A bootstrap near where the robot was lost or started that locates too few features
-// still gives the belief the camera resected from the verified key-images' matches (`place_by_verified_key_images`,
-// ResectFromKeyImages), a coarser placement: a frame with no other evidence is reported `tracking` on it only when it
-// alone supports the belief's arc as surely as the belief must be (PlaceBelief::MeasurementSupport).
+// key-image locates clearly more mapped features (retrieval_ambiguity_ratio). A bootstrap near where the robot was
+// lost or started that locates too few features still gives the belief the camera resected from the verified
+// key-images' matches (`place_by_verified_key_images`, ResectFromKeyImages), a coarser placement: a frame with no
+// other evidence is reported `tracking` on it only when it alone supports the belief's arc as surely as the belief
+// must be (PlaceBelief::MeasurementSupport).
 
 #include <array>
 #include <limits>

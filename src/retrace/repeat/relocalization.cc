@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <unordered_map>
 #include <unordered_set>
 
 #include <fmt/format.h>
@@ -424,7 +425,11 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
   // than the place itself (rows of equal blocks, another sun) but it does not show the place's mapped features. The
   // one locating more is taken (`best` set to it), unless the other locates almost as many
   // (retrieval_ambiguity_ratio) and at least `min_rival_features`: false, which is which not decided by this frame.
+  std::unordered_map<node_t, int> located_alone_by_node;  // the best key-image may be weighed against two rivals
   const auto located_alone = [&](const MatchedKeyImage& key_image) {
+    if (const auto known = located_alone_by_node.find(key_image.node); known != located_alone_by_node.end()) {
+      return known->second;
+    }
     const std::vector<const ArcData*> at = ArcsAt(key_image.node);
     std::array<const ArcData*, 3> arcs{};
     std::copy_n(at.begin(), std::min(at.size(), arcs.size()), arcs.begin());
@@ -432,6 +437,7 @@ bool Localizer::Bootstrap(const Frame& frame, FrameResult* result) {
     LocateMappedFeatures(key_image, arcs, &seen);
     const int located = located_by_paper();
     ClearTracks();
+    located_alone_by_node.emplace(key_image.node, located);
     return located;
   };
   const auto decide_by_located_features = [&](const MatchedKeyImage* rival, int min_rival_features) {
