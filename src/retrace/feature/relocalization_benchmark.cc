@@ -3,6 +3,9 @@
 //    1226x370, against BM_ExtractWideBaseline (SIFT from three detectors, wide_baseline.h) on the same images;
 //  - BM_DescribeBinaryKeyPoints: the same descriptors of given key-points (reading a key-image's stored differences);
 //  - BM_MatchBinary: the Hamming table, ratio test and cross-check of two 320x240 images;
+//  - BM_HammingNearest/K: the scan of all pairs alone (hamming_nearest.h) for a relocalizing frame's 822 random
+//    descriptors against a key-image's 850, kernel K = 1 portable, 2 POPCNT, 3 AVX2, 4 AVX-512 (skipped where the
+//    CPU lacks it);
 //  - BM_AppearanceIndexRank/N: ranking N key-images by their quantised thumbnails (global_descriptor.h);
 //  - BM_VisualWordsQuantize: the words of a 320x240 frame's ORB descriptors in a vocabulary of about 10^4 words;
 //  - BM_VisualWordIndexRank/N: ranking N key-images of 1000 words each by tf-idf through the inverted file
@@ -19,6 +22,7 @@
 
 #include "retrace/feature/binary_features.h"
 #include "retrace/feature/global_descriptor.h"
+#include "retrace/feature/hamming_nearest.h"
 #include "retrace/feature/synthetic_texture.h"
 #include "retrace/feature/visual_words.h"
 
@@ -74,6 +78,27 @@ void BM_MatchBinary(benchmark::State& state) {
   state.counters["matches"] = static_cast<double>(matches);
 }
 BENCHMARK(BM_MatchBinary)->Unit(benchmark::kMillisecond);
+
+void BM_HammingNearest(benchmark::State& state) {
+  const auto kernel = static_cast<HammingKernel>(state.range(0));
+  if (!HammingKernelAvailable(kernel)) {
+    state.SkipWithError("kernel not available on this CPU");
+    return;
+  }
+  cv::Mat query(822, 32, CV_8U), train(850, 32, CV_8U);
+  cv::RNG rng(5);
+  rng.fill(query, cv::RNG::UNIFORM, 0, 256);
+  rng.fill(train, cv::RNG::UNIFORM, 0, 256);
+  int nearest_of_first = 0;
+  for (auto _ : state) nearest_of_first = FindHammingNearest(query, train, kernel).best[0];
+  benchmark::DoNotOptimize(nearest_of_first);
+}
+BENCHMARK(BM_HammingNearest)
+    ->Arg(static_cast<int>(HammingKernel::kPortable))
+    ->Arg(static_cast<int>(HammingKernel::kPopcnt))
+    ->Arg(static_cast<int>(HammingKernel::kAvx2))
+    ->Arg(static_cast<int>(HammingKernel::kAvx512))
+    ->Unit(benchmark::kMillisecond);
 
 void BM_AppearanceIndexRank(benchmark::State& state) {
   const int n = static_cast<int>(state.range(0));

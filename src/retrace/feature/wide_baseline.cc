@@ -9,6 +9,8 @@
 #include <opencv2/core/hal/hal.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "retrace/feature/hamming_nearest.h"
+
 namespace retrace {
 namespace {
 
@@ -102,102 +104,6 @@ void FuseInto(const std::vector<cv::KeyPoint>& candidates, double radius, std::v
     (*grid)[cy * grid_cols + cx].push_back(static_cast<int>(kept->size()));
     kept->push_back(candidate);
   }
-}
-
-// The nearest and second-nearest train descriptor of every query descriptor and the nearest query descriptor of
-// every train descriptor, by the Hamming distance of binary descriptors of 8-32 bytes (one to four 64-bit words
-// each). One pass over all pairs keeps only these running minima: a table of every distance (4 bytes per pair,
-// 9.7 MB for a 1226x370 frame's 2430 key-points against a key-image's 1000) would be written and read back through
-// memory: a third slower. Ties keep the first (lowest index), as a scan of such a table row by row would.
-struct HammingNearest {
-  std::vector<int> best, best_d, second_d;        // per query
-  std::vector<int> best_query_of_train, best_query_d;  // per train
-};
-
-// The Hamming distance of two descriptors of kWords 64-bit words (the word count a compile-time constant, so that
-// the loop unrolls as the hand-written four-word sum it replaces).
-template <int kWords>
-inline int HammingDistance(const uint64_t* a, const uint64_t* b) {
-  int d = 0;
-  for (int w = 0; w < kWords; ++w) d += __builtin_popcountll(a[w] ^ b[w]);
-  return d;
-}
-
-// The POPCNT instruction where the CPU has it (every x86-64 CPU since 2008; chosen at run time, the build targets
-// plain x86-64), else the compiler's portable bit count. OpenCV's batchDistance calls its normHamming once per pair,
-// with tracing overhead per call: 3-4 times slower for 1000 x 1000 descriptors. The body is the same for both builds
-// of the function below.
-#define RETRACE_HAMMING_NEAREST_BODY                                                                               \
-  const int n = query.rows, m = train.rows;                                                                       \
-  int* best_query_d = nearest->best_query_d.data();                                                               \
-  int* best_query_of_train = nearest->best_query_of_train.data();                                                 \
-  for (int i = 0; i < n; ++i) {                                                                                   \
-    const uint64_t* q = query.ptr<uint64_t>(i);                                                                   \
-    int best = -1, best_d = std::numeric_limits<int>::max(), second_d = best_d;                                   \
-    for (int j = 0; j < m; ++j) {                                                                                 \
-      const int d = HammingDistance<kWords>(q, train.ptr<uint64_t>(j));                                           \
-      if (d < best_d) {                                                                                           \
-        second_d = best_d;                                                                                        \
-        best_d = d;                                                                                               \
-        best = j;                                                                                                 \
-      } else if (d < second_d) {                                                                                  \
-        second_d = d;                                                                                             \
-      }                                                                                                           \
-      if (d < best_query_d[j]) {                                                                                  \
-        best_query_d[j] = d;                                                                                      \
-        best_query_of_train[j] = i;                                                                               \
-      }                                                                                                           \
-    }                                                                                                             \
-    nearest->best[i] = best;                                                                                      \
-    nearest->best_d[i] = best_d;                                                                                  \
-    nearest->second_d[i] = second_d;                                                                              \
-  }
-
-template <int kWords>
-void HammingNearestPortable(const cv::Mat& query, const cv::Mat& train, HammingNearest* nearest) {
-  RETRACE_HAMMING_NEAREST_BODY
-}
-
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-template <int kWords>
-__attribute__((target("popcnt"))) void HammingNearestPopcnt(const cv::Mat& query, const cv::Mat& train,
-                                                            HammingNearest* nearest) {
-  RETRACE_HAMMING_NEAREST_BODY
-}
-#endif
-#undef RETRACE_HAMMING_NEAREST_BODY
-
-template <int kWords>
-void FindHammingNearestOfWords(const cv::Mat& query, const cv::Mat& train, HammingNearest* nearest) {
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-  if (__builtin_cpu_supports("popcnt")) {
-    HammingNearestPopcnt<kWords>(query, train, nearest);
-    return;
-  }
-#endif
-  HammingNearestPortable<kWords>(query, train, nearest);
-}
-
-HammingNearest FindHammingNearest(const cv::Mat& query_in, const cv::Mat& train_in) {
-  const int bytes = query_in.cols;
-  CV_Assert(train_in.cols == bytes && bytes >= 8 && bytes <= 32 && bytes % 8 == 0);
-  // Rows of whole 64-bit words, 8-byte aligned (cv::Mat's data is 16-byte aligned; a continuous matrix keeps every
-  // row so).
-  const cv::Mat query = query_in.isContinuous() ? query_in : query_in.clone();
-  const cv::Mat train = train_in.isContinuous() ? train_in : train_in.clone();
-  HammingNearest nearest;
-  nearest.best.assign(query.rows, -1);
-  nearest.best_d.assign(query.rows, std::numeric_limits<int>::max());
-  nearest.second_d.assign(query.rows, std::numeric_limits<int>::max());
-  nearest.best_query_of_train.assign(train.rows, -1);
-  nearest.best_query_d.assign(train.rows, std::numeric_limits<int>::max());
-  switch (bytes / 8) {
-    case 1: FindHammingNearestOfWords<1>(query, train, &nearest); break;
-    case 2: FindHammingNearestOfWords<2>(query, train, &nearest); break;
-    case 3: FindHammingNearestOfWords<3>(query, train, &nearest); break;
-    default: FindHammingNearestOfWords<4>(query, train, &nearest); break;
-  }
-  return nearest;
 }
 
 // Binary descriptors (binary_features.h): the nearest descriptors by Hamming distance, then the same ratio test and
