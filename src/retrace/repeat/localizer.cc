@@ -17,6 +17,24 @@
 #include "retrace/util/error.h"
 
 namespace retrace {
+namespace {
+
+// A lookup table by feature id from (id, value) pairs in any order; a repeated id keeps its last value, as
+// assignment into a map would.
+template <typename Value>
+boost::container::flat_map<feature_t, Value> SortedById(std::vector<std::pair<feature_t, Value>> entries) {
+  std::stable_sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<std::pair<feature_t, Value>> unique;
+  unique.reserve(entries.size());
+  for (size_t i = 0; i < entries.size(); ++i) {
+    if (i + 1 < entries.size() && entries[i + 1].first == entries[i].first) continue;
+    unique.push_back(std::move(entries[i]));
+  }
+  return boost::container::flat_map<feature_t, Value>(boost::container::ordered_unique_range, unique.begin(),
+                                                      unique.end());
+}
+
+}  // namespace
 
 double internal::Median(std::vector<double> values) {
   if (values.empty()) return 0.0;
@@ -158,12 +176,18 @@ Localizer::Localizer(Map map, const CameraModel& camera, const LocalizerOptions&
     if (!node.image.empty()) CheckKeyImageSize(node.id, node.image);
     auto data = std::make_unique<NodeData>();
     data->node = &node;
+    std::vector<std::pair<feature_t, Vector2d>> positions;
+    std::vector<std::pair<feature_t, Vector3d>> bearings;
+    positions.reserve(node.features.size());
+    bearings.reserve(node.features.size());
     for (const FeatureObservation& f : node.features) {
       Vector3d bearing;
       if (!camera_->Unproject(f.position, &bearing)) continue;
-      data->positions[f.feature_id] = f.position;
-      data->bearings[f.feature_id] = bearing;
+      positions.emplace_back(f.feature_id, f.position);
+      bearings.emplace_back(f.feature_id, bearing);
     }
+    data->positions = SortedById(std::move(positions));
+    data->bearings = SortedById(std::move(bearings));
     nodes_[node.id] = std::move(data);
     // Retrieval: the stored appearance when it was made with these options (its size tells the thumbnail's width;
     // LoadMapForLocalizer drops signatures made with other settings), else computed now (0.1 ms per key-image).
