@@ -74,11 +74,16 @@ void TangentBasis(const Vector3d& bearing, Vector3d* u, Vector3d* v) {
 }
 
 Vector2d TangentResidualPx(const Vector3d& bearing, const Vector3d& point_in_cam, double focal_length_px) {
+  Vector3d u, v;
+  TangentBasis(bearing, &u, &v);
+  return TangentResidualPx(bearing, u, v, point_in_cam, focal_length_px);
+}
+
+Vector2d TangentResidualPx(const Vector3d& bearing, const Vector3d& u, const Vector3d& v, const Vector3d& point_in_cam,
+                           double focal_length_px) {
   const double norm = point_in_cam.norm();
   if (!(norm > 0.0)) return Vector2d::Constant(focal_length_px);
   const Vector3d p = point_in_cam / norm;
-  Vector3d u, v;
-  TangentBasis(bearing, &u, &v);
   Vector2d residual(u.dot(p), v.dot(p));
   if (p.dot(bearing) < 0.0) {
     // Behind: the tangent component shrinks again past 90°; report at least one radian.

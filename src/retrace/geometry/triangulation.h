@@ -59,5 +59,9 @@ void TangentBasis(const Vector3d& bearing, Vector3d* u, Vector3d* v);
 // expressed in the tangent basis of the bearing and multiplied by `focal_length_px`. A point behind the bearing
 // (angle > 90°) gets a residual of at least `focal_length_px` in magnitude, so it never looks like a good fit.
 Vector2d TangentResidualPx(const Vector3d& bearing, const Vector3d& point_in_cam, double focal_length_px);
+// The same with the bearing's tangent basis (u, v) = TangentBasis(bearing) given: for the many residuals of one
+// bearing that a robust estimator computes (two_view_geometry.cc). The same result, bit for bit.
+Vector2d TangentResidualPx(const Vector3d& bearing, const Vector3d& u, const Vector3d& v, const Vector3d& point_in_cam,
+                           double focal_length_px);
 
 }  // namespace retrace

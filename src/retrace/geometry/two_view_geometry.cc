@@ -51,39 +51,54 @@ TwoViewGeometry Failure(TwoViewFailure failure, const std::string& detail, size_
   return geometry;
 }
 
+// Unit bearings with their tangent bases (TangentBasis), computed once for all the hypotheses scored on them.
+struct BearingsWithBases {
+  explicit BearingsWithBases(const std::vector<Vector3d>& bearings)
+      : f(bearings), u(bearings.size()), v(bearings.size()) {
+    for (size_t i = 0; i < f.size(); ++i) TangentBasis(f[i], &u[i], &v[i]);
+  }
+  Vector2d ResidualPx(size_t i, const Vector3d& point, double focal_length_px) const {
+    return TangentResidualPx(f[i], u[i], v[i], point, focal_length_px);
+  }
+  const std::vector<Vector3d>& f;
+  std::vector<Vector3d> u, v;
+};
+
 // Inlier test shared by scoring and evaluation: Sampson error below τ, triangulated (midpoint) in front of both
 // cameras, and the triangulated point reprojects within τ (both images together). The last test rejects the
 // occasional outlier that lies near its epipolar line but far from where the two rays meet. Returns the squared
 // Sampson error (radians²) of an inlier, or a negative value for an outlier; fills `point` for inliers.
-inline double InlierError(const Rigid3d& pose, const Matrix3d& e, const Vector3d& fa, const Vector3d& fb,
-                          double tau2, TriangulatedPoint* point) {
+inline double InlierError(const Rigid3d& pose, const Matrix3d& e, const BearingsWithBases& a,
+                          const BearingsWithBases& b, size_t i, double tau2, TriangulatedPoint* point) {
+  const Vector3d& fa = a.f[i];
+  const Vector3d& fb = b.f[i];
   const double e2 = SampsonErrorSquared(e, fa, fb);
   if (!(e2 < tau2)) return -1.0;
   if (!TriangulateMidpoint(pose, fa, fb, point) || point->depth_a <= 0.0 || point->depth_b <= 0.0) return -1.0;
-  const Vector2d residual_a = TangentResidualPx(fa, point->point_in_a, 1.0);
-  const Vector2d residual_b = TangentResidualPx(fb, pose * point->point_in_a, 1.0);
+  const Vector2d residual_a = a.ResidualPx(i, point->point_in_a, 1.0);
+  const Vector2d residual_b = b.ResidualPx(i, pose * point->point_in_a, 1.0);
   if (!(residual_a.squaredNorm() + residual_b.squaredNorm() < tau2)) return -1.0;
   return e2;
 }
 
 // MSAC cost of one correspondence and whether it is an inlier; τ² in radians².
-inline double CorrespondenceCost(const Rigid3d& pose, const Matrix3d& e, const Vector3d& fa, const Vector3d& fb,
-                                 double tau2, bool* inlier) {
+inline double CorrespondenceCost(const Rigid3d& pose, const Matrix3d& e, const BearingsWithBases& a,
+                                 const BearingsWithBases& b, size_t i, double tau2, bool* inlier) {
   TriangulatedPoint point;
-  const double e2 = InlierError(pose, e, fa, fb, tau2, &point);
+  const double e2 = InlierError(pose, e, a, b, i, tau2, &point);
   *inlier = e2 >= 0.0;
   return *inlier ? e2 : tau2;
 }
 
 // MSAC cost of a pose over all correspondences, stopping early once it exceeds `bound`.
-double ScorePose(const Rigid3d& pose, const std::vector<Vector3d>& a, const std::vector<Vector3d>& b, double tau2,
+double ScorePose(const Rigid3d& pose, const BearingsWithBases& a, const BearingsWithBases& b, double tau2,
                  double bound, int* num_inliers) {
   const Matrix3d e = EssentialFromPose(pose);
   double cost = 0.0;
   int inliers = 0;
-  for (size_t i = 0; i < a.size(); ++i) {
+  for (size_t i = 0; i < a.f.size(); ++i) {
     bool inlier;
-    cost += CorrespondenceCost(pose, e, a[i], b[i], tau2, &inlier);
+    cost += CorrespondenceCost(pose, e, a, b, i, tau2, &inlier);
     inliers += inlier;
     if (cost > bound) break;
   }
@@ -91,17 +106,20 @@ double ScorePose(const Rigid3d& pose, const std::vector<Vector3d>& a, const std:
   return cost;
 }
 
-std::vector<int> InlierIndices(const Rigid3d& pose, const std::vector<Vector3d>& a, const std::vector<Vector3d>& b,
+std::vector<int> InlierIndices(const Rigid3d& pose, const BearingsWithBases& a, const BearingsWithBases& b,
                                double tau2) {
   const Matrix3d e = EssentialFromPose(pose);
   std::vector<int> indices;
-  for (size_t i = 0; i < a.size(); ++i) {
+  for (size_t i = 0; i < a.f.size(); ++i) {
     bool inlier;
-    CorrespondenceCost(pose, e, a[i], b[i], tau2, &inlier);
+    CorrespondenceCost(pose, e, a, b, i, tau2, &inlier);
     if (inlier) indices.push_back(static_cast<int>(i));
   }
   return indices;
 }
+
+void Evaluate(const BearingsWithBases& a, const BearingsWithBases& b, double focal_length_px, double max_error_px,
+              double sigma_p_probability, TwoViewGeometry* geometry);
 
 }  // namespace
 
@@ -109,13 +127,24 @@ bool IsInlierOfPose(const Rigid3d& b_from_a, const Vector3d& bearing_a, const Ve
                     double focal_length_px, double max_error_px) {
   const double tau = max_error_px / focal_length_px;
   TriangulatedPoint point;
-  return InlierError(b_from_a, EssentialFromPose(b_from_a), bearing_a.normalized(), bearing_b.normalized(), tau * tau,
+  const std::vector<Vector3d> a{bearing_a.normalized()}, b{bearing_b.normalized()};
+  return InlierError(b_from_a, EssentialFromPose(b_from_a), BearingsWithBases(a), BearingsWithBases(b), 0, tau * tau,
                      &point) >= 0.0;
 }
 
 void EvaluateTwoViewGeometry(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
                              double focal_length_px, double max_error_px, double sigma_p_probability,
                              TwoViewGeometry* geometry) {
+  Evaluate(BearingsWithBases(bearings_a), BearingsWithBases(bearings_b), focal_length_px, max_error_px,
+           sigma_p_probability, geometry);
+}
+
+namespace {
+
+void Evaluate(const BearingsWithBases& a, const BearingsWithBases& b, double focal_length_px, double max_error_px,
+              double sigma_p_probability, TwoViewGeometry* geometry) {
+  const std::vector<Vector3d>& bearings_a = a.f;
+  const std::vector<Vector3d>& bearings_b = b.f;
   const size_t n = bearings_a.size();
   const Rigid3d& pose = geometry->b_from_a;
   const Matrix3d e = EssentialFromPose(pose);
@@ -129,17 +158,15 @@ void EvaluateTwoViewGeometry(const std::vector<Vector3d>& bearings_a, const std:
   double sum_squares = 0.0;
   std::vector<double> parallax;
   for (size_t i = 0; i < n; ++i) {
-    const Vector3d& fa = bearings_a[i];
-    const Vector3d& fb = bearings_b[i];
     TriangulatedPoint point;
-    if (InlierError(pose, e, fa, fb, tau2, &point) < 0.0) continue;
+    if (InlierError(pose, e, a, b, i, tau2, &point) < 0.0) continue;
     geometry->inlier_mask[i] = true;
     ++geometry->num_inliers;
     geometry->points_in_a[i] = point.point_in_a;
     geometry->depths_a[i] = point.depth_a;
     geometry->depths_b[i] = point.depth_b;
     // Residual measured in image B only (Segvic 2009 §4.5: 2n components), pixels.
-    sum_squares += TangentResidualPx(fb, pose * point.point_in_a, focal_length_px).squaredNorm();
+    sum_squares += b.ResidualPx(i, pose * point.point_in_a, focal_length_px).squaredNorm();
   }
   // Parallax w.r.t. the best pure rotation of the inliers (not w.r.t. the estimated R: under pure rotation the
   // estimator can trade a little rotation for a fictitious translation and invent parallax). Rotation-only fit:
@@ -169,6 +196,8 @@ void EvaluateTwoViewGeometry(const std::vector<Vector3d>& bearings_a, const std:
     geometry->median_parallax_px = 0.0;
   }
 }
+
+}  // namespace
 
 namespace internal {
 
@@ -298,6 +327,7 @@ TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const s
   const double tau = options.ransac.max_error_px / focal_length_px;
   const double tau2 = tau * tau;
   const double min_separation2 = 0.01 * tau2;  // 0.1 τ apart at least
+  const BearingsWithBases a(bearings_a), b(bearings_b);
   std::mt19937_64 rng(options.ransac.seed);
   std::vector<int> pool(n);
   std::iota(pool.begin(), pool.end(), 0);
@@ -314,7 +344,7 @@ TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const s
     const Rigid3d pose(guess->rotation, guess->translation.normalized());
     guess_pose = pose;
     int inliers = 0;
-    best_cost = ScorePose(pose, bearings_a, bearings_b, tau2, best_cost, &inliers);
+    best_cost = ScorePose(pose, a, b, tau2, best_cost, &inliers);
     best_pose = pose;
     min_iterations = options.ransac.min_iterations_with_guess;
     required = std::max(min_iterations, RequiredIterations(static_cast<double>(inliers) / n, sample_size,
@@ -346,7 +376,7 @@ TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const s
     for (const Rigid3d& pose : candidates) {
       if (!pose.rotation.allFinite() || !pose.translation.allFinite()) continue;
       int inliers = 0;
-      const double cost = ScorePose(pose, bearings_a, bearings_b, tau2, best_cost, &inliers);
+      const double cost = ScorePose(pose, a, b, tau2, best_cost, &inliers);
       if (cost < best_cost) {
         best_cost = cost;
         best_pose = pose;
@@ -364,11 +394,11 @@ TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const s
   // Local optimisation: refine on the inliers, re-select, refine again while the inlier set grows.
   const auto optimise = [&](const Rigid3d& start) {
     Rigid3d pose = start;
-    std::vector<int> inliers = InlierIndices(pose, bearings_a, bearings_b, tau2);
+    std::vector<int> inliers = InlierIndices(pose, a, b, tau2);
     for (int round = 0; round < 3 && static_cast<int>(inliers.size()) >= manifold.dim; ++round) {
       const Rigid3d refined = RefineOnSampson(bearings_a, bearings_b, inliers, pose, manifold,
                                               options.refinement_iterations);
-      std::vector<int> refined_inliers = InlierIndices(refined, bearings_a, bearings_b, tau2);
+      std::vector<int> refined_inliers = InlierIndices(refined, a, b, tau2);
       if (refined_inliers.size() < inliers.size()) break;
       pose = refined;
       const bool same = refined_inliers == inliers;
@@ -383,9 +413,9 @@ TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const s
   if (guess_pose && options.guess_preference > 0.0) {
     const Rigid3d from_guess = optimise(*guess_pose);
     int unused = 0;
-    const double cost = ScorePose(pose, bearings_a, bearings_b, tau2, std::numeric_limits<double>::infinity(), &unused);
+    const double cost = ScorePose(pose, a, b, tau2, std::numeric_limits<double>::infinity(), &unused);
     const double cost_guess =
-        ScorePose(from_guess, bearings_a, bearings_b, tau2, std::numeric_limits<double>::infinity(), &unused);
+        ScorePose(from_guess, a, b, tau2, std::numeric_limits<double>::infinity(), &unused);
     if (cost_guess <= (1.0 + options.guess_preference) * cost) pose = from_guess;
   }
 
@@ -393,8 +423,7 @@ TwoViewGeometry EstimateTwoView(const std::vector<Vector3d>& bearings_a, const s
   geometry.b_from_a = pose;
   geometry.b_from_a.translation.normalize();
   geometry.num_iterations = iteration;
-  EvaluateTwoViewGeometry(bearings_a, bearings_b, focal_length_px, options.ransac.max_error_px,
-                          options.sigma_p_probability, &geometry);
+  Evaluate(a, b, focal_length_px, options.ransac.max_error_px, options.sigma_p_probability, &geometry);
   if (geometry.num_inliers < options.min_inliers) {
     const int found = geometry.num_inliers;
     TwoViewGeometry failure = Failure(TwoViewFailure::kTooFewInliers,
