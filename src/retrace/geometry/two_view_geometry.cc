@@ -68,17 +68,23 @@ struct BearingsWithBases {
 // cameras, and the triangulated point reprojects within τ (both images together). The last test rejects the
 // occasional outlier that lies near its epipolar line but far from where the two rays meet. Returns the squared
 // Sampson error (radians²) of an inlier, or a negative value for an outlier; fills `point` for inliers.
-inline double InlierError(const Rigid3d& pose, const Matrix3d& e, const BearingsWithBases& a,
-                          const BearingsWithBases& b, size_t i, double tau2, TriangulatedPoint* point) {
-  const Vector3d& fa = a.f[i];
-  const Vector3d& fb = b.f[i];
+// (ua, va) and (ub, vb) are the tangent bases of fa and fb.
+inline double InlierError(const Rigid3d& pose, const Matrix3d& e, const Vector3d& fa, const Vector3d& ua,
+                          const Vector3d& va, const Vector3d& fb, const Vector3d& ub, const Vector3d& vb, double tau2,
+                          TriangulatedPoint* point) {
   const double e2 = SampsonErrorSquared(e, fa, fb);
   if (!(e2 < tau2)) return -1.0;
   if (!TriangulateMidpoint(pose, fa, fb, point) || point->depth_a <= 0.0 || point->depth_b <= 0.0) return -1.0;
-  const Vector2d residual_a = a.ResidualPx(i, point->point_in_a, 1.0);
-  const Vector2d residual_b = b.ResidualPx(i, pose * point->point_in_a, 1.0);
+  const Vector2d residual_a = TangentResidualPx(fa, ua, va, point->point_in_a, 1.0);
+  const Vector2d residual_b = TangentResidualPx(fb, ub, vb, pose * point->point_in_a, 1.0);
   if (!(residual_a.squaredNorm() + residual_b.squaredNorm() < tau2)) return -1.0;
   return e2;
+}
+
+// The same for correspondence i of two bearing lists.
+inline double InlierError(const Rigid3d& pose, const Matrix3d& e, const BearingsWithBases& a,
+                          const BearingsWithBases& b, size_t i, double tau2, TriangulatedPoint* point) {
+  return InlierError(pose, e, a.f[i], a.u[i], a.v[i], b.f[i], b.u[i], b.v[i], tau2, point);
 }
 
 // MSAC cost of one correspondence and whether it is an inlier; τ² in radians².
@@ -126,10 +132,12 @@ void Evaluate(const BearingsWithBases& a, const BearingsWithBases& b, double foc
 bool IsInlierOfPose(const Rigid3d& b_from_a, const Vector3d& bearing_a, const Vector3d& bearing_b,
                     double focal_length_px, double max_error_px) {
   const double tau = max_error_px / focal_length_px;
+  const Vector3d fa = bearing_a.normalized(), fb = bearing_b.normalized();
+  Vector3d ua, va, ub, vb;
+  TangentBasis(fa, &ua, &va);
+  TangentBasis(fb, &ub, &vb);
   TriangulatedPoint point;
-  const std::vector<Vector3d> a{bearing_a.normalized()}, b{bearing_b.normalized()};
-  return InlierError(b_from_a, EssentialFromPose(b_from_a), BearingsWithBases(a), BearingsWithBases(b), 0, tau * tau,
-                     &point) >= 0.0;
+  return InlierError(b_from_a, EssentialFromPose(b_from_a), fa, ua, va, fb, ub, vb, tau * tau, &point) >= 0.0;
 }
 
 void EvaluateTwoViewGeometry(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
