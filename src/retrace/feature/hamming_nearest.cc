@@ -26,30 +26,30 @@ inline int HammingDistance(const uint64_t* a, const uint64_t* b) {
 // One pair at a time, keeping only the running minima: a table of every distance (4 bytes per pair, 9.7 MB for a
 // 1226x370 frame's 2430 key-points against a key-image's 1000) would be written and read back through memory. The
 // body is the same for the portable build and the POPCNT one.
-#define RETRACE_HAMMING_NEAREST_SCALAR_BODY                                                                        \
-  const int n = query.rows, m = train.rows;                                                                       \
-  int* best_query_d = nearest->best_query_d.data();                                                               \
-  int* best_query_of_train = nearest->best_query_of_train.data();                                                 \
-  for (int i = 0; i < n; ++i) {                                                                                   \
-    const uint64_t* q = query.ptr<uint64_t>(i);                                                                   \
-    int best = -1, best_d = kNone, second_d = kNone;                                                              \
-    for (int j = 0; j < m; ++j) {                                                                                 \
-      const int d = HammingDistance<kWords>(q, train.ptr<uint64_t>(j));                                           \
-      if (d < best_d) {                                                                                           \
-        second_d = best_d;                                                                                        \
-        best_d = d;                                                                                               \
-        best = j;                                                                                                 \
-      } else if (d < second_d) {                                                                                  \
-        second_d = d;                                                                                             \
-      }                                                                                                           \
-      if (d < best_query_d[j]) {                                                                                  \
-        best_query_d[j] = d;                                                                                      \
-        best_query_of_train[j] = i;                                                                               \
-      }                                                                                                           \
-    }                                                                                                             \
-    nearest->best[i] = best;                                                                                      \
-    nearest->best_d[i] = best_d;                                                                                  \
-    nearest->second_d[i] = second_d;                                                                              \
+#define RETRACE_HAMMING_NEAREST_SCALAR_BODY                             \
+  const int n = query.rows, m = train.rows;                             \
+  int* best_query_d = nearest->best_query_d.data();                     \
+  int* best_query_of_train = nearest->best_query_of_train.data();       \
+  for (int i = 0; i < n; ++i) {                                         \
+    const uint64_t* q = query.ptr<uint64_t>(i);                         \
+    int best = -1, best_d = kNone, second_d = kNone;                    \
+    for (int j = 0; j < m; ++j) {                                       \
+      const int d = HammingDistance<kWords>(q, train.ptr<uint64_t>(j)); \
+      if (d < best_d) {                                                 \
+        second_d = best_d;                                              \
+        best_d = d;                                                     \
+        best = j;                                                       \
+      } else if (d < second_d) {                                        \
+        second_d = d;                                                   \
+      }                                                                 \
+      if (d < best_query_d[j]) {                                        \
+        best_query_d[j] = d;                                            \
+        best_query_of_train[j] = i;                                     \
+      }                                                                 \
+    }                                                                   \
+    nearest->best[i] = best;                                            \
+    nearest->best_d[i] = best_d;                                        \
+    nearest->second_d[i] = second_d;                                    \
   }
 
 template <int kWords>
@@ -74,7 +74,8 @@ std::vector<uint64_t> WordMajorBlocks(const cv::Mat& train) {
   std::vector<uint64_t> words(static_cast<size_t>(blocks) * kWords * kLanes, 0);
   for (int j = 0; j < train.rows; ++j) {
     const uint64_t* row = train.ptr<uint64_t>(j);
-    for (int w = 0; w < kWords; ++w) words[(static_cast<size_t>(j / kLanes) * kWords + w) * kLanes + j % kLanes] = row[w];
+    const size_t block = static_cast<size_t>(j / kLanes), lane = static_cast<size_t>(j % kLanes);
+    for (int w = 0; w < kWords; ++w) words[(block * kWords + w) * kLanes + lane] = row[w];
   }
   return words;
 }
@@ -108,8 +109,7 @@ void StoreTrainMinima(const std::vector<int64_t>& best_query_d, const std::vecto
 
 #ifdef RETRACE_HAMMING_X86
 template <int kWords>
-__attribute__((target("avx2"))) void NearestAvx2(const cv::Mat& query, const cv::Mat& train,
-                                                 HammingNearest* nearest) {
+__attribute__((target("avx2"))) void NearestAvx2(const cv::Mat& query, const cv::Mat& train, HammingNearest* nearest) {
   constexpr int kLanes = 4;
   const int n = query.rows, m = train.rows, blocks = (m + kLanes - 1) / kLanes;
   const std::vector<uint64_t> words = WordMajorBlocks<kWords, kLanes>(train);
@@ -121,7 +121,8 @@ __attribute__((target("avx2"))) void NearestAvx2(const cv::Mat& query, const cv:
   const __m256i none = _mm256_set1_epi64x(kNone);
   // The padded lanes of the last block: never nearer than anything.
   const int valid_in_last = m - (blocks - 1) * kLanes;
-  const __m256i last_padding = _mm256_cmpgt_epi64(_mm256_setr_epi64x(0, 1, 2, 3), _mm256_set1_epi64x(valid_in_last - 1));
+  const __m256i last_padding =
+      _mm256_cmpgt_epi64(_mm256_setr_epi64x(0, 1, 2, 3), _mm256_set1_epi64x(valid_in_last - 1));
   alignas(32) int64_t lane_best[kLanes], lane_second[kLanes], lane_best_j[kLanes];
   for (int i = 0; i < n; ++i) {
     const uint64_t* q = query.ptr<uint64_t>(i);
@@ -136,7 +137,8 @@ __attribute__((target("avx2"))) void NearestAvx2(const cv::Mat& query, const cv:
       __m256i byte_counts = _mm256_setzero_si256();
       for (int w = 0; w < kWords; ++w) {
         const __m256i x = _mm256_xor_si256(
-            query_words[w], _mm256_loadu_si256(reinterpret_cast<const __m256i*>(&words[(size_t(b) * kWords + w) * kLanes])));
+            query_words[w],
+            _mm256_loadu_si256(reinterpret_cast<const __m256i*>(&words[(size_t(b) * kWords + w) * kLanes])));
         const __m256i low = _mm256_and_si256(x, low_nibbles);
         const __m256i high = _mm256_and_si256(_mm256_srli_epi16(x, 4), low_nibbles);
         byte_counts = _mm256_add_epi8(byte_counts, _mm256_add_epi8(_mm256_shuffle_epi8(nibble_counts, low),
@@ -150,9 +152,9 @@ __attribute__((target("avx2"))) void NearestAvx2(const cv::Mat& query, const cv:
       const __m256i old_d = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(block_d));
       const __m256i nearer_query = _mm256_cmpgt_epi64(old_d, d);
       _mm256_storeu_si256(reinterpret_cast<__m256i*>(block_d), _mm256_blendv_epi8(old_d, d, nearer_query));
-      _mm256_storeu_si256(
-          reinterpret_cast<__m256i*>(block_query),
-          _mm256_blendv_epi8(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(block_query)), query_index, nearer_query));
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(block_query),
+                          _mm256_blendv_epi8(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(block_query)),
+                                             query_index, nearer_query));
       // The query's best and second best per lane.
       const __m256i nearer_than_best = _mm256_cmpgt_epi64(best, d);
       const __m256i nearer_than_second = _mm256_cmpgt_epi64(second, d);
@@ -190,7 +192,8 @@ __attribute__((target("avx512f,avx512vpopcntdq"))) void NearestAvx512(const cv::
     __m512i j = _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 6, 7);
     const __m512i step = _mm512_set1_epi64(kLanes);
     for (int b = 0; b < blocks; ++b) {
-      __m512i d = _mm512_popcnt_epi64(_mm512_xor_si512(query_words[0], _mm512_loadu_si512(&words[size_t(b) * kWords * kLanes])));
+      __m512i d = _mm512_popcnt_epi64(
+          _mm512_xor_si512(query_words[0], _mm512_loadu_si512(&words[size_t(b) * kWords * kLanes])));
       for (int w = 1; w < kWords; ++w) {
         d = _mm512_add_epi64(d, _mm512_popcnt_epi64(_mm512_xor_si512(
                                     query_words[w], _mm512_loadu_si512(&words[(size_t(b) * kWords + w) * kLanes]))));
@@ -223,11 +226,19 @@ template <int kWords>
 void RunKernel(HammingKernel kernel, const cv::Mat& query, const cv::Mat& train, HammingNearest* nearest) {
   switch (kernel) {
 #ifdef RETRACE_HAMMING_X86
-    case HammingKernel::kPopcnt: NearestPopcnt<kWords>(query, train, nearest); return;
-    case HammingKernel::kAvx2: NearestAvx2<kWords>(query, train, nearest); return;
-    case HammingKernel::kAvx512: NearestAvx512<kWords>(query, train, nearest); return;
+    case HammingKernel::kPopcnt:
+      NearestPopcnt<kWords>(query, train, nearest);
+      return;
+    case HammingKernel::kAvx2:
+      NearestAvx2<kWords>(query, train, nearest);
+      return;
+    case HammingKernel::kAvx512:
+      NearestAvx512<kWords>(query, train, nearest);
+      return;
 #endif
-    default: NearestPortable<kWords>(query, train, nearest); return;
+    default:
+      NearestPortable<kWords>(query, train, nearest);
+      return;
   }
 }
 
@@ -236,14 +247,18 @@ void RunKernel(HammingKernel kernel, const cv::Mat& query, const cv::Mat& train,
 bool HammingKernelAvailable(HammingKernel kernel) {
   switch (kernel) {
     case HammingKernel::kAuto:
-    case HammingKernel::kPortable: return true;
+    case HammingKernel::kPortable:
+      return true;
 #ifdef RETRACE_HAMMING_X86
-    case HammingKernel::kPopcnt: return __builtin_cpu_supports("popcnt");
-    case HammingKernel::kAvx2: return __builtin_cpu_supports("avx2");
+    case HammingKernel::kPopcnt:
+      return __builtin_cpu_supports("popcnt");
+    case HammingKernel::kAvx2:
+      return __builtin_cpu_supports("avx2");
     case HammingKernel::kAvx512:
       return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vpopcntdq");
 #endif
-    default: return false;
+    default:
+      return false;
   }
 }
 
@@ -275,10 +290,18 @@ HammingNearest FindHammingNearest(const cv::Mat& query_in, const cv::Mat& train_
   nearest.best_query_d.assign(train.rows, kNone);
   if (query.rows == 0 || train.rows == 0) return nearest;
   switch (bytes / 8) {
-    case 1: RunKernel<1>(kernel, query, train, &nearest); break;
-    case 2: RunKernel<2>(kernel, query, train, &nearest); break;
-    case 3: RunKernel<3>(kernel, query, train, &nearest); break;
-    default: RunKernel<4>(kernel, query, train, &nearest); break;
+    case 1:
+      RunKernel<1>(kernel, query, train, &nearest);
+      break;
+    case 2:
+      RunKernel<2>(kernel, query, train, &nearest);
+      break;
+    case 3:
+      RunKernel<3>(kernel, query, train, &nearest);
+      break;
+    default:
+      RunKernel<4>(kernel, query, train, &nearest);
+      break;
   }
   return nearest;
 }
