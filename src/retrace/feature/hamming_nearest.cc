@@ -66,19 +66,36 @@ __attribute__((target("popcnt"))) void NearestPopcnt(const cv::Mat& query, const
 #endif
 #undef RETRACE_HAMMING_NEAREST_SCALAR_BODY
 
-// The train descriptors word-major in blocks of kLanes: word w of descriptor b * kLanes + l at
-// ((b * kWords + w) * kLanes + l). The block past the last descriptor is padded with zeros (masked out below).
+// What the vector kernels share: the train descriptors word-major in blocks of kLanes (word w of descriptor
+// b * kLanes + l at ((b * kWords + w) * kLanes + l); the block past the last descriptor padded with zeros, masked out
+// by the kernels) and, per train descriptor, its nearest query so far as 64-bit lanes.
 template <int kWords, int kLanes>
-std::vector<uint64_t> WordMajorBlocks(const cv::Mat& train) {
-  const int blocks = (train.rows + kLanes - 1) / kLanes;
-  std::vector<uint64_t> words(static_cast<size_t>(blocks) * kWords * kLanes, 0);
-  for (int j = 0; j < train.rows; ++j) {
-    const uint64_t* row = train.ptr<uint64_t>(j);
-    const size_t block = static_cast<size_t>(j / kLanes), lane = static_cast<size_t>(j % kLanes);
-    for (int w = 0; w < kWords; ++w) words[(block * kWords + w) * kLanes + lane] = row[w];
+struct TrainBlocks {
+  explicit TrainBlocks(const cv::Mat& train)
+      : blocks((train.rows + kLanes - 1) / kLanes),
+        valid_in_last(train.rows - (blocks - 1) * kLanes),
+        words(static_cast<size_t>(blocks) * kWords * kLanes, 0),
+        best_query_d(static_cast<size_t>(blocks) * kLanes, kNone),
+        best_query(best_query_d.size(), -1) {
+    for (int j = 0; j < train.rows; ++j) {
+      const uint64_t* row = train.ptr<uint64_t>(j);
+      const size_t block = static_cast<size_t>(j / kLanes), lane = static_cast<size_t>(j % kLanes);
+      for (int w = 0; w < kWords; ++w) words[(block * kWords + w) * kLanes + lane] = row[w];
+    }
   }
-  return words;
-}
+  const uint64_t* Words(int block, int word) const { return &words[(size_t(block) * kWords + word) * kLanes]; }
+  // The per-train minima written back as ints.
+  void StoreInto(HammingNearest* nearest) const {
+    for (size_t j = 0; j < nearest->best_query_d.size(); ++j) {
+      nearest->best_query_d[j] = static_cast<int>(best_query_d[j]);
+      nearest->best_query_of_train[j] = static_cast<int>(best_query[j]);
+    }
+  }
+
+  const int blocks, valid_in_last;
+  std::vector<uint64_t> words;
+  std::vector<int64_t> best_query_d, best_query;
+};
 
 // The lanes' running minima of one query row merged: the nearest (lowest index on a tie) and, as second, the
 // smaller of its lane's second and the other lanes' nearest.
@@ -98,47 +115,35 @@ void MergeLanes(const int64_t* best, const int64_t* second, const int64_t* best_
   nearest->second_d[i] = static_cast<int>(second_d);
 }
 
-// The per-train minima, kept as 64-bit lanes while scanning, written back as ints.
-void StoreTrainMinima(const std::vector<int64_t>& best_query_d, const std::vector<int64_t>& best_query,
-                      HammingNearest* nearest) {
-  for (size_t j = 0; j < nearest->best_query_d.size(); ++j) {
-    nearest->best_query_d[j] = static_cast<int>(best_query_d[j]);
-    nearest->best_query_of_train[j] = static_cast<int>(best_query[j]);
-  }
-}
-
 #ifdef RETRACE_HAMMING_X86
 template <int kWords>
 __attribute__((target("avx2"))) void NearestAvx2(const cv::Mat& query, const cv::Mat& train, HammingNearest* nearest) {
   constexpr int kLanes = 4;
-  const int n = query.rows, m = train.rows, blocks = (m + kLanes - 1) / kLanes;
-  const std::vector<uint64_t> words = WordMajorBlocks<kWords, kLanes>(train);
-  std::vector<int64_t> best_query_d(static_cast<size_t>(blocks) * kLanes, kNone), best_query(best_query_d.size(), -1);
+  TrainBlocks<kWords, kLanes> train_blocks(train);
+  const int blocks = train_blocks.blocks;
   // Bit counts of the 16 nibbles, in both 128-bit halves (the byte shuffle looks up within each half).
   const __m256i nibble_counts = _mm256_setr_epi8(0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4,  //
                                                  0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4);
   const __m256i low_nibbles = _mm256_set1_epi8(0x0f);
   const __m256i none = _mm256_set1_epi64x(kNone);
+  const __m256i step = _mm256_set1_epi64x(kLanes);
   // The padded lanes of the last block: never nearer than anything.
-  const int valid_in_last = m - (blocks - 1) * kLanes;
   const __m256i last_padding =
-      _mm256_cmpgt_epi64(_mm256_setr_epi64x(0, 1, 2, 3), _mm256_set1_epi64x(valid_in_last - 1));
+      _mm256_cmpgt_epi64(_mm256_setr_epi64x(0, 1, 2, 3), _mm256_set1_epi64x(train_blocks.valid_in_last - 1));
   alignas(32) int64_t lane_best[kLanes], lane_second[kLanes], lane_best_j[kLanes];
-  for (int i = 0; i < n; ++i) {
+  for (int i = 0; i < query.rows; ++i) {
     const uint64_t* q = query.ptr<uint64_t>(i);
     __m256i query_words[kWords];
     for (int w = 0; w < kWords; ++w) query_words[w] = _mm256_set1_epi64x(static_cast<int64_t>(q[w]));
     const __m256i query_index = _mm256_set1_epi64x(i);
     __m256i best = none, second = none, best_j = _mm256_set1_epi64x(-1);
     __m256i j = _mm256_setr_epi64x(0, 1, 2, 3);
-    const __m256i step = _mm256_set1_epi64x(kLanes);
     for (int b = 0; b < blocks; ++b) {
       // Per byte at most 8 bits per word, 32 over four words: the byte sums cannot overflow before the final sum.
       __m256i byte_counts = _mm256_setzero_si256();
       for (int w = 0; w < kWords; ++w) {
         const __m256i x = _mm256_xor_si256(
-            query_words[w],
-            _mm256_loadu_si256(reinterpret_cast<const __m256i*>(&words[(size_t(b) * kWords + w) * kLanes])));
+            query_words[w], _mm256_loadu_si256(reinterpret_cast<const __m256i*>(train_blocks.Words(b, w))));
         const __m256i low = _mm256_and_si256(x, low_nibbles);
         const __m256i high = _mm256_and_si256(_mm256_srli_epi16(x, 4), low_nibbles);
         byte_counts = _mm256_add_epi8(byte_counts, _mm256_add_epi8(_mm256_shuffle_epi8(nibble_counts, low),
@@ -147,8 +152,8 @@ __attribute__((target("avx2"))) void NearestAvx2(const cv::Mat& query, const cv:
       __m256i d = _mm256_sad_epu8(byte_counts, _mm256_setzero_si256());  // the 64-bit lanes' byte sums
       if (b == blocks - 1) d = _mm256_blendv_epi8(d, none, last_padding);
       // The train descriptors' nearest query (rows in order: the first of equals stays).
-      int64_t* block_d = &best_query_d[size_t(b) * kLanes];
-      int64_t* block_query = &best_query[size_t(b) * kLanes];
+      int64_t* block_d = &train_blocks.best_query_d[size_t(b) * kLanes];
+      int64_t* block_query = &train_blocks.best_query[size_t(b) * kLanes];
       const __m256i old_d = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(block_d));
       const __m256i nearer_query = _mm256_cmpgt_epi64(old_d, d);
       _mm256_storeu_si256(reinterpret_cast<__m256i*>(block_d), _mm256_blendv_epi8(old_d, d, nearer_query));
@@ -168,40 +173,37 @@ __attribute__((target("avx2"))) void NearestAvx2(const cv::Mat& query, const cv:
     _mm256_store_si256(reinterpret_cast<__m256i*>(lane_best_j), best_j);
     MergeLanes<kLanes>(lane_best, lane_second, lane_best_j, i, nearest);
   }
-  StoreTrainMinima(best_query_d, best_query, nearest);
+  train_blocks.StoreInto(nearest);
 }
 
 template <int kWords>
 __attribute__((target("avx512f,avx512vpopcntdq"))) void NearestAvx512(const cv::Mat& query, const cv::Mat& train,
                                                                       HammingNearest* nearest) {
   constexpr int kLanes = 8;
-  const int n = query.rows, m = train.rows, blocks = (m + kLanes - 1) / kLanes;
-  const std::vector<uint64_t> words = WordMajorBlocks<kWords, kLanes>(train);
-  std::vector<int64_t> best_query_d(static_cast<size_t>(blocks) * kLanes, kNone), best_query(best_query_d.size(), -1);
+  TrainBlocks<kWords, kLanes> train_blocks(train);
+  const int blocks = train_blocks.blocks;
   const __m512i none = _mm512_set1_epi64(kNone);
+  const __m512i step = _mm512_set1_epi64(kLanes);
   // The padded lanes of the last block: never nearer than anything.
-  const int valid_in_last = m - (blocks - 1) * kLanes;
-  const __mmask8 last_valid = static_cast<__mmask8>((1u << valid_in_last) - 1u);
+  const __mmask8 last_valid = static_cast<__mmask8>((1u << train_blocks.valid_in_last) - 1u);
   alignas(64) int64_t lane_best[kLanes], lane_second[kLanes], lane_best_j[kLanes];
-  for (int i = 0; i < n; ++i) {
+  for (int i = 0; i < query.rows; ++i) {
     const uint64_t* q = query.ptr<uint64_t>(i);
     __m512i query_words[kWords];
     for (int w = 0; w < kWords; ++w) query_words[w] = _mm512_set1_epi64(static_cast<int64_t>(q[w]));
     const __m512i query_index = _mm512_set1_epi64(i);
     __m512i best = none, second = none, best_j = _mm512_set1_epi64(-1);
     __m512i j = _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 6, 7);
-    const __m512i step = _mm512_set1_epi64(kLanes);
     for (int b = 0; b < blocks; ++b) {
-      __m512i d = _mm512_popcnt_epi64(
-          _mm512_xor_si512(query_words[0], _mm512_loadu_si512(&words[size_t(b) * kWords * kLanes])));
+      __m512i d = _mm512_popcnt_epi64(_mm512_xor_si512(query_words[0], _mm512_loadu_si512(train_blocks.Words(b, 0))));
       for (int w = 1; w < kWords; ++w) {
-        d = _mm512_add_epi64(d, _mm512_popcnt_epi64(_mm512_xor_si512(
-                                    query_words[w], _mm512_loadu_si512(&words[(size_t(b) * kWords + w) * kLanes]))));
+        d = _mm512_add_epi64(
+            d, _mm512_popcnt_epi64(_mm512_xor_si512(query_words[w], _mm512_loadu_si512(train_blocks.Words(b, w)))));
       }
       if (b == blocks - 1) d = _mm512_mask_mov_epi64(none, last_valid, d);
       // The train descriptors' nearest query (rows in order: the first of equals stays).
-      int64_t* block_d = &best_query_d[size_t(b) * kLanes];
-      int64_t* block_query = &best_query[size_t(b) * kLanes];
+      int64_t* block_d = &train_blocks.best_query_d[size_t(b) * kLanes];
+      int64_t* block_query = &train_blocks.best_query[size_t(b) * kLanes];
       const __mmask8 nearer_query = _mm512_cmplt_epi64_mask(d, _mm512_loadu_si512(block_d));
       _mm512_mask_storeu_epi64(block_d, nearer_query, d);
       _mm512_mask_storeu_epi64(block_query, nearer_query, query_index);
@@ -218,7 +220,7 @@ __attribute__((target("avx512f,avx512vpopcntdq"))) void NearestAvx512(const cv::
     _mm512_store_si512(lane_best_j, best_j);
     MergeLanes<kLanes>(lane_best, lane_second, lane_best_j, i, nearest);
   }
-  StoreTrainMinima(best_query_d, best_query, nearest);
+  train_blocks.StoreInto(nearest);
 }
 #endif
 
@@ -276,8 +278,11 @@ HammingNearest FindHammingNearest(const cv::Mat& query_in, const cv::Mat& train_
   const int bytes = query_in.cols;
   CV_Assert(query_in.type() == CV_8U && train_in.type() == CV_8U);
   CV_Assert(train_in.cols == bytes && bytes >= 8 && bytes <= 32 && bytes % 8 == 0);
-  if (kernel == HammingKernel::kAuto) kernel = BestHammingKernel();
-  if (!HammingKernelAvailable(kernel)) throw std::invalid_argument("Hamming kernel not available on this CPU");
+  if (kernel == HammingKernel::kAuto) {
+    kernel = BestHammingKernel();  // available by construction
+  } else if (!HammingKernelAvailable(kernel)) {
+    throw std::invalid_argument("Hamming kernel not available on this CPU");
+  }
   // Rows of whole 64-bit words, 8-byte aligned (cv::Mat's data is 16-byte aligned; a continuous matrix keeps every
   // row so).
   const cv::Mat query = query_in.isContinuous() ? query_in : query_in.clone();

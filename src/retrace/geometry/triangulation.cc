@@ -101,15 +101,16 @@ bool RefinePointMultiView(const std::vector<Rigid3d>& cam_from_world, const std:
   // r_i(X) = f [u_i · y, v_i · y], y = (R_i X + t_i) / |R_i X + t_i|; dy/dY = (I - y yᵀ) / |Y|, dY/dX = R_i.
   std::vector<std::pair<Vector3d, Vector3d>> bases(views);
   for (size_t i = 0; i < views; ++i) TangentBasis(bearings[i], &bases[i].first, &bases[i].second);
-  // The sum of squared residuals (TangentResidualPx's, in front of the camera, with the bases computed once);
-  // infinite behind a camera.
+  const auto tangent_residual = [&](size_t i, const Vector3d& y) {
+    return TangentResidualPx(bearings[i], bases[i].first, bases[i].second, y, focal_length_px);
+  };
+  // The sum of squared residuals (TangentResidualPx); infinite behind a camera.
   const auto cost = [&](const Vector3d& x) {
     double sum = 0.0;
     for (size_t i = 0; i < views; ++i) {
       const Vector3d y = cam_from_world[i].rotation * x + cam_from_world[i].translation;
       if (!(y.dot(bearings[i]) > 0.0)) return std::numeric_limits<double>::infinity();
-      const Vector3d p = y / y.norm();
-      sum += (focal_length_px * Vector2d(bases[i].first.dot(p), bases[i].second.dot(p))).squaredNorm();
+      sum += tangent_residual(i, y).squaredNorm();
     }
     return sum;
   };
@@ -158,7 +159,7 @@ bool RefinePointMultiView(const std::vector<Rigid3d>& cam_from_world, const std:
     *max_residual_px = 0.0;
     for (size_t i = 0; i < views; ++i) {
       const Vector3d y = cam_from_world[i].rotation * x + cam_from_world[i].translation;
-      *max_residual_px = std::max(*max_residual_px, TangentResidualPx(bearings[i], y, focal_length_px).norm());
+      *max_residual_px = std::max(*max_residual_px, tangent_residual(i, y).norm());
     }
   }
   return true;
