@@ -168,7 +168,8 @@ struct LocalizerOptions {
   // again with the defaults of 2026-12-07: the matrix 97.62 -> 97.87 % correct, 2.5 m beside 91.29 -> 92.07 % (95 asked
   // for), 13 -> 19 frames one arc off (calibration 99.92 %, none two); kidnapped starts 94.2 -> 94.8 % at the first
   // frame, 97.7 -> 98.1 % within 3 (95 / 99 asked for), none wrong; the closed loop 41 / 41 / 39 of 42 either way, but
-  // seed6's RMS 0.104 -> 0.147 m and max 0.372 -> 0.489 m. No target newly met and one more off: still off.
+  // seed6's RMS 0.104 -> 0.147 m and max 0.372 -> 0.489 m. No target newly met, six more frames one arc off and
+  // seed6 further from its path targets: still off.
   bool relocalization_affine_fallback = false;
   // After a loss, a feature a relocalization cannot locate with the paper's warp (from the median of the matches
   // around it, nor from the nearest matches) is aligned once more with the tracker's robust fallback
