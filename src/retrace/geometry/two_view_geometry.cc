@@ -124,31 +124,8 @@ std::vector<int> InlierIndices(const Rigid3d& pose, const BearingsWithBases& a, 
   return indices;
 }
 
-void Evaluate(const BearingsWithBases& a, const BearingsWithBases& b, double focal_length_px, double max_error_px,
-              double sigma_p_probability, TwoViewGeometry* geometry);
-
-}  // namespace
-
-bool IsInlierOfPose(const Rigid3d& b_from_a, const Vector3d& bearing_a, const Vector3d& bearing_b,
-                    double focal_length_px, double max_error_px) {
-  const double tau = max_error_px / focal_length_px;
-  const Vector3d fa = bearing_a.normalized(), fb = bearing_b.normalized();
-  Vector3d ua, va, ub, vb;
-  TangentBasis(fa, &ua, &va);
-  TangentBasis(fb, &ub, &vb);
-  TriangulatedPoint point;
-  return InlierError(b_from_a, EssentialFromPose(b_from_a), fa, ua, va, fb, ub, vb, tau * tau, &point) >= 0.0;
-}
-
-void EvaluateTwoViewGeometry(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
-                             double focal_length_px, double max_error_px, double sigma_p_probability,
-                             TwoViewGeometry* geometry) {
-  Evaluate(BearingsWithBases(bearings_a), BearingsWithBases(bearings_b), focal_length_px, max_error_px,
-           sigma_p_probability, geometry);
-}
-
-namespace {
-
+// EvaluateTwoViewGeometry on bearings whose tangent bases are already computed (EstimateTwoView's, once for all its
+// hypotheses).
 void Evaluate(const BearingsWithBases& a, const BearingsWithBases& b, double focal_length_px, double max_error_px,
               double sigma_p_probability, TwoViewGeometry* geometry) {
   const std::vector<Vector3d>& bearings_a = a.f;
@@ -206,6 +183,24 @@ void Evaluate(const BearingsWithBases& a, const BearingsWithBases& b, double foc
 }
 
 }  // namespace
+
+bool IsInlierOfPose(const Rigid3d& b_from_a, const Vector3d& bearing_a, const Vector3d& bearing_b,
+                    double focal_length_px, double max_error_px) {
+  const double tau = max_error_px / focal_length_px;
+  const Vector3d fa = bearing_a.normalized(), fb = bearing_b.normalized();
+  Vector3d ua, va, ub, vb;
+  TangentBasis(fa, &ua, &va);
+  TangentBasis(fb, &ub, &vb);
+  TriangulatedPoint point;
+  return InlierError(b_from_a, EssentialFromPose(b_from_a), fa, ua, va, fb, ub, vb, tau * tau, &point) >= 0.0;
+}
+
+void EvaluateTwoViewGeometry(const std::vector<Vector3d>& bearings_a, const std::vector<Vector3d>& bearings_b,
+                             double focal_length_px, double max_error_px, double sigma_p_probability,
+                             TwoViewGeometry* geometry) {
+  Evaluate(BearingsWithBases(bearings_a), BearingsWithBases(bearings_b), focal_length_px, max_error_px,
+           sigma_p_probability, geometry);
+}
 
 namespace internal {
 

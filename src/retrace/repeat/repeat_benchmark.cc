@@ -99,6 +99,13 @@ const Setup* GetSimSetup() {
   return cached.get();
 }
 
+// GetSetup(width), or nullptr with the benchmark skipped when the shared data has no kitti07.
+const Setup* KittiSetupOrSkip(int width, benchmark::State& state) {
+  const Setup* setup = GetSetup(width);
+  if (setup == nullptr) state.SkipWithError("kitti07 not found");
+  return setup;
+}
+
 void RunRepeat(const Setup& setup, benchmark::State& state, const LocalizerOptions& options = LocalizerOptions()) {
   int64_t frames = 0, tracked = 0, tracking = 0;
   double tracking_seconds = 0.0;  // frames localized by tracking (no bootstrap / relocalization in them)
@@ -128,12 +135,8 @@ void RunRepeat(const Setup& setup, benchmark::State& state, const LocalizerOptio
 
 // kitti07 at the width of the benchmark's argument.
 void RunRepeatKitti(benchmark::State& state, const LocalizerOptions& options = LocalizerOptions()) {
-  const Setup* setup = GetSetup(static_cast<int>(state.range(0)));
-  if (setup == nullptr) {
-    state.SkipWithError("kitti07 not found");
-    return;
-  }
-  RunRepeat(*setup, state, options);
+  const int width = static_cast<int>(state.range(0));
+  if (const Setup* setup = KittiSetupOrSkip(width, state)) RunRepeat(*setup, state, options);
 }
 
 void BM_RepeatKitti(benchmark::State& state) { RunRepeatKitti(state); }
@@ -210,12 +213,8 @@ void RunBuildLocalizer(const Setup& setup, benchmark::State& state) {
 }
 
 void BM_FindStartKitti(benchmark::State& state) {
-  const Setup* setup = GetSetup(0);
-  if (setup == nullptr) {
-    state.SkipWithError("kitti07 not found");
-    return;
-  }
-  RunFindStart(*setup, 40, state);  // odd frame 81, the "start in the middle"
+  // Odd frame 81, the "start in the middle".
+  if (const Setup* setup = KittiSetupOrSkip(0, state)) RunFindStart(*setup, 40, state);
 }
 BENCHMARK(BM_FindStartKitti)->Args({5, 1})->Args({20, 1})->Args({20, 0})->Args({0, 1})->Unit(benchmark::kMillisecond)->Iterations(1);
 
@@ -223,12 +222,7 @@ void BM_FindStartSim(benchmark::State& state) { RunFindStart(*GetSimSetup(), 100
 BENCHMARK(BM_FindStartSim)->Args({5, 1})->Args({20, 1})->Args({20, 0})->Args({0, 1})->Unit(benchmark::kMillisecond)->Iterations(1);
 
 void BM_BuildLocalizerKitti(benchmark::State& state) {
-  const Setup* setup = GetSetup(0);
-  if (setup == nullptr) {
-    state.SkipWithError("kitti07 not found");
-    return;
-  }
-  RunBuildLocalizer(*setup, state);
+  if (const Setup* setup = KittiSetupOrSkip(0, state)) RunBuildLocalizer(*setup, state);
 }
 BENCHMARK(BM_BuildLocalizerKitti)->Unit(benchmark::kMillisecond);
 
@@ -246,12 +240,7 @@ void ExtractKeyImages(const Setup& setup, benchmark::State& state) {
 }
 
 void BM_ExtractKeyImageKitti(benchmark::State& state) {
-  const Setup* setup = GetSetup(0);
-  if (setup == nullptr) {
-    state.SkipWithError("kitti07 not found");
-    return;
-  }
-  ExtractKeyImages(*setup, state);
+  if (const Setup* setup = KittiSetupOrSkip(0, state)) ExtractKeyImages(*setup, state);
 }
 BENCHMARK(BM_ExtractKeyImageKitti)->Unit(benchmark::kMillisecond);
 
