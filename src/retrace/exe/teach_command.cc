@@ -179,6 +179,14 @@ void RunTeach(const TeachArguments& args) {
 
   const TeachStatistics& stats = teacher.statistics();
   const Map& map = teacher.map();
+  // A drive that gave no arc (a camera that stood still, or never saw its first key-image's features move by r_p)
+  // is no map repeat can use ("the map has no arcs"): say so here, where the cause is known, and replace nothing.
+  if (map.arcs().empty() && stats.joins == 0) {
+    throw InputError(args.sequence.string(),
+                     fmt::format("teach made no arc from its {} frames: the camera did not move enough for a two-view "
+                                 "geometry with key-image 0 (sigma_p threshold r_p {:.2f} px); {} not written",
+                                 stats.frames, teacher.sigma_p_threshold_px(), args.map.string()));
+  }
   double route_metres = 0.0;
   if (const auto truth_file = sequence->ground_truth_file();
       truth_file && truth_file->filename() == "poses.txt") {

@@ -28,6 +28,17 @@ print(\"ok\")'"
   before=$(md5sum "$tmp/k07.db")
   expect teach-no-overwrite 1 'exists already' -- "$bin" teach --sequence "$data/kitti07" --map "$tmp/k07.db"
   expect teach-map-intact 0 '' -- bash -c "[[ '$before' == \"\$(md5sum '$tmp/k07.db')\" ]]"
+  # A camera that stands still (kitti07's first frame eight times) gives no arc: a one-line error naming the
+  # sequence, exit 1, and no map repeat would refuse.
+  mkdir -p "$tmp/still/image_0"
+  cp "$data/kitti07/calib.txt" "$tmp/still/"
+  for i in 0 1 2 3 4 5 6 7; do
+    cp "$data/kitti07/image_0/000000.png" "$tmp/still/image_0/00000$i.png"
+    echo "0.$i" >>"$tmp/still/times.txt"
+  done
+  expect teach-still-camera 1 "^retrace: error: $tmp/still: teach made no arc from its 8 frames: the camera did not move" -- \
+    "$bin" teach --sequence "$tmp/still" --map "$tmp/still.db" --no-progress
+  expect teach-still-no-map 0 '' -- bash -c "[[ ! -e '$tmp/still.db' ]]"
 fi
 expect teach-missing-sequence 1 'retrace: error: .*nowhere' -- "$bin" teach --sequence "$tmp/nowhere" --map "$tmp/x.db"
 echo "not a map" >"$tmp/foreign.db"
