@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace retrace {
 namespace {
@@ -56,6 +57,24 @@ MotionAgreement CompareComposedMotion(const Rigid3d& y_from_x, const Rigid3d& z_
   if (composed.norm() < 1e-9) return agreement;  // the two parts cancel: no direction to compare
   agreement.direction_deg = AngleBetweenDeg(measured, composed);
   return agreement;
+}
+
+LinkDirection LinkDirectionOfTravel(const Rigid3d* x_from_p, const Rigid3d& y_from_x, const Rigid3d* s_from_y) {
+  // x_B = R x_A + t: A's centre in B's frame is t, B's centre in A's frame -R^T t.
+  const auto cosine = [](const Vector3d& u, const Vector3d& v) {
+    const double norms = u.norm() * v.norm();
+    return norms > 0.0 ? u.dot(v) / norms : std::numeric_limits<double>::quiet_NaN();
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  LinkDirection direction;
+  // At X, in X's frame: travel from P's centre (x_from_p.t) to X's (0); the step from X (0) to Y's centre.
+  const Vector3d step_at_x = -(y_from_x.rotation.transpose() * y_from_x.translation);
+  direction.at_from = x_from_p != nullptr ? cosine(-x_from_p->translation, step_at_x) : nan;
+  // At Y, in Y's frame: travel from Y (0) to S's centre; the step from X's centre (y_from_x.t) to Y (0).
+  direction.at_to = s_from_y != nullptr
+                        ? cosine(-(s_from_y->rotation.transpose() * s_from_y->translation), -y_from_x.translation)
+                        : nan;
+  return direction;
 }
 
 }  // namespace retrace

@@ -51,4 +51,20 @@ MotionAgreement CompareComposedMotion(const Rigid3d& y_from_x, const Rigid3d& z_
 MotionAgreement CompareComposedMotion(const Rigid3d& y_from_x, const Rigid3d& z_from_y, const Rigid3d& z_from_x,
                                       double scale);
 
+// Whether a link X -> Y continues the drive: a link says that a robot leaving X arrives at Y, so Y lies ahead of X in
+// the direction the drive travelled at X, and X behind Y in the direction it travelled at Y. `x_from_p` is the tracked
+// arc into X (P -> X: the camera travelled from P's centre to X's), `y_from_x` the link, `s_from_y` the tracked arc
+// out of Y (Y -> S). Returns the cosines of the angles between the step X -> Y and the direction of travel at X
+// (`at_from`) and at Y (`at_to`); positive: the link moves forward there. A cosine whose arc is not given (null) or
+// has no direction is NaN. The drive's own motion measures the direction of travel, so this holds for any camera
+// (forward-looking or omnidirectional) and needs no threshold but the sign: a loop link to a key-image the drive
+// passed a few metres back (kitti07's frames 0-39: the last key-image, frame 39, to key-image 1, frame 25, 4.8 m
+// behind it, 111 inliers, every witness agreeing since "back, then forward" composes into any direction between
+// them) has cosines near -1.
+struct LinkDirection {
+  double at_from = 0.0;
+  double at_to = 0.0;
+};
+LinkDirection LinkDirectionOfTravel(const Rigid3d* x_from_p, const Rigid3d& y_from_x, const Rigid3d* s_from_y);
+
 }  // namespace retrace

@@ -1,5 +1,7 @@
 #include "retrace/teach/link_verification.h"
 
+#include <cmath>
+
 #include <gtest/gtest.h>
 
 namespace retrace {
@@ -74,6 +76,32 @@ TEST(LinkVerification, KnownScaleLeavesOneDirection) {
   EXPECT_NEAR(CompareComposedMotion(y_from_x, z_from_y, measured).direction_deg, 0.0, 1e-6);
   EXPECT_NEAR(CompareComposedMotion(y_from_x, z_from_y, measured, 1.0).direction_deg,
               45.0 - std::atan(0.2) * 180 / M_PI, 1e-6);
+}
+
+// A loop that comes back: the drive P -> X travels along +z and turns; its start Y lies 6 m ahead of X, and the
+// drive went on from Y to S along Y's direction. The link continues the drive at both ends.
+TEST(LinkVerification, ALinkAheadOfTheDriveMovesForward) {
+  const Rigid3d p = Pose(0.0, Vector3d(0, 0, -4)), x = Pose(0.1, Vector3d(0, 0, 0));
+  const Rigid3d y = Pose(0.2, Vector3d(1, 0, 6)), s = Pose(0.2, Vector3d(1.8, 0, 10));
+  const Rigid3d x_from_p = Relative(p, x), y_from_x = Relative(x, y, 0.3), s_from_y = Relative(y, s, 7.0);
+  const LinkDirection direction = LinkDirectionOfTravel(&x_from_p, y_from_x, &s_from_y);
+  EXPECT_GT(direction.at_from, 0.9);
+  EXPECT_GT(direction.at_to, 0.9);
+}
+
+// A straight drive's last key-image X linked to Y, passed 5 m before (kitti07 frames 0-39): the views agree, the
+// direction does not — the link goes backwards at both ends whatever the links' scales. Without the arcs around
+// it the direction is unknown (NaN).
+TEST(LinkVerification, ALinkBackToAPlaceJustPassedMovesBackward) {
+  const Rigid3d y = Pose(0.0, Vector3d(0, 0, 0)), s = Pose(0.0, Vector3d(0, 0, 2));
+  const Rigid3d p = Pose(0.05, Vector3d(0.1, 0, 3)), x = Pose(0.05, Vector3d(0.3, 0, 5));
+  const Rigid3d x_from_p = Relative(p, x, 2.0), y_from_x = Relative(x, y), s_from_y = Relative(y, s, 0.5);
+  const LinkDirection direction = LinkDirectionOfTravel(&x_from_p, y_from_x, &s_from_y);
+  EXPECT_LT(direction.at_from, -0.9);
+  EXPECT_LT(direction.at_to, -0.9);
+  const LinkDirection alone = LinkDirectionOfTravel(nullptr, y_from_x, nullptr);
+  EXPECT_TRUE(std::isnan(alone.at_from));
+  EXPECT_TRUE(std::isnan(alone.at_to));
 }
 
 }  // namespace

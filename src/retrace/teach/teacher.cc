@@ -1026,6 +1026,20 @@ void Teacher::CloseLoop() {
   const auto verify = [&](const Candidate& candidate) -> std::string {
     const node_t first = candidate.node->id;
     const Rigid3d& f_from_l = candidate.matched.geometry.b_from_a;
+    // The link must continue the drive: the first key-image ahead of the last in the direction the drive arrived
+    // there, and the last behind the first in the direction the drive left it (LinkDirectionOfTravel). The witnesses
+    // below cannot see a link that goes back to a key-image just passed: back, then forward along the drive, composes
+    // into any direction between the two.
+    const std::vector<const MapArc*> into_last = map_.ArcsTo(last.id);
+    const std::vector<const MapArc*> out_of_first = map_.ArcsFrom(first);
+    const LinkDirection direction =
+        LinkDirectionOfTravel(into_last.empty() ? nullptr : &into_last.front()->to_from_from, f_from_l,
+                              out_of_first.empty() ? nullptr : &out_of_first.front()->to_from_from);
+    if (direction.at_from < 0.0 || direction.at_to < 0.0) {
+      return fmt::format("the link goes backwards: key-image {} lies behind key-image {} in the drive's direction of "
+                         "travel (cosines {:.2f} at {}, {:.2f} at {})",
+                         first, last.id, direction.at_from, last.id, direction.at_to, first);
+    }
     std::string description;
     bool confirmed = false;
     for (const MapArc* arc : map_.ArcsFrom(first)) {

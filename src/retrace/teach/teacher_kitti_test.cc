@@ -150,6 +150,32 @@ TEST(TeachKitti, MapOfEvenFramesAgreesWithGroundTruth) {
   CheckKittiMap(map, stats, sigma_threshold, ReadKittiPoses(kitti / "poses.txt"));
 }
 
+// A short straight drive (kitti07's even frames 0-38, 4 key-images): the last key-image (frame 38) matches key-image
+// 1 (frame 26), 5 m behind it, with 111 inliers, and the witnesses agree (the views are right); only the direction of
+// travel shows that the route does not come back there. No loop may be closed.
+TEST(TeachKitti, AShortStraightDriveClosesNoLoopBackwards) {
+  RETRACE_REQUIRE_SHARED_DATA(kitti, "kitti07");
+  std::unique_ptr<Sequence> sequence = OpenSequence(kitti);
+  const std::unique_ptr<CameraModel> camera =
+      ReadCameraFile(*sequence->calibration_file(), sequence->image_size());
+  SubsampledSequence even(std::move(sequence), 2, 0);
+  Teacher teacher(*camera, TeachOptions(), nullptr);
+  for (size_t i = 0; i < 20; ++i) {
+    Frame frame;
+    ASSERT_TRUE(even.Read(i, &frame));
+    teacher.AddFrame(frame);
+  }
+  teacher.Finish();
+  const Map& map = teacher.map();
+  ASSERT_GE(map.nodes().size(), 3u);
+  EXPECT_FALSE(teacher.statistics().loop_closed);
+  EXPECT_EQ(map.arcs().size() + 1, map.nodes().size()) << "a linear graph";
+  const std::vector<RejectedLink>& rejected = teacher.statistics().rejected_links;
+  EXPECT_TRUE(std::any_of(rejected.begin(), rejected.end(), [](const RejectedLink& link) {
+    return link.kind == "loop" && link.reason.find("goes backwards") != std::string::npos;
+  })) << "the backward candidate is reported in teach's summary";
+}
+
 TEST(TeachKitti, MappingByMatchingAgreesWithGroundTruth) {
   RETRACE_REQUIRE_SHARED_DATA(kitti, "kitti07");
   TeachOptions options;

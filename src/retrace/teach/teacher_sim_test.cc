@@ -225,6 +225,22 @@ TEST(TeachSim, FrameGapIsBridgedByMatching) {
   EXPECT_LT(direction_error, 45.0);
 }
 
+// The first 30 frames of that drive, a short straight: the last key-image matches the ones the drive passed a few
+// metres before (the build before this test closed a loop onto one of them). A loop link goes forward
+// (LinkDirectionOfTravel); none is closed, and the backward candidate is named in teach's summary.
+TEST(TeachSim, AShortDriveClosesNoLoopBackwards) {
+  const RecordedDrive& drive = LookAlikeTown();
+  const Taught taught = Teach(drive, FrameRange(0, 29), TeachOptions());
+  PrintRejected(taught.statistics);
+  ASSERT_GE(taught.map.nodes().size(), 3u);
+  EXPECT_FALSE(taught.statistics.loop_closed);
+  EXPECT_EQ(taught.map.arcs().size() + 1, taught.map.nodes().size()) << "a linear graph";
+  const std::vector<RejectedLink>& rejected = taught.statistics.rejected_links;
+  EXPECT_TRUE(std::any_of(rejected.begin(), rejected.end(), [](const RejectedLink& link) {
+    return link.kind == "loop" && link.reason.find("goes backwards") != std::string::npos;
+  }));
+}
+
 TEST(TeachSim, LookAlikeCrossingDoesNotCloseTheLoop) {
   const RecordedDrive& drive = LookAlikeTown();
   ASSERT_EQ(drive.frames.size(), 300u);
