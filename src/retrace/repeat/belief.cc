@@ -82,6 +82,8 @@ PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : op
     if (n < 0 || n == static_cast<int>(k) || !arcs_[n].predecessors.empty() || gap_previous.count(n) != 0) continue;
     gap_next[static_cast<int>(k)] = n;
     gap_previous[n] = static_cast<int>(k);
+    arcs_[k].across_gap_after = n;
+    arcs_[n].across_gap_before = static_cast<int>(k);
     arcs_[k].successor_ids.push_back(arcs_[n].id);
     arcs_[n].predecessor_ids.push_back(arcs_[k].id);
   }
@@ -275,6 +277,14 @@ double PlaceBelief::Mass(arc_t arc) const {
 double PlaceBelief::Confidence(arc_t arc) const {
   const int k = Index(arc);
   return k < 0 ? 0.0 : ConfidenceAt(k);
+}
+
+arc_t PlaceBelief::ReportedArc(arc_t tracked) const {
+  const int k = Index(tracked);
+  const int e = Index(estimate_.arc);
+  if (k < 0 || e < 0 || e == k || !estimate_.tracking) return tracked;
+  if (arcs_[k].across_gap_after != e && arcs_[k].across_gap_before != e) return tracked;
+  return estimate_.confidence > ConfidenceAt(k) ? estimate_.arc : tracked;
 }
 
 double PlaceBelief::MeasurementSupport(arc_t arc, const PlaceMeasurement& measurement) const {

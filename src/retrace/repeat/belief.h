@@ -173,6 +173,12 @@ class PlaceBelief {
   // Confidence(arc) counts: on `arc` or within node_tolerance of its ends on its neighbours (the widest neighbour at a
   // junction). 0 when the measurement's arc is not within `reach` of `arc`.
   double MeasurementSupport(arc_t arc, const PlaceMeasurement& measurement) const;
+  // The arc to report when the tracked features are on `tracked`: `tracked`, unless the most likely arc lies across
+  // a gap between two pieces of the map from it (the last arc of one piece and the first of the next) and is more
+  // likely correct (its confidence larger, and the estimate tracking). The truth tolerates both arcs only on the
+  // stretch between the pieces, never on the other piece; the confidence of each counts the mass on that stretch,
+  // so the one with more mass on its own side is the likelier right answer.
+  arc_t ReportedArc(arc_t tracked) const;
   // Probability that the camera has left the map (more than an arc past a route's end or before its start).
   double OffMap() const { return off_map_; }
   // Length of `arc` in the belief's common unit.
@@ -199,6 +205,10 @@ class PlaceBelief {
     std::vector<int> successors, predecessors;  // indices
     std::vector<double> successor_shares;       // of the mass continuing past the end, per successor (sum 1)
     std::vector<arc_t> successor_ids, predecessor_ids;
+    // Where a piece of the map ends inside the drive: the first arc of the piece after the gap (index; -1: none),
+    // and on that arc, the last arc of the piece before it.
+    int across_gap_after = -1;
+    int across_gap_before = -1;
   };
   int Index(arc_t arc) const;
   // Mass and confidence (see Mass, Confidence) of the real arc at index k.

@@ -294,18 +294,25 @@ TEST(PlaceBelief, PastTheRoutesEndTheCameraIsOnItsLastArc) {
   EXPECT_NEAR(reversing.estimate().along, -0.2, 0.05);
 }
 
+// LinearMap(5) without arc 3: two pieces, arcs 0-2 (nodes 0-3, teach frames 0-30) and arc 4 (nodes 4-5, frames
+// 40-50), and a gap of one arc's length between node 3 and node 4.
+Map MapInTwoPieces() {
+  const Map map = LinearMap(5);
+  Map pieces;
+  for (const MapNode& node : map.nodes()) pieces.AddNode(node);
+  for (const MapArc& arc : map.arcs()) {
+    if (arc.id != 3) pieces.AddArc(arc);
+  }
+  return pieces;
+}
+
 TEST(PlaceBelief, PastTheEndOfADisconnectedPieceTheCameraCrossesTheGapIntoTheNextPiece) {
   // Two pieces: arcs 0-2 (nodes 0-3, teach frames 0-30) and arc 4 (nodes 4-5, frames 40-50); teach made no arc from
   // node 3 to node 4. The drive went on past node 3 through the gap (10 teach frames: one arc of arc 2's length)
   // into the second piece: a tenth of an arc past node 3 is still arc 2; 2.3 arcs past node 3's arc start, the
   // camera is 0.3 along arc 4 — where kitti07 at 320 px on every 3rd frame crosses a gap in one frame, and the
   // belief, which ended the piece in a virtual arc leading nowhere, reported the piece's last arc two arcs behind.
-  Map map = LinearMap(5);
-  Map pieces;
-  for (const MapNode& node : map.nodes()) pieces.AddNode(node);
-  for (const MapArc& arc : map.arcs()) {
-    if (arc.id != 3) pieces.AddArc(arc);
-  }
+  const Map pieces = MapInTwoPieces();
   PlaceBelief early(pieces);
   for (int t = 0; t < 4; ++t) Frame(&early, t + 1, {Pose(2, 0.5 + 0.2 * t)});  // 1.1 at t = 3
   EXPECT_TRUE(early.estimate().tracking);
@@ -334,6 +341,30 @@ TEST(PlaceBelief, PastTheEndOfADisconnectedPieceTheCameraCrossesTheGapIntoTheNex
   // Across the gap the next piece's first arc continues the last one (the localizer's transitions follow these).
   EXPECT_EQ(belief.Successors(2), std::vector<arc_t>{4});
   EXPECT_EQ(belief.Predecessors(4), std::vector<arc_t>{2});
+}
+
+TEST(PlaceBelief, AcrossAGapTheArcOnTheSideOfTheMassIsReported) {
+  // The pieces of the test above (arcs 0-2, the gap of one arc length, arc 4). The tracks stay on arc 2 while the
+  // camera drives through the gap: on the gap both arcs are right, past it only arc 4, so once the mass lies past
+  // the gap the report is arc 4 although arc 2's confidence (its mass and the gap's) may still be high.
+  const Map pieces = MapInTwoPieces();
+  PlaceBelief belief(pieces);
+  for (int t = 0; t < 3; ++t) Frame(&belief, t + 1, {Pose(2, 0.2 + 0.2 * t)});  // 0.6 at t = 2: on arc 2
+  EXPECT_EQ(belief.ReportedArc(2), 2);
+  for (int t = 3; t < 10; ++t) Frame(&belief, t + 1, {Pose(2, 0.2 + 0.2 * t)});  // 2.0 at t = 9: node 4
+  for (int t = 10; t < 12; ++t) Frame(&belief, t + 1, {Pose(4, 0.2 * t - 1.8)});  // 0.4 on arc 4 at t = 11
+  ASSERT_TRUE(belief.estimate().tracking);
+  ASSERT_EQ(belief.estimate().arc, 4);
+  EXPECT_GT(belief.Confidence(4), belief.Confidence(2));
+  EXPECT_EQ(belief.ReportedArc(2), 4);
+  // Two arcs that meet at a node are both right near it: the tracked one stays reported.
+  PlaceBelief joined(LinearMap(5));
+  for (int t = 0; t < 6; ++t) Frame(&joined, t + 1, {Pose(1, 0.4 + 0.2 * t)});  // 1.4 at t = 5: arc 2
+  ASSERT_EQ(joined.estimate().arc, 2);
+  EXPECT_EQ(joined.ReportedArc(1), 1);
+  // Nor does an arc that is not the belief's, nor one off the map, change anything.
+  EXPECT_EQ(belief.ReportedArc(0), 0);
+  EXPECT_EQ(belief.ReportedArc(kInvalidArcId), kInvalidArcId);
 }
 
 TEST(PlaceBelief, OptionsAreChecked) {

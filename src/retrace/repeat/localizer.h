@@ -64,7 +64,8 @@
 // Lost is an answer, never a confident wrong place. The belief's own arc is reported instead when it is confident
 // there and not in the current arc: near a node, in the neighbouring arc the camera has not reached yet by eq. (9)
 // (a route's short last arc), and in a frame whose tracks are given up after their placement was accepted (the
-// next frame relocalizes).
+// next frame relocalizes); and across a gap in the map when it is more likely correct than the current arc, both
+// confident (PlaceBelief::ReportedArc).
 //
 // The tracks are given up when fewer than `min_features` of the current arc are tracked in a frame without evidence,
 // or for `max_bad_frames` frames in a row no current geometry or absolute pose is usable or the belief accepts none of
