@@ -74,14 +74,13 @@ PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : op
   }
   // Gaps in a map teach left in pieces: the last arc of a piece that ends inside the drive continues, after the
   // stretch the teach drive made no arc for, into the first arc of the piece it made next (Map::DrivenArcAcrossGap).
-  std::unordered_map<int, int> gap_next, gap_previous;  // indices: last arc of a piece <-> first arc of the next
   for (size_t k = 0; k < arcs_.size(); ++k) {
     if (!arcs_[k].successors.empty()) continue;
     const arc_t next = map.DrivenArcAcrossGap(map.FindArc(arcs_[k].id)->to, +1);
     const int n = Index(next);
-    if (n < 0 || n == static_cast<int>(k) || !arcs_[n].predecessors.empty() || gap_previous.count(n) != 0) continue;
-    gap_next[static_cast<int>(k)] = n;
-    gap_previous[n] = static_cast<int>(k);
+    if (n < 0 || n == static_cast<int>(k) || !arcs_[n].predecessors.empty() || arcs_[n].across_gap_before >= 0) {
+      continue;
+    }
     arcs_[k].across_gap_after = n;
     arcs_[n].across_gap_before = static_cast<int>(k);
     arcs_[k].successor_ids.push_back(arcs_[n].id);
@@ -112,8 +111,8 @@ PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : op
       };
       for (const int s : arcs_[k].successors) visit(s, true);
       for (const int p : arcs_[k].predecessors) visit(p, false);
-      if (const auto next = gap_next.find(k); next != gap_next.end()) visit(next->second, true);
-      if (const auto previous = gap_previous.find(k); previous != gap_previous.end()) visit(previous->second, false);
+      if (arcs_[k].across_gap_after >= 0) visit(arcs_[k].across_gap_after, true);
+      if (arcs_[k].across_gap_before >= 0) visit(arcs_[k].across_gap_before, false);
     }
   }
   // A teach frame spans teach_frame_step frames of the sequence the key-images are numbered in.
@@ -138,7 +137,7 @@ PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : op
   for (size_t k = 0; k < real_arcs; ++k) {
     for (const bool beyond_end : {true, false}) {
       if (!(beyond_end ? arcs_[k].successors : arcs_[k].predecessors).empty()) continue;
-      if (!beyond_end && gap_previous.count(static_cast<int>(k)) != 0) continue;  // the gap before it is there
+      if (!beyond_end && arcs_[k].across_gap_before >= 0) continue;  // the gap before it is there
       ArcNode extension;
       extension.id = arcs_[k].id;
       extension.teach_frame_length = arcs_[k].teach_frame_length;
@@ -148,14 +147,14 @@ PlaceBelief::PlaceBelief(const Map& map, const PlaceBeliefOptions& options) : op
       extension.length = drive_end ? std::max(arcs_[k].length, typical_length) : arcs_[k].length;
       extension.virtual_of = static_cast<int>(k);
       const int index = static_cast<int>(arcs_.size());
-      const auto next = gap_next.find(static_cast<int>(k));
-      if (beyond_end && next != gap_next.end() && end != nullptr) {
-        const MapNode* start = map.FindNode(map.FindArc(arcs_[next->second].id)->from);
+      const int next = arcs_[k].across_gap_after;
+      if (beyond_end && next >= 0 && end != nullptr) {
+        const MapNode* start = map.FindNode(map.FindArc(arcs_[next].id)->from);
         const double gap_frames =
             start == nullptr ? 1.0 : std::max(1.0, static_cast<double>(start->source_frame - end->source_frame));
         extension.length = arcs_[k].length * gap_frames / TeachFrames(map, arc);
-        extension.successors.push_back(next->second);
-        arcs_[next->second].predecessors.push_back(index);
+        extension.successors.push_back(next);
+        arcs_[next].predecessors.push_back(index);
       }
       (beyond_end ? extension.predecessors : extension.successors).push_back(static_cast<int>(k));
       (beyond_end ? arcs_[k].successors : arcs_[k].predecessors).push_back(index);
