@@ -9,7 +9,6 @@ import sys
 from conftest import SOURCE_DIR
 
 SCRIPT = SOURCE_DIR / "scripts" / "validation-score"
-IDENTITY = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
 
 
 def yaw_matrix(yaw):

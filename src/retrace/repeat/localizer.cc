@@ -480,8 +480,9 @@ FrameResult Localizer::ProcessFrame(const Frame& frame) {
     // Across a gap in the map the arc the belief prefers may be the likelier right report (PlaceBelief::ReportedArc;
     // `scripts/validation --random 24 --random-seed 7`'s rand1706 frame 436, 3 m beside: tracks on the arc before a
     // two-frame gap at confidence 0.993, the camera already past the gap on the arc the belief preferred, 0.99998).
-    if (confident && belief_.ReportedArc(arc_) != arc_ && Arc(estimate.arc) != nullptr) {
-      ReportTracking(estimate.arc, estimate.along, estimate.sigma, estimate.confidence, &result);
+    const arc_t reported = confident ? belief_.ReportedArc(arc_) : arc_;
+    if (reported != arc_ && Arc(reported) != nullptr) {
+      ReportTracking(reported, estimate.along, estimate.sigma, estimate.confidence, &result);
     } else if (confident) {
       ReportTracking(arc_, *along, estimate.sigma * belief_.ArcLength(estimate.arc) / belief_.ArcLength(arc_),
                      result.confidence, &result);

@@ -36,7 +36,8 @@ print(\"ok\")'"
     cp "$data/kitti07/image_0/000000.png" "$tmp/still/image_0/00000$i.png"
     echo "0.$i" >>"$tmp/still/times.txt"
   done
-  expect teach-still-camera 1 "^retrace: error: $tmp/still: teach made no arc from its 8 frames: the camera did not move" -- \
+  expect teach-still-camera 1 \
+    "^retrace: error: $tmp/still: teach made no arc from its 8 frames: the camera did not move" -- \
     "$bin" teach --sequence "$tmp/still" --map "$tmp/still.db" --no-progress
   expect teach-still-no-map 0 '' -- bash -c "[[ ! -e '$tmp/still.db' ]]"
 fi
