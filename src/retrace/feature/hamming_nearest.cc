@@ -68,8 +68,9 @@ __attribute__((target("popcnt"))) void NearestPopcnt(const cv::Mat& query, const
 
 // What the vector kernels share: the train descriptors word-major in blocks of kLanes (word w of descriptor
 // b * kLanes + l at ((b * kWords + w) * kLanes + l); the block past the last descriptor padded with zeros, masked out
-// by the kernels) and, per train descriptor, its nearest query so far as 64-bit lanes.
-template <int kWords, int kLanes>
+// by the kernels) and, per train descriptor, its nearest query so far as lanes of `Minimum` (64 bits for AVX2, whose
+// lanes are the 64-bit words; 32 for AVX-512, which packs two blocks of words into one register of distances).
+template <int kWords, int kLanes, typename Minimum = int64_t>
 struct TrainBlocks {
   explicit TrainBlocks(const cv::Mat& train)
       : blocks((train.rows + kLanes - 1) / kLanes),
@@ -94,19 +95,19 @@ struct TrainBlocks {
 
   const int blocks, valid_in_last;
   std::vector<uint64_t> words;
-  std::vector<int64_t> best_query_d, best_query;
+  std::vector<Minimum> best_query_d, best_query;
 };
 
 // The lanes' running minima of one query row merged: the nearest (lowest index on a tie) and, as second, the
 // smaller of its lane's second and the other lanes' nearest.
-template <int kLanes>
-void MergeLanes(const int64_t* best, const int64_t* second, const int64_t* best_j, int i, HammingNearest* nearest) {
+template <int kLanes, typename Lane>
+void MergeLanes(const Lane* best, const Lane* second, const Lane* best_j, int i, HammingNearest* nearest) {
   int lane = 0;
   for (int l = 1; l < kLanes; ++l) {
     // A lane without any descriptor (the last block's padding, best_j -1) holds kNone: never the nearest.
     if (best[l] < best[lane] || (best[l] == best[lane] && best_j[l] < best_j[lane])) lane = l;
   }
-  int64_t second_d = second[lane];
+  Lane second_d = second[lane];
   for (int l = 0; l < kLanes; ++l) {
     if (l != lane && best[l] < second_d) second_d = best[l];
   }
@@ -176,44 +177,63 @@ __attribute__((target("avx2"))) void NearestAvx2(const cv::Mat& query, const cv:
   train_blocks.StoreInto(nearest);
 }
 
+// Lane-wise minimum and maximum of 32-bit integers, through the masked forms (every lane selected): GCC 12's plain
+// _mm512_min_epi32 passes an undefined register that -Wmaybe-uninitialized reports.
+__attribute__((target("avx512f"))) inline __m512i Min32(__m512i a, __m512i b) {
+  return _mm512_mask_min_epi32(a, static_cast<__mmask16>(0xffff), a, b);
+}
+__attribute__((target("avx512f"))) inline __m512i Max32(__m512i a, __m512i b) {
+  return _mm512_mask_max_epi32(a, static_cast<__mmask16>(0xffff), a, b);
+}
+
 template <int kWords>
 __attribute__((target("avx512f,avx512vpopcntdq"))) void NearestAvx512(const cv::Mat& query, const cv::Mat& train,
                                                                       HammingNearest* nearest) {
-  constexpr int kLanes = 8;
-  TrainBlocks<kWords, kLanes> train_blocks(train);
+  // Sixteen train descriptors per step: their words in two registers of eight 64-bit lanes each, counted there, and
+  // the two registers of distances packed into one of sixteen 32-bit lanes (a distance is at most 256), where the
+  // minima are kept: the bookkeeping, most of the instructions with eight lanes, is then done once for sixteen.
+  constexpr int kLanes = 16;
+  TrainBlocks<kWords, kLanes, int32_t> train_blocks(train);
   const int blocks = train_blocks.blocks;
-  const __m512i none = _mm512_set1_epi64(kNone);
-  const __m512i step = _mm512_set1_epi64(kLanes);
+  const __m512i none = _mm512_set1_epi32(kNone);
+  const __m512i step = _mm512_set1_epi32(kLanes);
+  // The low 32 bits of every 64-bit lane of two registers, the first's lanes first.
+  const __m512i low_halves = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
   // The padded lanes of the last block: never nearer than anything.
-  const __mmask8 last_valid = static_cast<__mmask8>((1u << train_blocks.valid_in_last) - 1u);
-  alignas(64) int64_t lane_best[kLanes], lane_second[kLanes], lane_best_j[kLanes];
+  const __mmask16 last_valid = static_cast<__mmask16>((1u << train_blocks.valid_in_last) - 1u);
+  alignas(64) int32_t lane_best[kLanes], lane_second[kLanes], lane_best_j[kLanes];
   for (int i = 0; i < query.rows; ++i) {
     const uint64_t* q = query.ptr<uint64_t>(i);
     __m512i query_words[kWords];
     for (int w = 0; w < kWords; ++w) query_words[w] = _mm512_set1_epi64(static_cast<int64_t>(q[w]));
-    const __m512i query_index = _mm512_set1_epi64(i);
-    __m512i best = none, second = none, best_j = _mm512_set1_epi64(-1);
-    __m512i j = _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 6, 7);
+    const __m512i query_index = _mm512_set1_epi32(i);
+    __m512i best = none, second = none, best_j = _mm512_set1_epi32(-1);
+    __m512i j = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
     for (int b = 0; b < blocks; ++b) {
-      __m512i d = _mm512_popcnt_epi64(_mm512_xor_si512(query_words[0], _mm512_loadu_si512(train_blocks.Words(b, 0))));
+      const uint64_t* words = train_blocks.Words(b, 0);
+      __m512i low = _mm512_popcnt_epi64(_mm512_xor_si512(query_words[0], _mm512_loadu_si512(words)));
+      __m512i high = _mm512_popcnt_epi64(_mm512_xor_si512(query_words[0], _mm512_loadu_si512(words + 8)));
       for (int w = 1; w < kWords; ++w) {
-        d = _mm512_add_epi64(
-            d, _mm512_popcnt_epi64(_mm512_xor_si512(query_words[w], _mm512_loadu_si512(train_blocks.Words(b, w)))));
+        words = train_blocks.Words(b, w);
+        low = _mm512_add_epi64(low, _mm512_popcnt_epi64(_mm512_xor_si512(query_words[w], _mm512_loadu_si512(words))));
+        high = _mm512_add_epi64(
+            high, _mm512_popcnt_epi64(_mm512_xor_si512(query_words[w], _mm512_loadu_si512(words + 8))));
       }
-      if (b == blocks - 1) d = _mm512_mask_mov_epi64(none, last_valid, d);
+      __m512i d = _mm512_permutex2var_epi32(low, low_halves, high);
+      if (b == blocks - 1) d = _mm512_mask_mov_epi32(none, last_valid, d);
       // The train descriptors' nearest query (rows in order: the first of equals stays).
-      int64_t* block_d = &train_blocks.best_query_d[size_t(b) * kLanes];
-      int64_t* block_query = &train_blocks.best_query[size_t(b) * kLanes];
-      const __mmask8 nearer_query = _mm512_cmplt_epi64_mask(d, _mm512_loadu_si512(block_d));
-      _mm512_mask_storeu_epi64(block_d, nearer_query, d);
-      _mm512_mask_storeu_epi64(block_query, nearer_query, query_index);
-      // The query's best and second best per lane.
-      const __mmask8 nearer_than_best = _mm512_cmplt_epi64_mask(d, best);
-      const __mmask8 nearer_than_second = _mm512_cmplt_epi64_mask(d, second);
-      second = _mm512_mask_mov_epi64(_mm512_mask_mov_epi64(second, nearer_than_second, d), nearer_than_best, best);
-      best = _mm512_mask_mov_epi64(best, nearer_than_best, d);
-      best_j = _mm512_mask_mov_epi64(best_j, nearer_than_best, j);
-      j = _mm512_add_epi64(j, step);
+      int32_t* block_d = &train_blocks.best_query_d[size_t(b) * kLanes];
+      int32_t* block_query = &train_blocks.best_query[size_t(b) * kLanes];
+      const __mmask16 nearer_query = _mm512_cmplt_epi32_mask(d, _mm512_loadu_si512(block_d));
+      _mm512_mask_storeu_epi32(block_d, nearer_query, d);
+      _mm512_mask_storeu_epi32(block_query, nearer_query, query_index);
+      // The query's best and second best per lane: a distance below the best makes the best the second; one equal
+      // to it or between the two is the second (min(second, max(best, d)) in both cases).
+      const __mmask16 nearer_than_best = _mm512_cmplt_epi32_mask(d, best);
+      second = Min32(second, Max32(best, d));
+      best = Min32(best, d);
+      best_j = _mm512_mask_mov_epi32(best_j, nearer_than_best, j);
+      j = _mm512_add_epi32(j, step);
     }
     _mm512_store_si512(lane_best, best);
     _mm512_store_si512(lane_second, second);
