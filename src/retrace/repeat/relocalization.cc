@@ -16,6 +16,7 @@
 #include "retrace/geometry/essential.h"
 #include "retrace/geometry/relative_pose.h"
 #include "retrace/repeat/localizer_internal.h"
+#include "retrace/util/point_grid.h"
 
 namespace retrace {
 
@@ -296,6 +297,8 @@ int Localizer::LocateMappedFeatures(const MatchedKeyImage& key_image, const std:
   RefinePredictionOptions robust = refine;
   robust.alignment.robust_fallback = options_.relocalization_robust_alignment && last_arc_ != kInvalidArcId;
   const NodeData& node = Node(key_image.node);
+  // (Cells a millionth wider than the radius: a match at the radius is inside the cells searched despite rounding.)
+  const PointGrid matches(key_image.key_points, neighbour_radius * (1.0 + 1e-6));
   int located_features = 0;
   for (const ArcData* located : arcs) {
     if (located == nullptr || !HasEnd(*located->arc, key_image.node)) continue;
@@ -312,22 +315,24 @@ int Localizer::LocateMappedFeatures(const MatchedKeyImage& key_image, const std:
         dx.clear();
         dy.clear();
         ratios.clear();
-        for (size_t i = 0; i < key_image.key_points.size(); ++i) {
-          if ((key_image.key_points[i] - position->second).norm() > widening * neighbour_radius) continue;
+        matches.ForEachNear(position->second, widening, [&](size_t i) {
+          if ((key_image.key_points[i] - position->second).norm() > widening * neighbour_radius) return;
           const Vector2d d = key_image.current_points[i] - key_image.key_points[i];
           dx.push_back(d.x());
           dy.push_back(d.y());
           ratios.push_back(key_image.size_ratios[i]);
-        }
+        });
         enough = static_cast<int>(dx.size()) >= widening + 1;
       }
       if (!enough) continue;
-      const Vector2d predicted = position->second + Vector2d(Median(dx), Median(dy));
+      // (Medians of values: the order the grid visits the matches in does not change them.)
+      const Vector2d predicted = position->second + Vector2d(Median(std::move(dx)), Median(std::move(dy)));
       const int margin = tracker_.Options().alignment.window_size / 2 + 2;
       if (!camera_->InImage(predicted, margin)) continue;
       const std::shared_ptr<const ReferencePatch> reference = Reference(key_image.node, id);
       if (reference == nullptr) continue;
-      AlignmentResult refined = RefinePrediction(prediction_pyramid_, *reference, predicted, Median(ratios), robust);
+      AlignmentResult refined =
+          RefinePrediction(prediction_pyramid_, *reference, predicted, Median(std::move(ratios)), robust);
       if ((!refined.ok() || refined.robust_used) && AlternativeStarts() > 0) {
         // The paper's warp from the nearest matches before a robust alignment, which stays only when it fails.
         AlignmentResult paper =
