@@ -282,33 +282,35 @@ class Reader {
                                                intrinsics.data[3], 0.0, distortion);
   }
 
-  // KITTI calib.txt: "P0: p00 p01 ... p23" (3x4, row-major); the left grey camera is P0.
-  std::unique_ptr<CameraModel> ReadKittiFile(const std::string& text, std::optional<cv::Size> image_size) const {
+  // KITTI calib.txt: "P0: p00 p01 ... p23" (3x4, row-major), one line per camera: P0 and P1 the grey pair, P2 and P3
+  // the colour pair (image_0 .. image_3). `key` names the one to read.
+  std::unique_ptr<CameraModel> ReadKittiFile(const std::string& text, std::optional<cv::Size> image_size,
+                                             const std::string& key) const {
     std::istringstream lines(text);
     std::string line;
     while (std::getline(lines, line)) {
       line = Trim(line);
-      if (line.rfind("P0:", 0) != 0) continue;
-      std::istringstream values(line.substr(3));
+      if (line.rfind(key + ":", 0) != 0) continue;
+      std::istringstream values(line.substr(key.size() + 1));
       std::vector<double> p;
       std::string token;
       while (values >> token) {
         char* end = nullptr;
         const double value = std::strtod(token.c_str(), &end);
         if (end != token.c_str() + token.size() || !std::isfinite(value)) {
-          Fail("P0 has a non-numeric value '" + token.substr(0, 40) + "'");
+          Fail(key + " has a non-numeric value '" + token.substr(0, 40) + "'");
         }
         p.push_back(value);
       }
-      if (p.size() != 12) Fail(fmt::format("wrong matrix size: P0 has {} values, expected 12 (3x4)", p.size()));
+      if (p.size() != 12) Fail(fmt::format("wrong matrix size: {} has {} values, expected 12 (3x4)", key, p.size()));
       Matrix3d k;
       k << p[0], p[1], p[2], p[4], p[5], p[6], p[8], p[9], p[10];
-      CheckK(k, "P0");
+      CheckK(k, key);
       const cv::Size size = ResolveSize(std::nullopt, image_size);
       return std::make_unique<PerspectiveCamera>(size.width, size.height, k(0, 0), k(1, 1), k(0, 2), k(1, 2),
                                                  k(0, 1), LensDistortion());
     }
-    Fail("missing key 'P0'");
+    Fail("missing key '" + key + "'");
   }
 
   // OpenCV FileStorage XML, parsed here into the same YAML tree the YAML files give. (OpenCV 4.6's own XML parser
@@ -444,19 +446,25 @@ std::string ReadText(const Reader& reader, const std::filesystem::path& path) {
 
 }  // namespace
 
-std::unique_ptr<CameraModel> ReadCameraFile(const std::filesystem::path& path, std::optional<cv::Size> image_size) {
+std::unique_ptr<CameraModel> ReadCameraFile(const std::filesystem::path& path, std::optional<cv::Size> image_size,
+                                             const std::string& camera) {
   const Reader reader(path.string());
-  return ParseCameraText(ReadText(reader, path), path.string(), image_size);
+  return ParseCameraText(ReadText(reader, path), path.string(), image_size, camera);
 }
 
 namespace {
 
 std::unique_ptr<CameraModel> ParseCameraFormats(const std::string& text, const std::string& source,
-                                                std::optional<cv::Size> image_size) {
+                                                std::optional<cv::Size> image_size, const std::string& camera) {
   const Reader reader(source);
   if (Reader::Trim(text).empty()) reader.Fail("empty camera text");
   if (text.find('\0') != std::string::npos) reader.Fail("binary data, not a calibration file");
-  if (std::regex_search(text, std::regex(R"((^|\n)\s*P0\s*:)"))) return reader.ReadKittiFile(text, image_size);
+  if (!camera.empty() && !std::regex_match(camera, std::regex("P[0-3]"))) {
+    reader.Fail("no camera '" + camera.substr(0, 40) + "' in a calibration file (KITTI's are P0 to P3)");
+  }
+  if (std::regex_search(text, std::regex(R"((^|\n)\s*P[0-3]\s*:)"))) {
+    return reader.ReadKittiFile(text, image_size, camera.empty() ? "P0" : camera);
+  }
 
   const bool is_xml = Reader::Trim(text).rfind("<?xml", 0) == 0 || Reader::Trim(text).rfind("<opencv_storage", 0) == 0;
   const YAML::Node root = is_xml ? reader.ParseXml(text) : reader.ParseYaml(text);
@@ -483,8 +491,8 @@ std::unique_ptr<CameraModel> ParseCameraFormats(const std::string& text, const s
 
 // Every reader ends here, so a calibration from a file, a ROS message or a map passes the same plausibility checks.
 std::unique_ptr<CameraModel> ParseCameraText(const std::string& text, const std::string& source,
-                                             std::optional<cv::Size> image_size) {
-  std::unique_ptr<CameraModel> camera = ParseCameraFormats(text, source, image_size);
+                                             std::optional<cv::Size> image_size, const std::string& camera_key) {
+  std::unique_ptr<CameraModel> camera = ParseCameraFormats(text, source, image_size, camera_key);
   std::string problem;
   if (!CheckCameraPlausible(*camera, &problem)) throw InputError(source, "implausible calibration: " + problem);
   return camera;

@@ -62,6 +62,38 @@ TEST_F(CameraIoTest, ReadsKittiCalibWithGivenImageSize) {
   ExpectInputError(calib, "has no image size");
 }
 
+// A calib.txt holds the four cameras of a KITTI sequence: each is read by its name, P0 by default; a name that is
+// not KITTI's, or a camera the file lacks, is a one-line error.
+TEST_F(CameraIoTest, ReadsTheKittiCameraNamed) {
+  const auto path = Write("calib.txt",
+                          "P0: 700 0 600 0 0 701 180 0 0 0 1 0\n"
+                          "P1: 710 0 610 -380 0 711 181 0 0 0 1 0\n"
+                          "P2: 720 0 620 46 0 721 182 0.2 0 0 1 0.003\n");
+  const cv::Size size(1241, 376);
+  EXPECT_DOUBLE_EQ(AsPerspective(ReadCameraFile(path, size)).fx(), 700.0);
+  EXPECT_DOUBLE_EQ(AsPerspective(ReadCameraFile(path, size, "P0")).fx(), 700.0);
+  const PerspectiveCamera& p2 = AsPerspective(ReadCameraFile(path, size, "P2"));
+  EXPECT_DOUBLE_EQ(p2.fx(), 720.0);
+  EXPECT_DOUBLE_EQ(p2.fy(), 721.0);
+  EXPECT_DOUBLE_EQ(p2.cx(), 620.0);
+  EXPECT_DOUBLE_EQ(p2.cy(), 182.0);
+  EXPECT_DOUBLE_EQ(AsPerspective(ReadCameraFile(path, size, "P1")).cx(), 610.0);
+  for (const auto& [camera, problem] : std::vector<std::pair<std::string, std::string>>{
+           {"P3", "missing key 'P3'"}, {"P7", "no camera 'P7'"}, {"cam1", "no camera 'cam1'"}}) {
+    try {
+      ReadCameraFile(path, size, camera);
+      ADD_FAILURE() << camera << " was accepted";
+    } catch (const InputError& e) {
+      const std::string message = e.what();
+      EXPECT_NE(message.find(path.string()), std::string::npos) << message;
+      EXPECT_NE(message.find(problem), std::string::npos) << message;
+    }
+  }
+  // A file of one camera (not KITTI's) ignores the name.
+  const auto yaml = Write("camera.yaml", CameraToYaml(PerspectiveCamera(64, 48, 50, 50, 32, 24)));
+  EXPECT_DOUBLE_EQ(AsPerspective(ReadCameraFile(yaml, std::nullopt, "P2")).fx(), 50.0);
+}
+
 TEST_F(CameraIoTest, ReadsEurocSensorYaml) {
   RETRACE_REQUIRE_SHARED_DATA(sensor, "euroc_v101_clip/mav0/cam0/sensor.yaml");
   const auto camera = ReadCameraFile(sensor);

@@ -69,12 +69,14 @@ struct ImageEntry {
 class ImageListSequence : public Sequence {
  public:
   ImageListSequence(std::string layout, fs::path root, std::vector<ImageEntry> entries,
-                    std::optional<fs::path> calibration, std::optional<fs::path> ground_truth)
+                    std::optional<fs::path> calibration, std::optional<fs::path> ground_truth,
+                    std::string calibration_camera = "")
       : layout_(std::move(layout)),
         root_(std::move(root)),
         entries_(std::move(entries)),
         calibration_(std::move(calibration)),
-        ground_truth_(std::move(ground_truth)) {}
+        ground_truth_(std::move(ground_truth)),
+        calibration_camera_(std::move(calibration_camera)) {}
 
   size_t size() const override { return entries_.size(); }
 
@@ -115,6 +117,7 @@ class ImageListSequence : public Sequence {
 
   void Rewind() override { cursor_ = 0; }
   std::optional<fs::path> calibration_file() const override { return calibration_; }
+  std::string calibration_camera() const override { return calibration_camera_; }
   std::optional<fs::path> ground_truth_file() const override { return ground_truth_; }
   std::string layout() const override { return layout_; }
   fs::path path() const override { return root_; }
@@ -125,6 +128,7 @@ class ImageListSequence : public Sequence {
   std::vector<ImageEntry> entries_;
   std::optional<fs::path> calibration_;
   std::optional<fs::path> ground_truth_;
+  std::string calibration_camera_;
   size_t cursor_ = 0;
 };
 
@@ -193,9 +197,12 @@ class VideoSequence : public Sequence {
   size_t next_index_ = 0;
 };
 
-// KITTI odometry: root/image_0/NNNNNN.png, root/times.txt, root/calib.txt, optional root/poses.txt.
-std::unique_ptr<Sequence> OpenKitti(const fs::path& root, const SequenceOptions& options) {
-  const fs::path image_dir = root / "image_0";
+// KITTI odometry: root/image_N/NNNNNN.png (N = `camera`, 0-3: the grey pair, then the colour pair), root/times.txt,
+// root/calib.txt (its line PN), optional root/poses.txt (the poses of camera 0, the grey left one; the others are
+// rigidly fixed to it, at 0.06-0.54 m).
+std::unique_ptr<Sequence> OpenKitti(const fs::path& root, int camera, const SequenceOptions& options) {
+  const std::string image_folder = fmt::format("image_{}", camera);
+  const fs::path image_dir = root / image_folder;
   const fs::path times_txt = root / "times.txt";
   const std::vector<fs::path> files = ListImages(image_dir);
   std::vector<ImageEntry> entries;
@@ -209,8 +216,8 @@ std::unique_ptr<Sequence> OpenKitti(const fs::path& root, const SequenceOptions&
       const unsigned long long number = std::strtoull(stem.c_str(), &end, 10);
       if (end == stem.c_str() || *end != '\0') continue;  // not a frame file (e.g. a preview)
       if (number >= times.size()) {
-        throw InputError(times_txt.string(), fmt::format("has {} lines but image_0 holds frame {}", times.size(),
-                                                         file.filename().string()));
+        throw InputError(times_txt.string(), fmt::format("has {} lines but {} holds frame {}", times.size(),
+                                                         image_folder, file.filename().string()));
       }
     }
     for (size_t i = 0; i < times.size(); ++i) {
@@ -226,7 +233,7 @@ std::unique_ptr<Sequence> OpenKitti(const fs::path& root, const SequenceOptions&
   std::optional<fs::path> calibration = IfFile(root / "camera.yaml");
   if (!calibration) calibration = IfFile(root / "calib.txt");
   return std::make_unique<ImageListSequence>("kitti", root, std::move(entries), calibration,
-                                             IfFile(root / "poses.txt"));
+                                             IfFile(root / "poses.txt"), fmt::format("P{}", camera));
 }
 
 // EuRoC MAV: cam_dir/data.csv (`#timestamp [ns],filename`) and cam_dir/data/<filename>.
@@ -267,7 +274,7 @@ std::unique_ptr<Sequence> OpenEuroc(const fs::path& cam_dir) {
 std::unique_ptr<Sequence> OpenFolder(const fs::path& dir, const SequenceOptions& options) {
   const std::vector<fs::path> files = ListImages(dir);
   CheckInput(!files.empty(), dir.string(),
-             "no images (png, jpg, jpeg, pgm, bmp, tif) and no KITTI (image_0/) or EuRoC (mav0/) layout");
+             "no images (png, jpg, jpeg, pgm, bmp, tif) and no KITTI (image_0/ to image_3/) or EuRoC (mav0/) layout");
   std::vector<ImageEntry> entries;
   const fs::path times_txt = dir / "times.txt";
   if (IsFile(times_txt)) {
@@ -332,11 +339,16 @@ std::unique_ptr<Sequence> OpenSequence(const fs::path& path, const SequenceOptio
   }
   // Normalise "foo/" to "foo" so that filename() and parent_path() behave.
   const fs::path dir = path.has_filename() ? path : path.parent_path();
-  // KITTI odometry.
-  if (IsDir(dir / "image_0")) return OpenKitti(dir, options);
-  if (dir.filename() == "image_0" && (IsFile(dir.parent_path() / "times.txt") ||
-                                      IsFile(dir.parent_path() / "calib.txt"))) {
-    return OpenKitti(dir.parent_path(), options);
+  // KITTI odometry: the grey left camera (image_0) when the folder has it, else the colour left one (image_2), else
+  // the right ones; or the image_N folder given.
+  for (const int camera : {0, 2, 1, 3}) {
+    if (IsDir(dir / fmt::format("image_{}", camera))) return OpenKitti(dir, camera, options);
+  }
+  for (int camera = 0; camera <= 3; ++camera) {
+    if (dir.filename() == fmt::format("image_{}", camera) &&
+        (IsFile(dir.parent_path() / "times.txt") || IsFile(dir.parent_path() / "calib.txt"))) {
+      return OpenKitti(dir.parent_path(), camera, options);
+    }
   }
   // EuRoC MAV.
   for (const fs::path& cam_dir : {dir / "mav0" / "cam0", dir / "cam0", dir}) {

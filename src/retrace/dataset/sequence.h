@@ -60,6 +60,9 @@ class Sequence {
   // The calibration file that belongs to the sequence, if any (KITTI: camera.yaml if present, else calib.txt; EuRoC:
   // cam0/sensor.yaml; folder: camera.yaml if present). Reading it is the camera layer's job.
   virtual std::optional<std::filesystem::path> calibration_file() const { return std::nullopt; }
+  // Which camera of the calibration file the frames come from, for files that hold several: a KITTI folder's
+  // image_0 .. image_3 are calib.txt's "P0" .. "P3". Empty: the file's only (or first) camera.
+  virtual std::string calibration_camera() const { return ""; }
 
   // The ground-truth trajectory file, if any (KITTI: poses.txt, camera poses; EuRoC:
   // mav0/state_groundtruth_estimate0/data.csv, BODY poses — see ReadEurocPoses).

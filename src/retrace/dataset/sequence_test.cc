@@ -280,6 +280,51 @@ TEST(Sequence, KittiWriterRoundTripAndMissingFrames) {
   fs::remove_all(dir);
 }
 
+// KITTI's colour download has image_2 and image_3 only: the left colour camera is read (in grey), with calib.txt's
+// P2; a folder with image_0 keeps the grey camera, and an image_N folder given opens camera N.
+TEST(Sequence, KittiColourAndRightCameras) {
+  const fs::path dir = testing::MakeTempDir("seq_kitti_colour");
+  const fs::path root = dir / "seq";
+  fs::create_directories(root / "image_2");
+  fs::create_directories(root / "image_3");
+  for (int i = 0; i < 3; ++i) {
+    cv::imwrite((root / "image_2" / fmt::format("{:06d}.png", i)).string(), TestImage(i, cv::Size(64, 48), CV_8UC3));
+    cv::imwrite((root / "image_3" / fmt::format("{:06d}.png", i)).string(), TestImage(i + 5));
+  }
+  WriteText(root / "times.txt", "0\n0.1\n0.2\n");
+  WriteText(root / "calib.txt", "P0: 1 0 0 0 0 1 0 0 0 0 1 0\nP2: 2 0 0 0 0 2 0 0 0 0 1 0\n");
+
+  std::unique_ptr<Sequence> sequence = OpenSequence(root);
+  EXPECT_EQ(sequence->layout(), "kitti");
+  EXPECT_EQ(sequence->calibration_camera(), "P2");
+  ASSERT_TRUE(sequence->calibration_file());
+  EXPECT_EQ(*sequence->calibration_file(), root / "calib.txt");
+  std::vector<Frame> frames = ReadAll(*sequence);
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_EQ(frames[2].image.type(), CV_8UC1);
+  EXPECT_EQ(Level(frames[2].image), Level(TestImage(2)));
+  EXPECT_DOUBLE_EQ(frames[2].timestamp, 0.2);
+
+  sequence = OpenSequence(root / "image_3");
+  EXPECT_EQ(sequence->calibration_camera(), "P3");
+  frames = ReadAll(*sequence);
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_EQ(Level(frames[0].image), Level(TestImage(5)));
+
+  // times.txt that does not fit names the folder read.
+  WriteText(root / "times.txt", "0\n0.1\n");
+  const std::string message = ErrorOf([&] { OpenSequence(root); });
+  EXPECT_NE(message.find("times.txt: has 2 lines but image_2 holds frame 000002.png"), std::string::npos) << message;
+  WriteText(root / "times.txt", "0\n0.1\n0.2\n");
+
+  fs::create_directories(root / "image_0");
+  cv::imwrite((root / "image_0" / "000000.png").string(), TestImage(7));
+  sequence = OpenSequence(root);
+  EXPECT_EQ(sequence->calibration_camera(), "P0");
+  EXPECT_EQ(Level(ReadAll(*sequence).front().image), Level(TestImage(7)));
+  fs::remove_all(dir);
+}
+
 TEST(Sequence, KittiWriterWithoutPoses) {
   const fs::path dir = testing::MakeTempDir("seq_kitti_nogt");
   KittiSequenceWriter writer(dir);

@@ -66,7 +66,8 @@ void RunHeadingBench(const HeadingArguments& args) {
   if (images.size() != poses.size()) {
     throw InputError(truth_file->string(), fmt::format("{} poses for {} frames", poses.size(), images.size()));
   }
-  const std::unique_ptr<CameraModel> camera = ReadCameraFile(*calibration, images.front().size());
+  const std::unique_ptr<CameraModel> camera =
+      ReadCameraFile(*calibration, images.front().size(), sequence->calibration_camera());
 
   std::vector<PairHeading> pairs;
   for (size_t a = 0; a < images.size(); ++a) {

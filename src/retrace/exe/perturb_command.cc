@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "retrace/camera/camera_io.h"
 #include "retrace/dataset/ground_truth.h"
 #include "retrace/dataset/kitti_writer.h"
 #include "retrace/dataset/sequence.h"
@@ -93,6 +94,12 @@ void RunPerturb(PerturbArgs args) {
     const fs::path target = out / calibration->filename();
     fs::copy_file(*calibration, target, fs::copy_options::overwrite_existing, ec);
     CheckInput(!ec, target.string(), "cannot copy the calibration file: " + ec.message());
+    // The frames are written to image_0, whose camera in a KITTI calib.txt is P0: frames of another of its cameras
+    // (image_2, ...) take theirs along as camera.yaml, which a KITTI folder's reader prefers.
+    const std::string camera = sequence->calibration_camera();
+    if (!camera.empty() && camera != "P0" && calibration->filename() != "camera.yaml") {
+      WriteCameraFile(*ReadCameraFile(*calibration, sequence->image_size(), camera), out / "camera.yaml");
+    }
   }
   const fs::path source_frames_path = out / "source_frames.txt";
   std::ofstream source_frames(source_frames_path);

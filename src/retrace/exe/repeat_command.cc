@@ -293,7 +293,7 @@ std::unique_ptr<CameraModel> RepeatCamera(const RepeatArguments& args, int key_w
   if (frames.empty()) throw InputError(args.sequence.string(), "no readable frame");
   std::unique_ptr<CameraModel> camera;
   if (!args.camera.empty()) {
-    camera = ReadCameraFile(args.camera, frames);
+    camera = ReadCameraFile(args.camera, frames, sequence.calibration_camera());
   } else {
     if (!map_camera) throw InputError(args.map.string(), "the map stores no camera; give --camera FILE");
     camera = map_camera->Clone();

@@ -57,7 +57,9 @@ void RunSequenceInfo(const SequenceInfoArgs& args) {
     const std::unique_ptr<CameraModel> camera = SequenceCamera(*sequence);
     std::cout << fmt::format("calibration:   {}\n", camera ? "CameraInfo, " + camera->model_name() : "none");
   } else {
-    std::cout << fmt::format("calibration:   {}\n", calibration ? calibration->string() : "none");
+    const std::string camera = sequence->calibration_camera();
+    std::cout << fmt::format("calibration:   {}{}\n", calibration ? calibration->string() : "none",
+                             calibration && !camera.empty() ? " (" + camera + ")" : "");
   }
   const std::optional<std::filesystem::path> ground_truth = sequence->ground_truth_file();
   if (!ground_truth) {

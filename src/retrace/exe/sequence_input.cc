@@ -60,7 +60,9 @@ std::unique_ptr<CameraModel> SequenceCamera(Sequence& sequence) {
     return camera;
   }
 #endif
-  if (const auto file = sequence.calibration_file()) return ReadCameraFile(*file, sequence.image_size());
+  if (const auto file = sequence.calibration_file()) {
+    return ReadCameraFile(*file, sequence.image_size(), sequence.calibration_camera());
+  }
   return nullptr;
 }
 

@@ -52,7 +52,7 @@ struct TeachArguments {
 // The camera of the sequence: --camera, else the calibration file found in the sequence's layout (a bag's
 // CameraInfo).
 std::unique_ptr<CameraModel> LoadCamera(const TeachArguments& args, Sequence& sequence) {
-  if (!args.camera.empty()) return ReadCameraFile(args.camera, sequence.image_size());
+  if (!args.camera.empty()) return ReadCameraFile(args.camera, sequence.image_size(), sequence.calibration_camera());
   std::unique_ptr<CameraModel> camera = SequenceCamera(sequence);
   if (!camera) {
     throw InputError(args.sequence.string(), sequence.layout() == "rosbag"

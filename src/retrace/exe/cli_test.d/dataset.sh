@@ -34,6 +34,21 @@ if [[ -d $data/kitti07 ]]; then
      awk '{m=0; for(i=1;i<=12;i++){d=\$i-\$(i+12); if(d<0)d=-d; if(d>m)m=d}; printf \"%.5f\n\", m}'"
   expect perturb-out-not-empty 1 "p_odd: exists and is not an empty folder" -- \
     "$bin" perturb --sequence "$data/kitti07" --out "$tmp/p_odd"
+  # KITTI's colour download has image_2 and image_3 only: the left colour camera is read (in grey) with calib.txt's
+  # P2. Its first 40 frames made colour (RGB PNGs) by Debian's Pillow, which python3-matplotlib brings.
+  mkdir -p "$tmp/colour/image_2"
+  /usr/bin/python3 -c "
+from PIL import Image
+for i in range(40):
+    Image.open('$data/kitti07/image_0/%06d.png' % i).convert('RGB').save('$tmp/colour/image_2/%06d.png' % i)"
+  head -40 "$data/kitti07/times.txt" >"$tmp/colour/times.txt"
+  head -40 "$data/kitti07/poses.txt" >"$tmp/colour/poses.txt"
+  cp "$data/kitti07/calib.txt" "$tmp/colour/"
+  expect sequence-info-kitti-colour 0 "calibration: +$tmp/colour/calib.txt \(P2\)" -- "$bin" sequence-info "$tmp/colour"
+  expect teach-kitti-colour 0 'key-images' -- "$bin" teach --sequence "$tmp/colour" --map "$tmp/colour.db" --no-progress
+  # perturb writes image_0: the colour camera's calibration goes along as camera.yaml.
+  expect perturb-kitti-colour 0 'calibration: +.*p_colour/camera.yaml' -- bash -o pipefail -c \
+    "'$bin' perturb --sequence '$tmp/colour' --out '$tmp/p_colour' --every 2 >/dev/null && '$bin' sequence-info '$tmp/p_colour'"
 fi
 
 if [[ -d $data/euroc_v101_clip ]]; then
