@@ -45,14 +45,16 @@ void BindCamera(py::module_& module) {
   camera
       .def_static(
           "read",
-          [](const py::object& path, std::optional<std::pair<int, int>> image_size) {
+          [](const py::object& path, std::optional<std::pair<int, int>> image_size, const std::string& camera) {
             return std::shared_ptr<CameraModel>(
-                ReadCameraFile(PathFromObject(path, "path"), SizeFromTuple(image_size)));
+                ReadCameraFile(PathFromObject(path, "path"), SizeFromTuple(image_size), camera));
           },
-          py::arg("path"), py::arg("image_size") = py::none(),
+          py::arg("path"), py::arg("image_size") = py::none(), py::arg("camera") = "",
           "Reads a calibration file, recognised by its content (the readers of `retrace ... --camera`).\n"
           "image_size=(width, height) supplies the size a file lacks (KITTI calib.txt) and must agree with one it\n"
-          "has. Raises retrace.InputError naming the file for a missing, unreadable or implausible calibration.")
+          "has. camera names one of a file that holds several (KITTI calib.txt: 'P0' to 'P3', Sequence's\n"
+          "calibration_camera; '' the first). Raises retrace.InputError naming the file for a missing, unreadable or\n"
+          "implausible calibration.")
       .def_static(
           "from_yaml",
           [](const std::string& text, const std::string& source, std::optional<std::pair<int, int>> image_size) {

@@ -89,6 +89,9 @@ void BindSequence(py::module_& module) {
           },
           "The calibration file that belongs to the sequence (KITTI camera.yaml or calib.txt, EuRoC sensor.yaml, "
           "a folder's camera.yaml), or None.")
+      .def_property_readonly("calibration_camera", &Sequence::calibration_camera,
+                             "Which camera of the calibration file the frames come from (KITTI: 'P0' for image_0 "
+                             "... 'P3' for image_3), '' for a file of one camera; give it to Camera.read.")
       .def_property_readonly(
           "ground_truth_file",
           [](const Sequence& s) -> std::optional<std::string> {

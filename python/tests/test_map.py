@@ -98,3 +98,30 @@ def test_bad_files_raise_the_command_lines_errors(drives, tmp_path):
     assert str(error.value) == cli_error("camera-info", "--camera", garbage)
     with pytest.raises(TypeError):
         retrace.Map(42)
+
+
+def test_a_kitti_colour_folder_names_its_camera(tmp_path):
+    # KITTI's colour download: image_2 only, and calib.txt with P0 to P3 (here P2 differs, to tell them apart).
+    images = tmp_path / "image_2"
+    images.mkdir()
+    for i in range(2):
+        rgb = np.zeros((48, 64, 3), np.uint8)
+        rgb[:, :, 1] = 40 + i
+        write_png(images / f"{i:06d}.png", rgb)
+    (tmp_path / "times.txt").write_text("0\n0.1\n")
+    (tmp_path / "calib.txt").write_text("P0: 50 0 32 0 0 50 24 0 0 0 1 0\nP2: 60 0 30 3 0 61 25 0 0 0 1 0\n")
+    sequence = retrace.Sequence(tmp_path)
+    assert sequence.calibration_camera == "P2"
+    frames = list(sequence)
+    assert len(frames) == 2 and frames[1].image.ndim == 2
+    camera = retrace.Camera.read(sequence.calibration_file, image_size=sequence.image_size,
+                                 camera=sequence.calibration_camera)
+    assert camera.focal_length == pytest.approx(60.5)  # (fx + fy) / 2 of P2
+    first = retrace.Camera.read(sequence.calibration_file, image_size=sequence.image_size)
+    assert first.focal_length == pytest.approx(50.0)  # P0
+
+
+def write_png(path, rgb):
+    """Writes an RGB PNG with Pillow (Debian's python3-pil)."""
+    from PIL import Image
+    Image.fromarray(rgb).save(path)
