@@ -72,7 +72,8 @@ TEST_F(CameraIoTest, ReadsTheKittiCameraNamed) {
   const cv::Size size(1241, 376);
   EXPECT_DOUBLE_EQ(AsPerspective(ReadCameraFile(path, size)).fx(), 700.0);
   EXPECT_DOUBLE_EQ(AsPerspective(ReadCameraFile(path, size, "P0")).fx(), 700.0);
-  const PerspectiveCamera& p2 = AsPerspective(ReadCameraFile(path, size, "P2"));
+  const std::unique_ptr<CameraModel> camera_2 = ReadCameraFile(path, size, "P2");
+  const PerspectiveCamera& p2 = AsPerspective(camera_2);
   EXPECT_DOUBLE_EQ(p2.fx(), 720.0);
   EXPECT_DOUBLE_EQ(p2.fy(), 721.0);
   EXPECT_DOUBLE_EQ(p2.cx(), 620.0);
