@@ -182,6 +182,15 @@ void RunTeach(const TeachArguments& args) {
   // A drive that gave no arc (a camera that stood still, or never saw its first key-image's features move by r_p)
   // is no map repeat can use ("the map has no arcs"): say so here, where the cause is known, and replace nothing.
   if (map.arcs().empty() && stats.joins == 0) {
+    if (stats.gaps_unrecovered > 0) {
+      // Frames were lost to the tracker and not related again by matching: not a camera that stood still.
+      throw InputError(args.sequence.string(),
+                       fmt::format("teach made no arc from its {} frames: {} times no frame could be tracked or "
+                                   "matched to the key-image before it ({}x{} px frames; too small or too blurred "
+                                   "to track?); {} not written",
+                                   stats.frames, stats.gaps_unrecovered, camera->width(), camera->height(),
+                                   args.map.string()));
+    }
     throw InputError(args.sequence.string(),
                      fmt::format("teach made no arc from its {} frames: the camera did not move enough for a two-view "
                                  "geometry with key-image 0 (sigma_p threshold r_p {:.2f} px); {} not written",

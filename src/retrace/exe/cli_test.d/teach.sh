@@ -40,6 +40,9 @@ print(\"ok\")'"
     "^retrace: error: $tmp/still: teach made no arc from its 8 frames: the camera did not move" -- \
     "$bin" teach --sequence "$tmp/still" --map "$tmp/still.db" --no-progress
   expect teach-still-no-map 0 '' -- bash -c "[[ ! -e '$tmp/still.db' ]]"
+  # Frames too small to track (kitti07 at 97x29 px) give no arc either, and the error says why, not "did not move".
+  expect teach-too-small 1 "teach made no arc from its 80 frames: [0-9]+ times no frame could be tracked .*97x29 px" \
+    -- "$bin" teach --sequence "$data/kitti07" --map "$tmp/tiny.db" --width 97 --every 2 --no-progress
 fi
 expect teach-missing-sequence 1 'retrace: error: .*nowhere' -- "$bin" teach --sequence "$tmp/nowhere" --map "$tmp/x.db"
 echo "not a map" >"$tmp/foreign.db"
