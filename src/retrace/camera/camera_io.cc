@@ -462,7 +462,8 @@ std::unique_ptr<CameraModel> ParseCameraFormats(const std::string& text, const s
   if (!camera.empty() && !std::regex_match(camera, std::regex("P[0-3]"))) {
     reader.Fail("no camera '" + camera.substr(0, 40) + "' in a calibration file (KITTI's are P0 to P3)");
   }
-  if (std::regex_search(text, std::regex(R"((^|\n)\s*P[0-3]\s*:)"))) {
+  // A KITTI calib.txt has all four cameras' lines, P0 first (an OpenCV stereo file may have keys P1 and P2).
+  if (std::regex_search(text, std::regex(R"((^|\n)\s*P0\s*:)"))) {
     return reader.ReadKittiFile(text, image_size, camera.empty() ? "P0" : camera);
   }
 

@@ -90,6 +90,13 @@ TEST_F(CameraIoTest, ReadsTheKittiCameraNamed) {
       EXPECT_NE(message.find(problem), std::string::npos) << message;
     }
   }
+  // An OpenCV stereo file, whose rectified projections are keys P1 and P2, is not taken for KITTI's.
+  const auto stereo = Write("stereo.yml",
+                            "%YAML:1.0\nM1: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
+                            "  data: [ 300., 0., 160., 0., 300., 120., 0., 0., 1. ]\n"
+                            "P1: !!opencv-matrix\n  rows: 3\n  cols: 4\n  dt: d\n"
+                            "  data: [ 310., 0., 150., 0., 0., 310., 110., 0., 0., 0., 1., 0. ]\n");
+  EXPECT_DOUBLE_EQ(AsPerspective(ReadCameraFile(stereo, cv::Size(320, 240))).fx(), 300.0);
   // A file of one camera (not KITTI's) ignores the name.
   const auto yaml = Write("camera.yaml", CameraToYaml(PerspectiveCamera(64, 48, 50, 50, 32, 24)));
   EXPECT_DOUBLE_EQ(AsPerspective(ReadCameraFile(yaml, std::nullopt, "P2")).fx(), 50.0);
