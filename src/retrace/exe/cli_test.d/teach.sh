@@ -43,6 +43,9 @@ print(\"ok\")'"
   # Frames too small to track (kitti07 at 97x29 px) give no arc either, and the error says why, not "did not move".
   expect teach-too-small 1 "teach made no arc from its 80 frames: [0-9]+ times no frame could be tracked .*97x29 px" \
     -- "$bin" teach --sequence "$data/kitti07" --map "$tmp/tiny.db" --width 97 --every 2 --no-progress
+  # At 160x48 px most frames cannot be tracked either: the map is written, in more pieces than arcs, and teach warns.
+  expect teach-in-pieces 0 "teach: the map is broken [0-9]+ times and has [0-9]+ arcs: repeat will be .*160x48 px" \
+    -- "$bin" teach --sequence "$data/kitti07" --map "$tmp/pieces.db" --width 160 --every 2 --no-progress
 fi
 expect teach-missing-sequence 1 'retrace: error: .*nowhere' -- "$bin" teach --sequence "$tmp/nowhere" --map "$tmp/x.db"
 echo "not a map" >"$tmp/foreign.db"
