@@ -7,18 +7,18 @@
 // pair at a time this scan was a sixth of a kidnapped start's first frame on the 4.8 km map, a quarter of its slowest
 // ones. It is written four ways, one chosen at run time by what the CPU has; all four give the same answer, to the
 // index (hamming_nearest_test.cc). 822 against 850 descriptors of 32 bytes (BM_HammingNearest, medians of one run):
-// 9.0 ms portable, 1.01 ms POPCNT, 0.66 ms AVX2, 0.32 ms AVX-512 with eight distances per register and 0.24 ms with
-// sixteen (2026-12-07, the two builds in turn: 0.308 / 0.237 ms).
+// 9.0 ms portable, 1.01 ms POPCNT, 0.66 ms AVX2, 0.32 ms AVX-512 with eight distances per register; with sixteen
+// 0.237 ms where the build before took 0.308 ms earlier the same hour (2026-12-07, medians of 7 repetitions).
 //  - kPortable: one pair at a time, the compiler's portable bit count;
 //  - kPopcnt: the same with the POPCNT instruction (x86-64 CPUs since 2008);
 //  - kAvx2: four key-image descriptors per 256-bit register, the bits counted by a nibble table lookup (Mula,
 //    Kurz and Lemire, "Faster population counts using AVX2 instructions", Computer Journal 2018);
 //  - kAvx512: eight per 512-bit register with the VPOPCNTQ instruction (AVX-512 VPOPCNTDQ), the distances of two
 //    such registers packed into one of sixteen 32-bit lanes, where the minima are kept.
-// The vector kernels lay the train descriptors out word-major in blocks of four or eight, so that one register holds
-// the same 64-bit word of as many descriptors: a distance is then a sum of per-lane bit counts, with no horizontal
-// sums. Each lane keeps its own best and second best; the lanes are merged at the end of each query row (the lowest
-// index wins a tie, as in a scan in order).
+// The vector kernels lay the train descriptors out word-major in blocks of four (AVX2) or sixteen (AVX-512, two
+// registers of eight), so that one register holds the same 64-bit word of as many descriptors: a distance is then a
+// sum of per-lane bit counts, with no horizontal sums. Each lane keeps its own best and second best; the lanes are
+// merged at the end of each query row (the lowest index wins a tie, as in a scan in order).
 
 #include <vector>
 

@@ -129,6 +129,8 @@
 
 namespace retrace {
 
+class PointGrid;  // util/point_grid.h
+
 enum class LocalizerState { kTracking, kLost, kRelocalizing };
 const char* LocalizerStateName(LocalizerState state);
 
@@ -685,9 +687,11 @@ class Localizer {
   // A mapped feature at `key_position` in `key_image` that did not align from `median_start`: aligned from the
   // displacement of each of the nearest matched key-points in turn (at most AlternativeStarts()),
   // the first that aligns as an inlier of the key-image's verified pose; not ok() when none does.
-  AlignmentResult AlignFromNearestMatches(const MatchedKeyImage& key_image, const Vector2d& key_position,
-                                          const Vector2d& median_start, const ReferencePatch& reference,
-                                          const RefinePredictionOptions& refine, int margin);
+  // `matches`: the key-image's matched key-points in cells of bootstrap_neighbour_radius_px (LocateMappedFeatures').
+  AlignmentResult AlignFromNearestMatches(const MatchedKeyImage& key_image, const PointGrid& matches,
+                                          const Vector2d& key_position, const Vector2d& median_start,
+                                          const ReferencePatch& reference, const RefinePredictionOptions& refine,
+                                          int margin);
   // The key-images of the arcs up to `arcs` arcs before and after `arc`, nearest first.
   std::vector<node_t> NodesNear(arc_t arc, int arcs) const;
   // The arcs that start or end at key-image `node`, by id.

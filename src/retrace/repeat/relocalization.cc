@@ -243,16 +243,19 @@ int Localizer::AlternativeStarts() const {
   return last_arc_ == kInvalidArcId ? options_.start_alternative_starts : options_.bootstrap_alternative_starts;
 }
 
-AlignmentResult Localizer::AlignFromNearestMatches(const MatchedKeyImage& key_image, const Vector2d& key_position,
-                                                   const Vector2d& median_start, const ReferencePatch& reference,
+AlignmentResult Localizer::AlignFromNearestMatches(const MatchedKeyImage& key_image, const PointGrid& matches,
+                                                   const Vector2d& key_position, const Vector2d& median_start,
+                                                   const ReferencePatch& reference,
                                                    const RefinePredictionOptions& refine, int margin) {
-  // The matched key-points within the widest neighbourhood LocateMappedFeatures uses, nearest first.
-  const double radius = 3.0 * options_.bootstrap_neighbour_radius_px * pixel_scale_;
+  // The matched key-points within the widest neighbourhood LocateMappedFeatures uses (three of its radii), nearest
+  // first (then by index: the grid's order of visit does not matter).
+  constexpr int kWidest = 3;
+  const double radius = kWidest * options_.bootstrap_neighbour_radius_px * pixel_scale_;
   std::vector<std::pair<double, size_t>> nearest;
-  for (size_t i = 0; i < key_image.key_points.size(); ++i) {
+  matches.ForEachNear(key_position, kWidest, [&](size_t i) {
     const double distance = (key_image.key_points[i] - key_position).norm();
     if (distance <= radius) nearest.emplace_back(distance, i);
-  }
+  });
   std::sort(nearest.begin(), nearest.end());
   // A start within half the accepted distance of one tried converges as that one did.
   const double separation = 0.5 * refine.max_distance;
@@ -336,7 +339,7 @@ int Localizer::LocateMappedFeatures(const MatchedKeyImage& key_image, const std:
       if ((!refined.ok() || refined.robust_used) && AlternativeStarts() > 0) {
         // The paper's warp from the nearest matches before a robust alignment, which stays only when it fails.
         AlignmentResult paper =
-            AlignFromNearestMatches(key_image, position->second, predicted, *reference, refine, margin);
+            AlignFromNearestMatches(key_image, matches, position->second, predicted, *reference, refine, margin);
         if (paper.ok() || !refined.ok()) refined = paper;
       }
       if (refined.ok() && tracker_.AddFeature(reference, refined, id) != kInvalidFeatureId) {
