@@ -207,6 +207,7 @@ bool PlacementModel::Check(std::string* error) const {
     return fail("placement sigmas must be positive");
   }
   if (!(geometry_extrapolation_length > 0)) return fail("geometry_extrapolation_length must be positive");
+  if (!(geometry_distance_length >= 0)) return fail("geometry_distance_length must be >= 0 (0: off)");
   if (!(pose_shared_error_px >= 0)) return fail("pose_shared_error_px must be >= 0");
   if (!(pose_height_sigma >= 0)) return fail("pose_height_sigma must be >= 0");
   if (!(key_image_beside_sigma >= 0)) return fail("key_image_beside_sigma must be >= 0");
@@ -428,12 +429,15 @@ PlaceMeasurement VerifiedPoseMeasurement(arc_t arc, const ArcPosition& position,
 
 PlaceMeasurement GeometryMeasurement(arc_t arc, const ArcPosition& position, ArcImage key,
                                      const PlacementModel& model) {
-  const double distance = std::abs(key == ArcImage::kA ? position.along : position.along - 1.0);
-  double outlier_probability = model.geometry_outlier_probability;
-  if (distance > 1.0) {
-    outlier_probability =
-        1.0 - (1.0 - outlier_probability) * std::exp(-(distance - 1.0) / model.geometry_extrapolation_length);
+  // How far the geometry extrapolates from its key-image: along the arc, and in any direction (beside the path too).
+  const double along = std::abs(key == ArcImage::kA ? position.along : position.along - 1.0);
+  const double distance = key == ArcImage::kA ? position.distance_to_from : position.distance_to_to;
+  double right = 1.0 - model.geometry_outlier_probability;
+  if (along > 1.0) right *= std::exp(-(along - 1.0) / model.geometry_extrapolation_length);
+  if (distance > 1.0 && model.geometry_distance_length > 0.0) {
+    right *= std::exp(-(distance - 1.0) / model.geometry_distance_length);
   }
+  const double outlier_probability = 1.0 - right;
   // Kept below 1: a measurement that is certainly an outlier carries no information but must not zero the belief.
   return {arc, position.along, model.geometry_sigma, std::min(outlier_probability, 0.999)};
 }

@@ -374,16 +374,44 @@ TEST(PlacementModel, MeasurementsCarryTheirUncertainty) {
   // Less reliable: the decomposed placements and a verified key-image.
   EXPECT_GT(GeometryMeasurement(7, AlongArc(0.4), ArcImage::kA, model).outlier_probability, m.outlier_probability);
   // A current geometry is as reliable anywhere within one arc length of its key-image, and mostly wrong beyond:
-  // W_t:a placing the camera 1.375 arc lengths past a, W_t:b 1.375 past b or 0.375 behind a.
+  // W_t:a placing the camera 1.375 arc lengths past a, W_t:b 1.375 past b or 0.375 behind a (on the path, so 1.375
+  // arc lengths from the key-image in both senses: along the arc and in distance).
   const double within = GeometryMeasurement(7, AlongArc(0.9), ArcImage::kA, model).outlier_probability;
   EXPECT_DOUBLE_EQ(within, model.geometry_outlier_probability);
   EXPECT_DOUBLE_EQ(GeometryMeasurement(7, AlongArc(0.1), ArcImage::kB, model).outlier_probability, within);
-  const double expected = 1.0 - (1.0 - within) * std::exp(-0.375 / model.geometry_extrapolation_length);
+  const double expected = 1.0 - (1.0 - within) * std::exp(-0.375 / model.geometry_extrapolation_length) *
+                                    std::exp(-0.375 / model.geometry_distance_length);
   EXPECT_NEAR(GeometryMeasurement(7, AlongArc(1.375), ArcImage::kA, model).outlier_probability, expected, 1e-12);
   EXPECT_NEAR(GeometryMeasurement(7, AlongArc(2.375), ArcImage::kB, model).outlier_probability, expected, 1e-12);
   EXPECT_NEAR(GeometryMeasurement(7, AlongArc(-0.375), ArcImage::kB, model).outlier_probability, expected, 1e-12);
   EXPECT_GT(expected, 0.75);
   EXPECT_LT(GeometryMeasurement(7, AlongArc(20.0), ArcImage::kB, model).outlier_probability, 1.0);
+  // ... and as unreliable when it places the camera far beside the path: W_t:a half way along an arc of unit length
+  // but 2 beside it (validation rand1801, 3 m beside arcs of 3 m, started on a W_t:a 3.4 arc lengths from a).
+  const Rigid3d arc_b_from_a = CamFromWorld(Vector3d(0.0, 0.0, 1.0));
+  const ArcPosition far_beside = LocateOnArc(CamFromWorld(Vector3d(2.0, 0.0, 0.5)), arc_b_from_a);
+  ASSERT_TRUE(far_beside.valid);
+  EXPECT_NEAR(far_beside.along, 0.5, 1e-12);
+  const double far = std::hypot(2.0, 0.5);
+  EXPECT_NEAR(GeometryMeasurement(7, far_beside, ArcImage::kA, model).outlier_probability,
+              1.0 - (1.0 - within) * std::exp(-(far - 1.0) / model.geometry_distance_length), 1e-12);
+  // Within one arc length of the key-image in every direction nothing changes; past the arc's end both factors count.
+  EXPECT_DOUBLE_EQ(GeometryMeasurement(7, LocateOnArc(CamFromWorld(Vector3d(0.5, 0.0, 0.5)), arc_b_from_a),
+                                       ArcImage::kA, model)
+                       .outlier_probability,
+                   within);
+  const ArcPosition ahead_beside = LocateOnArc(CamFromWorld(Vector3d(1.0, 0.0, 1.25)), arc_b_from_a);
+  EXPECT_NEAR(GeometryMeasurement(7, ahead_beside, ArcImage::kA, model).outlier_probability,
+              1.0 - (1.0 - within) * std::exp(-0.25 / model.geometry_extrapolation_length) *
+                        std::exp(-(std::hypot(1.0, 1.25) - 1.0) / model.geometry_distance_length),
+              1e-12);
+  PlacementModel along_only = model;
+  along_only.geometry_distance_length = 0.0;
+  EXPECT_TRUE(along_only.Check());
+  along_only.geometry_distance_length = -0.5;
+  EXPECT_FALSE(along_only.Check());
+  along_only.geometry_distance_length = 0.0;
+  EXPECT_DOUBLE_EQ(GeometryMeasurement(7, far_beside, ArcImage::kA, along_only).outlier_probability, within);
   MapArc arc;
   arc.id = 3;
   arc.from = 10;
@@ -433,6 +461,33 @@ TEST(PlacementModel, AnExtrapolatedGeometryDoesNotCarryTheBeliefTwoArcs) {
   EXPECT_TRUE(with_constant.tracking);
   const PlaceEstimate with_model = run(modelled);
   EXPECT_FALSE(with_model.tracking && with_model.arc == 6);
+}
+
+// A start 3 m beside a route whose key-images are 3 m apart (validation rand1801, frame 2): from a uniform belief
+// over the map, a key-image verified by retrieval (the one two ahead of the camera) and a W_t:a that places the
+// camera half way along the arc but 3.3 arc lengths beside it. Taken as a geometry near its key-image the two
+// concentrate the belief on that arc; with the distance counted the key-image alone leaves it unsure.
+TEST(PlacementModel, AGeometryFarBesideItsKeyImageDoesNotMakeAStartConfident) {
+  const PlacementModel model;
+  const Rigid3d arc_b_from_a = CamFromWorld(Vector3d(0.0, 0.0, 1.0));
+  const ArcPosition far_beside = LocateOnArc(CamFromWorld(Vector3d(3.3, 0.0, 0.48)), arc_b_from_a);
+  MapArc arc;
+  arc.id = 3;
+  arc.from = 3;
+  arc.to = 4;
+  const auto start = [&](const PlacementModel& with) {
+    PlaceBelief belief(LinearMap(40, {}, 1), PlaceBeliefOptions());
+    belief.Update({GeometryMeasurement(3, far_beside, ArcImage::kA, with), KeyImageMeasurement(arc, 4, 40, with)}, 0);
+    return belief.estimate();
+  };
+  PlacementModel along_only = model;
+  along_only.geometry_distance_length = 0.0;
+  const PlaceEstimate before = start(along_only);
+  EXPECT_EQ(before.arc, 3);
+  EXPECT_TRUE(before.tracking);
+  const PlaceEstimate now = start(model);
+  EXPECT_FALSE(now.tracking);
+  EXPECT_LT(now.confidence, 0.7);
 }
 
 // The camera rides at the key-images' height. A camera pitched 5 degrees down drives an arc that climbs: the ground's

@@ -352,13 +352,15 @@ TEST(RepeatSim, TwoAndAHalfMetresBesideNoFrameOnAWrongArc) {
 
   // With robust relocalization (LocalizerOptions::relocalization_robust_alignment), which after a loss also locates
   // the mapped features whose windows straddle two surfaces the other sun lit differently and tracks them on: more
-  // frames correct (89.5 -> 92.5 % when written), none two arcs off.
+  // frames correct when written (89.5 -> 92.5 %); since a current geometry far beside its key-image counts as the
+  // outlier it mostly is (PlacementModel::geometry_distance_length, 2026-12-08) as many as the three here (90.5 %),
+  // none two arcs off.
   LocalizerOptions robust = three;
   robust.relocalization_robust_alignment = true;
   Repeat(robust, &run);
   std::cout << "  with robust relocalization: " << run.evaluation.Summary() << "\n";
   EXPECT_EQ(run.evaluation.wrong_by_two, 0);
-  EXPECT_GT(run.evaluation.correct, three_correct);
+  EXPECT_GE(run.evaluation.correct, three_correct);
 
   // Robots set down 2.5 m beside the path (a fresh localizer at every 5th frame, no start arc): the mapped features
   // a start locates through its verified key-images are seen sheared, and the matches around each lie at other
