@@ -163,7 +163,8 @@ struct PlacementModel {
   // placements against the truth projected on the arc), the fraction more than 0.15 arc lengths off is 4-7 % up to
   // one arc length from the key-image, 25-67 % at 1-1.25, 72-92 % at 1.25-1.75 and 89-96 % beyond (median errors
   // 0.03-0.3, 0.6-0.7, 1.2-3.0 arc lengths). So at a distance d > 1 the outlier probability rises as
-  // 1 − (1 − ε) exp(−(d − 1) / λ) with λ this many arc lengths (0.44 at d = 1.125, 0.79 at 1.375, 0.97 at 1.875).
+  // 1 − (1 − ε) exp(−(d − 1) / λ) with λ this many arc lengths (by this factor alone 0.44 at d = 1.125, 0.79 at 1.375,
+  // 0.97 at 1.875; on the path the distance factor below adds to it).
   double geometry_extrapolation_length = 0.25;
   // ... and with the camera's distance d from that key-image in any direction, beside the path as well as along it:
   // of the placements within one arc length along the arc (validation matrix, 36 700 placements, docs/repeat.md "A
